@@ -1,0 +1,112 @@
+"""Runs of the stochastic model (eq. 11), optionally with contract effects.
+
+Random numbers come in independent streams spawned from one seed: the angle normals of the
+first 2 * cycles stances, the normals of any extra stances a faster gait needs, and one stream
+per effect. The same seed therefore gives the same angles whatever sigmas or effects are
+asked for: common random numbers for every comparison between settings.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from octoroach_model.errors import ParameterError
+from octoroach_model.model.effects import (
+    EFFECT_NAMES, TIME_WARPS, Effects, apply_pose_effects, check_effects, warped_time)
+from octoroach_model.model.kinematics import integrate_stances, stance_angles
+from octoroach_model.model.parameters import ModelParameters
+from octoroach_model.paths import Paths
+
+DRAWS = ('stance', 'run')
+DEFAULT_START_POSE = (0.0, 0.0, math.pi / 2)
+
+
+class RandomStreams:
+    """Independent generators for each random ingredient of a model run, from one seed."""
+
+    def __init__(self, seed: int | np.random.SeedSequence | None) -> None:
+        sequence = seed if isinstance(seed, np.random.SeedSequence) \
+            else np.random.SeedSequence(seed)
+        children = sequence.spawn(2 + len(EFFECT_NAMES))
+        self.seed_entropy = sequence.entropy
+        self.angles = np.random.default_rng(children[0])
+        self.extra_stances = np.random.default_rng(children[1])
+        self.effects = {name: np.random.default_rng(child)
+                        for name, child in zip(EFFECT_NAMES, children[2:])}
+
+
+def simulate(n_paths: int, *, seed: int | None = None, sigma1: float = 0.12,
+             sigma2: float = 0.15, cycles: float = 10, parameters: ModelParameters | None = None,
+             draws: str = 'stance', effects: Effects | None = None,
+             start_pose: Sequence[float] = DEFAULT_START_POSE,
+             t: np.ndarray | None = None) -> Paths:
+    """`n_paths` runs of the stochastic model on a common time grid.
+
+    Parameters
+    ----------
+    n_paths : number of runs.
+    seed : seed of all random draws (None: fresh entropy, recorded in the result's info).
+    sigma1, sigma2 : spread (rad) of the touchdown and of the liftoff angles (eq. 11).
+    cycles : gait cycles per run; sets the time grid unless `t` is given.
+    parameters : geometry and nominal angles (default Table II).
+    draws : 'stance' draws new angles at every stance, 'run' once per run.
+    effects : {cause: {parameter: value}} from the contract's table, applied as defined there.
+    start_pose : x [m], y [m], heading [rad] at t = 0 (before any initial_pose_error).
+    t : (T,) sample times in seconds starting at 0; default `parameters.time_grid(cycles)`.
+
+    Returns
+    -------
+    Paths with .t (T,) and .poses (n_paths, T, 3).
+
+    Examples
+    --------
+    >>> paths = simulate(3, seed=1)
+    >>> paths.poses.shape
+    (3, 251, 3)
+    """
+    parameters = parameters or ModelParameters.nominal()
+    if n_paths < 1 or int(n_paths) != n_paths:
+        raise ParameterError(f'n_paths must be a positive whole number, got {n_paths}')
+    if not (0 <= sigma1 < 1.5 and 0 <= sigma2 < 1.5):
+        raise ParameterError(f'sigma1, sigma2 must lie in [0, 1.5) rad, got {sigma1}, {sigma2}')
+    if draws not in DRAWS:
+        raise ParameterError(f'draws must be one of {DRAWS}, got {draws!r}')
+    if not cycles > 0:
+        raise ParameterError(f'cycles must be positive, got {cycles}')
+    checked = check_effects(effects)
+    t = parameters.time_grid(cycles) if t is None else np.asarray(t, dtype=float)
+    streams = RandomStreams(seed)
+    poses = model_poses(parameters, streams, int(n_paths), t, sigma1, sigma2, draws,
+                        checked, cycles, start_pose)
+    info = {'model': 'four_bar', 'seed': seed, 'seed_entropy': streams.seed_entropy,
+            'sigma1': sigma1, 'sigma2': sigma2, 'draws': draws, 'cycles': cycles,
+            'effects': checked, 'parameters': parameters.table()}
+    return Paths(t, poses, info)
+
+
+def model_poses(parameters: ModelParameters, streams: RandomStreams, n_runs: int,
+                t: np.ndarray, sigma1: float, sigma2: float, draws: str = 'stance',
+                effects: Effects | None = None, cycles: float | None = None,
+                start_pose: Sequence[float] = DEFAULT_START_POSE) -> np.ndarray:
+    """(n, T, 3) poses; the array-level core of `simulate` (no validation of arguments)."""
+    effects = effects or {}
+    clock = warped_time(effects, t, n_runs, streams.effects) \
+        if any(name in effects for name in TIME_WARPS) else np.broadcast_to(t, (n_runs, len(t)))
+    phase = 2.0 * parameters.stride_frequency * clock
+    base_stances = int(math.ceil(2 * (cycles if cycles else t[-1] * parameters.stride_frequency)
+                                 - 1e-9))
+    n_stances = max(base_stances, int(math.ceil(float(np.max(phase)) - 1e-9)), 1)
+    normals = streams.angles.standard_normal((n_runs, max(base_stances, 1), 6))
+    if n_stances > normals.shape[1]:
+        extra = streams.extra_stances.standard_normal((n_runs, n_stances - normals.shape[1], 6))
+        normals = np.concatenate([normals, extra], axis=1)
+    if draws == 'run':
+        normals = np.broadcast_to(normals[:, :1], normals.shape)
+    angles = stance_angles(parameters.nominal_angles, normals, sigma1, sigma2)
+    poses = integrate_stances(angles, phase, start_pose, parameters.leg_length,
+                              parameters.hip_distance)
+    if any(name not in TIME_WARPS for name in effects):
+        poses = apply_pose_effects(poses, t, effects, streams.effects)
+    return poses
