@@ -81,11 +81,11 @@ class ModelParameters:
     def table(self) -> dict:
         """The parameters as the paper prints them (cm, deg), for reports."""
         return {
-            'hip_distance_cm': self.hip_distance * 100,
-            'leg_length_cm': self.leg_length * 100,
-            'touchdown_angles_deg': [math.degrees(a) for a in self.touchdown_angles],
-            'liftoff_angles_deg': [math.degrees(a) for a in self.liftoff_angles],
-            'stride_frequency_hz': self.stride_frequency,
+            'hip_distance_cm': float(self.hip_distance * 100),
+            'leg_length_cm': float(self.leg_length * 100),
+            'touchdown_angles_deg': [float(math.degrees(a)) for a in self.touchdown_angles],
+            'liftoff_angles_deg': [float(math.degrees(a)) for a in self.liftoff_angles],
+            'stride_frequency_hz': float(self.stride_frequency),
         }
 
 

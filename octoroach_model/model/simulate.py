@@ -27,8 +27,13 @@ class RandomStreams:
     """Independent generators for each random ingredient of a model run, from one seed."""
 
     def __init__(self, seed: int | np.random.SeedSequence | None) -> None:
-        sequence = seed if isinstance(seed, np.random.SeedSequence) \
-            else np.random.SeedSequence(seed)
+        if isinstance(seed, np.random.SeedSequence):
+            # a copy: spawn() advances the sequence it is called on, and the same seed must
+            # give the same streams every time (common random numbers)
+            sequence = np.random.SeedSequence(seed.entropy, spawn_key=seed.spawn_key,
+                                              pool_size=seed.pool_size)
+        else:
+            sequence = np.random.SeedSequence(seed)
         children = sequence.spawn(2 + len(EFFECT_NAMES))
         self.seed_entropy = sequence.entropy
         self.angles = np.random.default_rng(children[0])

@@ -1,0 +1,83 @@
+"""Recordings: VICON pose bags (rosbag2 MCAP), runs cut from them, multisample data sets.
+
+Ground floor of the package: imports numpy, rosbags and mcap, never rclpy nor the model.
+"""
+from __future__ import annotations
+
+from octoroach_model.recordings.bags import (
+    DEFAULT_CHILD_FRAME,
+    DEFAULT_MARKER_TOPIC,
+    DEFAULT_POSE_TOPIC,
+    DEFAULT_START_TIME_NS,
+    DEFAULT_WORLD_FRAME,
+    MARKER_TYPE,
+    POSE_STAMPED,
+    POSE_TYPES,
+    TRANSFORM_STAMPED,
+    BagFiles,
+    PoseBagWriter,
+    PoseChunk,
+    TopicInfo,
+    bag_files,
+    bag_topics,
+    expand_sources,
+    heading_to_quaternion,
+    iter_pose_samples,
+    marker_topic,
+    pose_topic,
+    quaternion_to_heading,
+    select_pose_topics,
+    subject_of,
+    write_paths_bag,
+)
+from octoroach_model.recordings.dataset import (
+    FORMAT_VERSION,
+    is_dataset_file,
+    load_dataset,
+    save_dataset,
+)
+from octoroach_model.recordings.runs import (
+    DEFAULT_GAP_S,
+    DEFAULT_RATE_HZ,
+    Run,
+    RunSet,
+    load_measured,
+    read_runs,
+)
+
+__all__ = [
+    'DEFAULT_CHILD_FRAME',
+    'DEFAULT_GAP_S',
+    'DEFAULT_MARKER_TOPIC',
+    'DEFAULT_POSE_TOPIC',
+    'DEFAULT_RATE_HZ',
+    'DEFAULT_START_TIME_NS',
+    'DEFAULT_WORLD_FRAME',
+    'FORMAT_VERSION',
+    'MARKER_TYPE',
+    'POSE_STAMPED',
+    'POSE_TYPES',
+    'TRANSFORM_STAMPED',
+    'BagFiles',
+    'PoseBagWriter',
+    'PoseChunk',
+    'Run',
+    'RunSet',
+    'TopicInfo',
+    'bag_files',
+    'bag_topics',
+    'expand_sources',
+    'heading_to_quaternion',
+    'is_dataset_file',
+    'iter_pose_samples',
+    'load_dataset',
+    'load_measured',
+    'marker_topic',
+    'pose_topic',
+    'quaternion_to_heading',
+    'read_runs',
+    'save_dataset',
+    'select_pose_topics',
+    'subject_of',
+    'write_paths_bag',
+]

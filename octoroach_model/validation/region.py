@@ -1,0 +1,33 @@
+"""The confidence region a multisample defines and the decision g (eq. 13).
+
+Choice (NOTES.md section 4): per time sample and per coordinate, the Student-t prediction
+interval for one new run, mean +- t_{(1+gamma)/2, k-1} * s * sqrt(1 + 1/k). A model run
+violates (g = 1) when any coordinate at any sample leaves its interval.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+
+def t_multiplier(k: int, gamma: float) -> float:
+    """Half-width of the prediction interval in units of the sample standard deviation."""
+    return float(stats.t.ppf(0.5 * (1.0 + gamma), df=k - 1) * np.sqrt(1.0 + 1.0 / k))
+
+
+def prediction_region(samples: np.ndarray, gamma: float) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and half-width of the region.
+
+    samples : (..., k, T, C) measured runs of each multisample (C coordinates).
+    Returns centre and half-width, each (..., T, C).
+    """
+    k = samples.shape[-3]
+    centre = samples.mean(axis=-3)
+    spread = samples.std(axis=-3, ddof=1)
+    return centre, t_multiplier(k, gamma) * spread
+
+
+def violations(model_runs: np.ndarray, centre: np.ndarray, half_width: np.ndarray) -> np.ndarray:
+    """g for each model run: 1 if it leaves its region anywhere. model_runs: (..., T, C)."""
+    outside = np.abs(model_runs - centre) > half_width
+    return outside.any(axis=(-2, -1)).astype(float)

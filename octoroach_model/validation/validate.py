@@ -1,0 +1,212 @@
+"""Probabilistic validation (eqs. 13-16) and the search (15) for the widest admissible spread.
+
+The method does not depend on the model: anything that turns two spreads, a seed and a time
+grid into runs (`ModelPlugin`) can be validated. Every evaluation of the search uses the same
+seed for the model and the same multisamples, so settings are compared on common random
+numbers and the result is reproducible.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from octoroach_model.errors import ParameterError
+from octoroach_model.model import ModelParameters, RandomStreams, check_effects, model_poses
+from octoroach_model.paths import Paths
+from octoroach_model.validation.multisample import chernoff_sample_size, disjoint_multisamples
+from octoroach_model.validation.region import prediction_region, t_multiplier, violations
+
+Progress = Callable[[float, str], None]
+
+
+class ModelPlugin(Protocol):
+    """A stochastic model as the validation sees it."""
+
+    def __call__(self, sigmas: tuple[float, float], seed: np.random.SeedSequence,
+                 n_runs: int, t: np.ndarray) -> np.ndarray:
+        """(n_runs, T, 3) poses sampled at t, drawn from `seed` alone."""
+
+
+@dataclass(frozen=True)
+class FourBarModel:
+    """The paper's model (optionally extended) as a validation plug-in."""
+
+    parameters: ModelParameters = field(default_factory=ModelParameters.nominal)
+    start_pose: tuple[float, float, float] = (0.0, 0.0, math.pi / 2)
+    draws: str = 'stance'
+    effects: dict = field(default_factory=dict)
+
+    def __call__(self, sigmas, seed, n_runs, t):
+        return model_poses(self.parameters, RandomStreams(seed), n_runs, t, sigmas[0], sigmas[1],
+                           self.draws, check_effects(self.effects), None, self.start_pose)
+
+
+@dataclass(frozen=True)
+class ValidationSettings:
+    """The paper's constants (section V) and the search grid; sigmas in radians.
+
+    resolution_m is the narrowest half-width a region may have (the motion capture's
+    resolution): without it, runs that all start at one point would make any model fail there.
+    """
+
+    rho: float = 0.35
+    epsilon: float = 0.15
+    delta: float = 0.27
+    k: int = 11
+    gamma: float = 0.95
+    seed: int = 0
+    sigma1_max: float = 0.4
+    sigma2_max: float = 0.4
+    grid_points: int = 17
+    resolution_m: float = 1e-4
+
+    def __post_init__(self) -> None:
+        checks = [
+            (0 < self.rho < 1, f'rho must lie in (0, 1), got {self.rho}'),
+            (0 < self.epsilon < 1, f'epsilon must lie in (0, 1), got {self.epsilon}'),
+            (0 < self.delta < 1, f'delta must lie in (0, 1), got {self.delta}'),
+            (2 <= self.k <= 1000, f'k must lie in [2, 1000], got {self.k}'),
+            (0 < self.gamma < 1, f'gamma must lie in (0, 1), got {self.gamma}'),
+            (self.seed >= 0, f'seed must be non-negative, got {self.seed}'),
+            (0 < self.sigma1_max <= 1.5 and 0 < self.sigma2_max <= 1.5,
+             'sigma1_max and sigma2_max must lie in (0, 1.5] rad'),
+            (0 <= self.resolution_m <= 0.01, f'resolution_m must lie in [0, 0.01] m, '
+                                             f'got {self.resolution_m}'),
+            (2 <= self.grid_points <= 101, f'grid_points must lie in [2, 101], '
+                                           f'got {self.grid_points}'),
+        ]
+        for ok, reason in checks:
+            if not ok:
+                raise ParameterError(reason)
+
+    @property
+    def n(self) -> int:
+        """Number of multisamples, from eq. (16)."""
+        return chernoff_sample_size(self.epsilon, self.delta)
+
+    @property
+    def runs_needed(self) -> int:
+        return self.n * self.k
+
+
+class Validation:
+    """E^_k for one data set: multisamples and their regions, fixed once, reused per sigma."""
+
+    def __init__(self, measured: Paths, settings: ValidationSettings,
+                 coordinates: Sequence[int] = (0, 1)) -> None:
+        self.measured = measured
+        self.settings = settings
+        self.coordinates = tuple(coordinates)
+        seeds = np.random.SeedSequence(settings.seed).spawn(2)
+        self.model_seed = seeds[1]
+        groups = disjoint_multisamples(measured.n_paths, settings.n, settings.k,
+                                       np.random.default_rng(seeds[0]))
+        self.groups = groups
+        samples = measured.poses[groups][..., self.coordinates]   # (n, k, T, C)
+        self.centre, half_width = prediction_region(samples, settings.gamma)
+        # Runs that all start at the same point give a region of zero width there; no
+        # instrument resolves that, so the region is never narrower than its resolution.
+        self.half_width = np.maximum(half_width, settings.resolution_m)
+
+    def decisions(self, model: ModelPlugin, sigmas: tuple[float, float]) -> np.ndarray:
+        """(n,) g(xi_i, w_k^(i)): each model run against its own multisample."""
+        runs = model(sigmas, self.model_seed, self.settings.n, self.measured.t)
+        return violations(runs[..., self.coordinates], self.centre, self.half_width)
+
+    def violation(self, model: ModelPlugin, sigmas: tuple[float, float]) -> float:
+        """E^_k(sigma1, sigma2), eq. (14)."""
+        return float(self.decisions(model, sigmas).mean())
+
+
+@dataclass(frozen=True)
+class SigmaSearch:
+    """Result of problem (15) on a grid."""
+
+    sigma1_grid: np.ndarray
+    sigma2_grid: np.ndarray
+    violation_grid: np.ndarray     # raw E^_k, (len(sigma1_grid), len(sigma2_grid))
+    monotone_grid: np.ndarray      # running maximum over smaller sigmas (E grows with sigma)
+    sigma1: float
+    sigma2: float
+    violation: float
+    feasible: bool
+
+
+def search_sigmas(validation: Validation, model: ModelPlugin,
+                  progress: Progress | None = None) -> SigmaSearch:
+    """Largest sigma1 + sigma2 with E^_k <= rho (problem 15), on a grid with CRN.
+
+    E_k grows with the spreads, so the raw estimates are replaced by their running maximum
+    over all smaller (sigma1, sigma2): the admissible set is then a staircase and the answer
+    on its upper boundary, reproducible for a given seed.
+    """
+    settings = validation.settings
+    sigma1_grid = np.linspace(0.0, settings.sigma1_max, settings.grid_points)
+    sigma2_grid = np.linspace(0.0, settings.sigma2_max, settings.grid_points)
+    raw = np.empty((len(sigma1_grid), len(sigma2_grid)))
+    for i, sigma1 in enumerate(sigma1_grid):
+        for j, sigma2 in enumerate(sigma2_grid):
+            raw[i, j] = validation.violation(model, (float(sigma1), float(sigma2)))
+        if progress:
+            progress((i + 1) / len(sigma1_grid), f'sigma search: row {i + 1}/{len(sigma1_grid)}')
+    monotone = np.maximum.accumulate(np.maximum.accumulate(raw, axis=0), axis=1)
+    feasible = monotone <= settings.rho
+    if not feasible.any():
+        i, j = 0, 0
+    else:
+        total = np.add.outer(sigma1_grid, sigma2_grid)
+        score = np.where(feasible, total, -np.inf)
+        best = np.flatnonzero(score == score.max())
+        i, j = np.unravel_index(best[np.argmin(monotone.ravel()[best])], raw.shape)
+    return SigmaSearch(sigma1_grid, sigma2_grid, raw, monotone, float(sigma1_grid[i]),
+                       float(sigma2_grid[j]), float(raw[i, j]), bool(feasible.any()))
+
+
+def guarantee_text(violation: float, settings: ValidationSettings) -> str:
+    """What eq. (16) promises about the estimate, in words."""
+    low, high = max(0.0, violation - settings.epsilon), min(1.0, violation + settings.epsilon)
+    return (f'With probability at least 1 - delta = {1 - settings.delta:.2f} over the draw of '
+            f'the n = {settings.n} model runs and multisamples, the true probability of '
+            f'violation E_k lies within epsilon = {settings.epsilon} of the estimate '
+            f'{violation:.3f}, i.e. in [{low:.3f}, {high:.3f}]; the model is accepted at '
+            f'level rho = {settings.rho} when the estimate is at most rho.')
+
+
+def validate(measured: Paths, settings: ValidationSettings | None = None,
+             model: ModelPlugin | None = None, sigmas: tuple[float, float] | None = None,
+             progress: Progress | None = None) -> dict:
+    """The paper's validation of `model` against measured runs, as a JSON-ready dict.
+
+    With `sigmas`, only E^_k at those spreads; otherwise the search (15) for the widest
+    admissible spreads. `model` defaults to the paper's model at Table II.
+    """
+    settings = settings or ValidationSettings()
+    model = model or FourBarModel()
+    validation = Validation(measured, settings)
+    result = {
+        'n': settings.n, 'k': settings.k, 'rho': settings.rho, 'epsilon': settings.epsilon,
+        'delta': settings.delta, 'gamma': settings.gamma, 'seed': settings.seed,
+        'paths_available': measured.n_paths, 'paths_used': settings.runs_needed,
+        'duration_s': float(measured.t[-1]), 'samples_per_run': len(measured.t),
+        'region': f'per sample and coordinate (x, y): mean +- t(k-1) s sqrt(1 + 1/k), '
+                  f'multiplier {t_multiplier(settings.k, settings.gamma):.3f}, half-width at '
+                  f'least {settings.resolution_m} m',
+    }
+    if sigmas is not None:
+        violation = validation.violation(model, sigmas)
+        result.update(sigma1=float(sigmas[0]), sigma2=float(sigmas[1]), violation=violation,
+                      accepted=violation <= settings.rho)
+    else:
+        search = search_sigmas(validation, model, progress)
+        result.update(sigma1=search.sigma1, sigma2=search.sigma2, violation=search.violation,
+                      accepted=search.feasible, grid={
+                          'sigma1': search.sigma1_grid.tolist(),
+                          'sigma2': search.sigma2_grid.tolist(),
+                          'violation': search.violation_grid.tolist()})
+    result['guarantee'] = guarantee_text(result['violation'], settings)
+    result['settings'] = asdict(settings)
+    return result
