@@ -57,7 +57,7 @@ USAGE = ('usage: python -m octoroach_model {' + ','.join(NODES + OFFLINE) + '} [
 def dispatch(argv: list[str]) -> int:
     """Run executable argv[0] with the rest of argv."""
     if not argv or argv[0] in ('-h', '--help'):
-        sys.stdout.write(USAGE)
+        (sys.stdout if argv else sys.stderr).write(USAGE)
         return 0 if argv else 2
     name, rest = argv[0], argv[1:]
     if name not in NODES + OFFLINE:

@@ -12,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-from octoroach_model.errors import OctoroachError, ParameterError
+from octoroach_model.errors import DataError, OctoroachError, ParameterError
 
 EXIT_ERROR = 1
 EXIT_USAGE = 2
@@ -186,6 +186,10 @@ def validate_command(args: argparse.Namespace) -> int:
                                   sigma1_max=args.sigma1_max, sigma2_max=args.sigma2_max,
                                   grid_points=args.grid_points)
     measured = load_measured(args.bags, topic=args.topic, gap_s=args.gap_s)
+    if measured.n_paths < settings.runs_needed:
+        raise DataError(f'{measured.n_paths} runs are too few: n x k = {settings.n} x '
+                        f'{settings.k} needs {settings.runs_needed} runs (lower k, or raise '
+                        f'epsilon/delta to lower n)')
     if args.nominal == 'fit':
         nominal = fit_nominal(measured)
         model = FourBarModel(nominal.parameters, nominal.start_pose, args.draws)

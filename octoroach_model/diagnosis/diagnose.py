@@ -25,7 +25,8 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from octoroach_model.diagnosis.candidates import (
-    CANDIDATES, Candidate, detection_limit, direct_extra_parameters, read_off_curve)
+    CANDIDATES, DETECTION_Z, Candidate, detection_limit, direct_extra_parameters,
+    read_off_curve)
 from octoroach_model.diagnosis.features import FEATURES, INDEX, run_features
 from octoroach_model.diagnosis.statistics import (
     STATISTICS, energy_scores, gaussian_log_score, paired_improvement, statistics_with_errors)
@@ -52,6 +53,8 @@ class DiagnosisSettings:
     calibration_runs: int = 400
     score_runs: int = 1500
     bootstrap: int = 100
+    heading_weight_m: float = 0.13
+    null_replicates: int = 3
     validation: ValidationSettings = field(default_factory=ValidationSettings)
     validate_models: bool = True
 
@@ -102,7 +105,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     discrepancies = _discrepancies(context, data_features, rng, settings)
     say(0.20, 'discrepancies measured')
 
-    train_features = context.features(context.train)
+    train_features = context.train_features
     test_features = context.features(context.test)
     baseline_scores = _scores(context, None, test_features, settings)
     candidates = []
@@ -120,8 +123,9 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     parameters = chosen['parameters'] if chosen else {}
     extended_effects = {cause: parameters} if chosen else {}
     extended_model = chosen['_model'] if chosen else context.model
+    extended_sigmas = (chosen['sigma1'], chosen['sigma2']) if chosen else context.sigmas
     extended_scores = _scores(context, extended_effects, test_features, settings,
-                              extended_model)
+                              extended_model, extended_sigmas)
     for candidate in candidates:
         del candidate['_model']
 
@@ -133,6 +137,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         'nominal': context.nominal_report,
         'baseline': {'sigma_scale_sigma1': context.sigmas[0],
                      'sigma_scale_sigma2': context.sigmas[1]},
+        'extended_sigma_scale': {'sigma1': extended_sigmas[0], 'sigma2': extended_sigmas[1]},
         'discrepancies': discrepancies,
         'candidates': candidates,
         'cause': cause,
@@ -164,7 +169,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         report['extended']['effects'] = extended_effects
     report['_models'] = {'baseline': (context.model, context.sigmas),
                          'extended': (replace(extended_model, effects=extended_effects),
-                                      context.sigmas)}
+                                      extended_sigmas)}
     report['elapsed_s'] = round(time.monotonic() - started, 2)
     say(1.0, f'cause: {cause}')
     return report
@@ -174,25 +179,31 @@ def _calibrate_baseline(measured: Paths, settings: DiagnosisSettings) -> _Contex
     order = np.random.default_rng(settings.seed).permutation(measured.n_paths)
     half = measured.n_paths // 2
     train, test = measured.subset(order[:half]), measured.subset(order[half:])
-    nominal = fit_nominal(train)
+    nominal = fit_nominal(train, heading_weight_m=settings.heading_weight_m)
     start = mean_start_pose(train)
     model = FourBarModel(nominal.parameters, start)
     seed = np.random.SeedSequence([settings.seed, 1])
     context = _Context(measured, train, test, model, SIGMA_DIRECTION, start[2],
                        nominal.parameters.stride_frequency, seed)
     context.nominal_report = nominal.report()
-    # spread scale: within-run variance of per-cycle heading changes (unmoved by start
-    # errors and by a constant turn rate)
-    target = float(context.features(train)[:, INDEX['increment_var']].mean())
+    context.train_features = context.features(train)
+    context.sigmas = _calibrate_sigmas(context, model, settings)
+    return context
+
+
+def _calibrate_sigmas(context: _Context, model: FourBarModel,
+                      settings: DiagnosisSettings) -> tuple[float, float]:
+    """Spread scale s, (sigma1, sigma2) = s (0.12, 0.15), matched to the within-run variance
+    of the per-cycle heading change (unmoved by start errors and by a constant turn rate)."""
+    target = float(context.train_features[:, INDEX['increment_var']].mean())
     curve = []
     for scale in SCALE_GRID:
         sigmas = (scale * SIGMA_DIRECTION[0], scale * SIGMA_DIRECTION[1])
-        simulated = context.features(context.simulate(None, settings.calibration_runs // 2,
-                                                      sigmas))
+        simulated = context.features(context.simulate(model.effects, settings.calibration_runs // 2,
+                                                      sigmas, model))
         curve.append(simulated[:, INDEX['increment_var']].mean())
     scale = read_off_curve(np.array(SCALE_GRID), np.array(curve), target, signed=False)
-    context.sigmas = (scale * SIGMA_DIRECTION[0], scale * SIGMA_DIRECTION[1])
-    return context
+    return scale * SIGMA_DIRECTION[0], scale * SIGMA_DIRECTION[1]
 
 
 def _discrepancies(context: _Context, data_features: np.ndarray, rng: np.random.Generator,
@@ -217,9 +228,9 @@ def _discrepancies(context: _Context, data_features: np.ndarray, rng: np.random.
 
 
 def _scores(context: _Context, effects: dict | None, test_features: np.ndarray,
-            settings: DiagnosisSettings, model: FourBarModel | None = None
-            ) -> dict[str, np.ndarray]:
-    simulated = context.simulate(effects, settings.score_runs, model=model)
+            settings: DiagnosisSettings, model: FourBarModel | None = None,
+            sigmas: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
+    simulated = context.simulate(effects, settings.score_runs, sigmas, model)
     log = gaussian_log_score(context.features(simulated), test_features)
     picks = [int(round(f * (len(context.measured.t) - 1))) for f in ENERGY_TIMES]
     model_points = simulated.poses[:, picks, :2].reshape(simulated.n_paths, -1) * 100
@@ -230,13 +241,37 @@ def _scores(context: _Context, effects: dict | None, test_features: np.ndarray,
 def _evaluate(candidate: Candidate, context: _Context, train_features: np.ndarray,
               baseline_train: np.ndarray, test_features: np.ndarray,
               baseline_scores: dict, settings: DiagnosisSettings) -> dict:
+    if candidate.refit_nominal:
+        estimate, model, evidence = _estimate_jointly(candidate, context, settings)
+    else:
+        estimate, evidence = _estimate_by_moments(candidate, context, train_features, settings)
+        model = context.model
+    extra = direct_extra_parameters(candidate.cause, train_features, baseline_train)
+    parameters = {candidate.parameter: round(estimate, 6), **extra}
+    effects = {candidate.cause: parameters}
+    model = replace(model, effects=effects)
+    sigmas = _calibrate_sigmas(context, model, settings)
+    scores = _scores(context, effects, test_features, settings, model, sigmas)
+    gain, p_value = paired_improvement(scores['log'], baseline_scores['log'])
+    return {'cause': candidate.cause, 'parameters': parameters, 'gain': gain,
+            'p_value': p_value,
+            'energy_gain_cm': float(baseline_scores['energy'].mean() - scores['energy'].mean()),
+            'statistic': candidate.statistic_name,
+            'detectable': {candidate.parameter: evidence.pop('detectable')},
+            'nominal': model.parameters.table(),
+            'sigma1': sigmas[0], 'sigma2': sigmas[1],
+            'estimation': evidence,
+            '_model': model}
+
+
+def _estimate_by_moments(candidate: Candidate, context: _Context, train_features: np.ndarray,
+                         settings: DiagnosisSettings) -> tuple[float, dict]:
+    """Simulated moments: the statistic over the parameter grid, read off at the data's."""
     grid = np.array(candidate.grid, dtype=float)
     curve, null_stats = [], []
     for value in grid:
-        effects = candidate.effects(float(value))
-        model = _candidate_model(candidate, context, effects)
-        features = context.features(context.simulate(effects, settings.calibration_runs,
-                                                     model=model))
+        features = context.features(context.simulate(candidate.effects(float(value)),
+                                                     settings.calibration_runs))
         curve.append(candidate.statistic(features))
         if value == 0:
             # spread of the statistic across data sets of the calibration half's size
@@ -245,33 +280,41 @@ def _evaluate(candidate: Candidate, context: _Context, train_features: np.ndarra
                           for i in range(0, len(features) - size + 1, max(1, size // 2))]
     curve = np.array(curve)
     estimate = read_off_curve(grid, curve, candidate.statistic(train_features), candidate.signed)
-    extra = direct_extra_parameters(candidate.cause, train_features, baseline_train)
-    parameters = {candidate.parameter: round(estimate, 6), **extra}
-    effects = {candidate.cause: parameters}
-    model = _candidate_model(candidate, context, effects)
-    scores = _scores(context, effects, test_features, settings, model)
-    gain, p_value = paired_improvement(scores['log'], baseline_scores['log'])
     null_spread = float(np.std(null_stats, ddof=1)) if len(null_stats) > 1 else float('nan')
+    # the limit speaks of the whole data set, not of its calibration half
     null_spread *= math.sqrt(context.train.n_paths / max(context.measured.n_paths, 1))
     limit = detection_limit(grid, curve, null_spread) if np.isfinite(null_spread) else None
-    return {'cause': candidate.cause, 'parameters': parameters, 'gain': gain,
-            'p_value': p_value,
-            'energy_gain_cm': float(baseline_scores['energy'].mean() - scores['energy'].mean()),
-            'statistic': candidate.statistic_name,
-            'detectable': {candidate.parameter: limit},
-            'nominal': model.parameters.table(),
-            'calibration': {'grid': grid.tolist(), 'statistic': curve.tolist()},
-            '_model': model}
+    return estimate, {'method': 'simulated moments', 'grid': grid.tolist(),
+                      'statistic_curve': curve.tolist(), 'detectable': limit}
 
 
-def _candidate_model(candidate: Candidate, context: _Context, effects: dict) -> FourBarModel:
-    """The baseline with the effect; for effects that move the average path, the geometry is
-    refitted (eq. 9) together with the effect, so it cannot absorb the effect."""
-    if not candidate.refit_nominal:
-        return replace(context.model, effects=effects)
-    nominal = fit_nominal(context.train, initial=context.model.parameters, effects=effects,
-                          multistart=False)
-    return replace(context.model, parameters=nominal.parameters, effects=effects)
+def _estimate_jointly(candidate: Candidate, context: _Context, settings: DiagnosisSettings
+                      ) -> tuple[float, FourBarModel, dict]:
+    """Least squares of the geometry and the effect's parameter together (eq. 9 extended):
+    the effect moves the average path, which the geometry alone would bend to mimic."""
+    bounds = (min(candidate.grid), max(candidate.grid))
+
+    def joint_fit(paths: Paths):
+        return fit_nominal(paths, initial=context.model.parameters,
+                           free_effect=(candidate.cause, candidate.parameter),
+                           free_effect_bounds=bounds, heading_weight_m=settings.heading_weight_m,
+                           multistart=False)
+
+    fit = joint_fit(context.train)
+    estimate = float(fit.effects[candidate.cause][candidate.parameter])
+    model = replace(context.model, parameters=fit.parameters)
+    # detection: spread of the estimate over baseline-made data sets of the measured size
+    null_estimates = []
+    for replicate in range(settings.null_replicates):
+        seed = np.random.SeedSequence([settings.seed, 2, replicate])
+        poses = context.model(context.sigmas, seed, context.measured.n_paths,
+                              context.measured.t)
+        null_fit = joint_fit(Paths(context.measured.t, poses))
+        null_estimates.append(float(null_fit.effects[candidate.cause][candidate.parameter]))
+    spread = float(np.std(null_estimates, ddof=1)) if len(null_estimates) > 1 else float('nan')
+    limit = DETECTION_Z * spread if np.isfinite(spread) else None
+    return estimate, model, {'method': 'joint least squares with the geometry (eq. 9)',
+                             'null_estimates': null_estimates, 'detectable': limit}
 
 
 def _paper_validation(context: _Context, effects: dict, settings: DiagnosisSettings,

@@ -3,26 +3,39 @@
 Least squares over zeta = [l, phi1..phi4] (the paper's) plus the stride frequency. The model
 starts at the measured mean start pose (Table I's means: x, y and the circular mean heading):
 fitting it instead would trade a start offset for a better middle, and the confidence region
-is narrowest at the start. Liftoff angles follow from the
-touchdown angles by eqs. (7)-(8). The stride frequency starts from the spectral peak of the
-average forward speed (one speed oscillation per stance, two per cycle), so the fit does not
-lock onto a wrong number of strides.
+is narrowest at the start. The stride frequency starts from the spectral peak of the average
+forward speed as well as from the initial value, so the fit does not lock onto a wrong number
+of strides. Liftoff angles follow from the touchdown angles by eqs. (7)-(8).
+
+Two extensions, off by default (the paper's fit):
+- `heading_weight_m` adds the average heading to the residuals (radians times this length):
+  without it the geometry can bend to turn the path where the data drift sideways without
+  turning, e.g. under lateral slip;
+- `effects` (deterministic ones: lateral_slip, speed_decay) are applied to the model path;
+  with `free_effect` = (cause, parameter) that parameter is fitted together with the geometry
+  (the geometry alone can mimic a sideways drift with a crab-like gait; the shape of the
+  average path over a stance tells the two apart).
+
+The fit runs in two stages: first with the stride frequency held at its guess, then with it
+free. Freed from the start, the frequency can slide to one stride more or less over a long
+run before the angles settle.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import optimize
 
 from octoroach_model.errors import DataError
 from octoroach_model.model import ModelParameters, RandomStreams, check_effects, model_poses
-from octoroach_model.model.kinematics import integrate_stances, stance_angles
+from octoroach_model.model.kinematics import integrate_stances
 from octoroach_model.paths import Paths
 
 LOWER = [0.003, 0.05, 0.05, 0.05, 0.05, 0.2]
 UPPER = [0.08, 1.45, 1.45, 1.45, 1.45, 20.0]
+X_SCALE = [0.005, 0.1, 0.1, 0.1, 0.1, 0.1]
 
 
 @dataclass(frozen=True)
@@ -33,6 +46,7 @@ class NominalFit:
     start_pose: tuple[float, float, float]
     rms_error_m: float
     average_path: np.ndarray     # (T, 2) the measured average it was fitted to
+    effects: dict = field(default_factory=dict)   # effects in the model, incl. a fitted one
 
     def report(self) -> dict:
         return {**self.parameters.table(),
@@ -41,24 +55,17 @@ class NominalFit:
                 'rms_error_cm': self.rms_error_m * 100}
 
 
-def deterministic_path(parameters: ModelParameters, start_pose, t: np.ndarray) -> np.ndarray:
+def deterministic_path(parameters: ModelParameters, start_pose, t: np.ndarray,
+                       effects: dict | None = None) -> np.ndarray:
     """(T, 3) pose of the model with every angle at its nominal value."""
+    if effects:
+        return model_poses(parameters, RandomStreams(0), 1, t, 0.0, 0.0, 'stance', effects,
+                           None, start_pose)[0]
     n_stances = max(1, int(math.ceil(2 * parameters.stride_frequency * t[-1] - 1e-9)))
     angles = np.broadcast_to(parameters.nominal_angles, (1, n_stances, 6))
     phase = 2 * parameters.stride_frequency * t
     return integrate_stances(angles, phase, start_pose, parameters.leg_length,
                              parameters.hip_distance)[0]
-
-
-def simulated_mean_path(parameters: ModelParameters, start_pose, t: np.ndarray,
-                        normals: np.ndarray, sigmas: tuple[float, float]) -> np.ndarray:
-    """(T, 2) average position of stochastic runs driven by the given standard normals."""
-    n_stances = max(1, int(math.ceil(2 * parameters.stride_frequency * t[-1] - 1e-9)))
-    angles = stance_angles(parameters.nominal_angles, normals[:, :n_stances], *sigmas)
-    phase = 2 * parameters.stride_frequency * t
-    poses = integrate_stances(angles, phase, start_pose, parameters.leg_length,
-                              parameters.hip_distance)
-    return poses[..., :2].mean(axis=0)
 
 
 def stride_frequency_guess(average_path: np.ndarray, t: np.ndarray, fallback: float) -> float:
@@ -75,21 +82,21 @@ def stride_frequency_guess(average_path: np.ndarray, t: np.ndarray, fallback: fl
     return float(freqs[usable][np.argmax(spectrum[usable])] / 2.0)
 
 
-def fit_nominal(measured: Paths, initial: ModelParameters | None = None,
-                sigmas: tuple[float, float] = (0.0, 0.0), draws: str = 'stance',
-                n_simulated: int = 200, seed: int = 0,
-                effects: dict | None = None, multistart: bool = True) -> NominalFit:
-    """Solve eq. (9) on the average of `measured` (positions x, y).
+def mean_start_pose(measured: Paths) -> tuple[float, float, float]:
+    """Mean first pose of the runs: x, y and the circular mean of the heading."""
+    first = measured.poses[:, 0]
+    heading = math.atan2(np.sin(first[:, 2]).mean(), np.cos(first[:, 2]).mean())
+    return float(first[:, 0].mean()), float(first[:, 1].mean()), float(heading)
 
-    With sigmas = (0, 0) this is the paper's fit: the deterministic path against the average
-    path. With spreads, the model's side is the average of `n_simulated` stochastic runs on
-    common random numbers (simulated moments): the average of a nonlinear model's runs is not
-    its nominal path, and fitting the latter biases the angles enough to put early samples
-    outside the narrow confidence region.
 
-    `effects` (deterministic ones: lateral_slip, speed_decay) are applied to the model path,
-    so an extension's parameter and the geometry are fitted together instead of the geometry
-    bending to mimic the effect.
+def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
+                heading_weight_m: float = 0.0, effects: dict | None = None,
+                free_effect: tuple[str, str] | None = None, free_effect_bounds=(-50.0, 50.0),
+                multistart: bool = True) -> NominalFit:
+    """Solve eq. (9) on the average of `measured`; see the module docstring for the options.
+
+    `multistart` also starts from the spectral guess of the stride frequency; a refit from a
+    good `initial` can skip it.
     """
     initial = (initial or ModelParameters.nominal()).with_paper_liftoff()
     if measured.n_paths < 1 or len(measured.t) < 3:
@@ -99,48 +106,65 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None,
     if not np.isfinite(average).all():
         raise DataError('the average measured path is not finite')
     start_pose = mean_start_pose(measured)
+    heading = measured.poses[..., 2]
+    # mean heading relative to the mean start heading (wrap-safe: runs are unwrapped)
+    average_heading = np.angle(np.exp(1j * (heading - start_pose[2]))).mean(axis=0) \
+        if heading_weight_m > 0 else None
+    fixed_effects = {name: dict(values) for name, values in (effects or {}).items()}
+    if free_effect:
+        fixed_effects.setdefault(free_effect[0], {}).setdefault(free_effect[1], 0.0)
 
     def build(vector):
         parameters = replace(initial, leg_length=vector[0], touchdown_angles=tuple(vector[1:5]),
                              stride_frequency=vector[5]).with_paper_liftoff()
-        return parameters, start_pose
-
-    stochastic = sigmas[0] > 0 or sigmas[1] > 0
-    checked_effects = check_effects(effects)
-    normals = np.random.default_rng(seed).standard_normal(
-        (n_simulated, int(math.ceil(2 * UPPER[5] * t[-1])) + 1, 6)) if stochastic else None
-    if stochastic and draws == 'run':
-        normals = np.broadcast_to(normals[:, :1], normals.shape)
+        model_effects = fixed_effects
+        if free_effect:
+            model_effects = {**fixed_effects, free_effect[0]: {
+                **fixed_effects[free_effect[0]], free_effect[1]: float(vector[6])}}
+        return parameters, check_effects(model_effects)
 
     def residuals(vector):
-        parameters, start = build(vector)
-        if stochastic:
-            path = simulated_mean_path(parameters, start, t, normals, sigmas)
-        elif effects:
-            path = model_poses(parameters, RandomStreams(seed), 1, t, 0.0, 0.0, 'stance',
-                               checked_effects, None, start)[0, :, :2]
-        else:
-            path = deterministic_path(parameters, start, t)[:, :2]
-        return (path - average).ravel() * 100.0
+        parameters, model_effects = build(vector)
+        path = deterministic_path(parameters, start_pose, t, model_effects)
+        parts = [(path[:, :2] - average).ravel()]
+        if average_heading is not None:
+            parts.append((path[:, 2] - start_pose[2] - average_heading) * heading_weight_m)
+        return np.concatenate(parts) * 100.0
 
+    lower, upper, x_scale = list(LOWER), list(UPPER), list(X_SCALE)
+    if free_effect:
+        lower.append(free_effect_bounds[0])
+        upper.append(free_effect_bounds[1])
+        x_scale.append(0.1)
     guesses = {initial.stride_frequency}
     if multistart:
         guesses.add(stride_frequency_guess(average, t, initial.stride_frequency))
     best = None
     for frequency in sorted(guesses):
-        start = np.array([initial.leg_length, *initial.touchdown_angles,
-                          np.clip(frequency, 0.3, 19.0)])
-        solution = optimize.least_squares(residuals, start, bounds=(LOWER, UPPER),
-                                          x_scale=[0.005, 0.1, 0.1, 0.1, 0.1, 0.1])
+        start = [initial.leg_length, *initial.touchdown_angles,
+                 float(np.clip(frequency, LOWER[5] * 1.5, UPPER[5] * 0.95))]
+        if free_effect:
+            start.append(float(fixed_effects[free_effect[0]][free_effect[1]]))
+        start = np.clip(start, lower, upper)
+        solution = _two_stage_least_squares(residuals, start, lower, upper, x_scale)
         if best is None or solution.cost < best.cost:
             best = solution
-    parameters, start_pose = build(best.x)
-    rms = float(np.sqrt(np.mean((best.fun / 100.0) ** 2) * 2))
-    return NominalFit(parameters, tuple(float(v) for v in start_pose), rms, average)
+    parameters, model_effects = build(best.x)
+    path = deterministic_path(parameters, start_pose, t, model_effects)
+    rms = float(np.sqrt(np.mean(np.sum((path[:, :2] - average) ** 2, axis=1))))
+    return NominalFit(parameters, start_pose, rms, average, model_effects)
 
 
-def mean_start_pose(measured: Paths) -> tuple[float, float, float]:
-    """Mean first pose of the runs: x, y and the circular mean of the heading."""
-    first = measured.poses[:, 0]
-    heading = math.atan2(np.sin(first[:, 2]).mean(), np.cos(first[:, 2]).mean())
-    return float(first[:, 0].mean()), float(first[:, 1].mean()), float(heading)
+def _two_stage_least_squares(residuals, start, lower, upper, x_scale):
+    """Least squares with the stride frequency (index 5) held first, then released."""
+    frequency = start[5]
+    free = [i for i in range(len(start)) if i != 5]
+
+    def held(vector):
+        full = np.insert(vector, 5, frequency)
+        return residuals(full)
+
+    first = optimize.least_squares(held, start[free], bounds=(
+        [lower[i] for i in free], [upper[i] for i in free]), x_scale=[x_scale[i] for i in free])
+    return optimize.least_squares(residuals, np.insert(first.x, 5, frequency),
+                                  bounds=(lower, upper), x_scale=x_scale)

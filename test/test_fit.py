@@ -1,0 +1,146 @@
+"""The nominal fit (eq. 9): the deterministic model closest to the average measured path.
+
+Runs made by the model itself with known, perturbed parameters must be fitted back exactly;
+the start pose is the measured mean start pose; the stride-frequency start value comes from
+the spectrum of the average speed.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import octoroach_model as om
+from octoroach_model.errors import DataError
+from octoroach_model.validation import fit_nominal
+from octoroach_model.validation.fit import mean_start_pose, stride_frequency_guess
+
+NOMINAL = om.ModelParameters.nominal()
+TOUCHDOWN_OFFSETS_DEG = (2.0, -3.0, 1.5, -2.0)
+TRUE_START = (0.01, -0.02, math.radians(80.0))
+
+
+def perturbed_parameters() -> om.ModelParameters:
+    """Table II moved: legs 2.4 cm, touchdown angles a few degrees off, 2.3 Hz, eqs. 7-8."""
+    touchdown = tuple(angle + math.radians(offset)
+                      for angle, offset in zip(NOMINAL.touchdown_angles, TOUCHDOWN_OFFSETS_DEG))
+    return replace(NOMINAL, leg_length=0.024, touchdown_angles=touchdown,
+                   stride_frequency=2.3).with_paper_liftoff()
+
+
+def deterministic_runs(parameters: om.ModelParameters, cycles: float) -> om.Paths:
+    """Two runs of the deterministic model whose average is exactly the model path.
+
+    The runs are shifted by opposite offsets and their recorded headings turned by opposite
+    angles, so the mean start pose is TRUE_START while no single run starts there.
+    """
+    path = om.simulate(1, seed=0, sigma1=0.0, sigma2=0.0, parameters=parameters,
+                       start_pose=TRUE_START, cycles=cycles)
+    offset = np.array([0.01, -0.005, 0.1])
+    poses = np.stack([path.poses[0] + offset, path.poses[0] - offset])
+    return om.Paths(path.t, poses)
+
+
+@pytest.fixture(scope='module', params=[6, 10], ids=['6_cycles', '10_cycles'])
+def recovery(request):
+    truth = perturbed_parameters()
+    measured = deterministic_runs(truth, request.param)
+    return truth, measured, fit_nominal(measured)
+
+
+def test_the_fit_recovers_leg_length_touchdown_angles_and_stride_frequency(recovery):
+    truth, _, fit = recovery
+    fitted = fit.parameters
+    assert fitted.leg_length == pytest.approx(truth.leg_length, rel=1e-6)
+    np.testing.assert_allclose(np.degrees(fitted.touchdown_angles),
+                               np.degrees(truth.touchdown_angles), rtol=1e-6)
+    assert fitted.stride_frequency == pytest.approx(truth.stride_frequency, rel=1e-6)
+    assert fitted.hip_distance == NOMINAL.hip_distance
+
+
+def test_the_fitted_liftoff_angles_follow_eqs_7_and_8(recovery):
+    _, _, fit = recovery
+    touchdown = fit.parameters.touchdown_angles
+    assert fit.parameters.liftoff_angles == (-min(touchdown[0], touchdown[1]),
+                                             -min(touchdown[2], touchdown[3]))
+
+
+def test_the_fit_of_deterministic_model_runs_leaves_no_error(recovery):
+    _, measured, fit = recovery
+    assert fit.rms_error_m < 1e-8
+    np.testing.assert_allclose(fit.average_path, measured.positions.mean(axis=0))
+
+
+def test_the_fit_starts_the_model_at_the_mean_measured_start_pose(recovery):
+    _, measured, fit = recovery
+    np.testing.assert_allclose(fit.start_pose, mean_start_pose(measured), atol=1e-12)
+    np.testing.assert_allclose(fit.start_pose, TRUE_START, atol=1e-12)
+
+
+def test_the_fit_report_is_in_the_papers_units(recovery):
+    _, _, fit = recovery
+    report = fit.report()
+    assert report['leg_length_cm'] == pytest.approx(fit.parameters.leg_length * 100)
+    np.testing.assert_allclose(report['touchdown_angles_deg'],
+                               np.degrees(fit.parameters.touchdown_angles))
+    assert report['stride_frequency_hz'] == fit.parameters.stride_frequency
+    assert report['start_pose']['heading_deg'] == pytest.approx(80.0, abs=1e-9)
+    assert report['start_pose']['x_cm'] == pytest.approx(1.0, abs=1e-9)
+    assert report['rms_error_cm'] == pytest.approx(fit.rms_error_m * 100)
+
+
+def test_the_mean_start_pose_averages_x_and_y_and_takes_the_circular_mean_of_the_heading():
+    t = np.arange(3) / 50.0
+    first = np.array([[0.01, 0.02, math.pi - 0.1],
+                      [0.03, -0.04, -math.pi + 0.1],
+                      [-0.01, 0.05, math.pi - 0.05],
+                      [0.05, 0.01, -math.pi + 0.05]])
+    poses = np.repeat(first[:, None, :], len(t), axis=1)
+    x, y, heading = mean_start_pose(om.Paths(t, poses))
+    assert x == pytest.approx(0.02)
+    assert y == pytest.approx(0.01)
+    # the arithmetic mean of these headings is 0; the circular mean is pi (backwards)
+    assert abs(math.remainder(heading - math.pi, 2 * math.pi)) < 1e-12
+
+
+def test_the_mean_start_pose_of_runs_with_initial_pose_error_is_near_the_nominal_start():
+    runs = om.simulate(400, seed=4, cycles=1, effects={
+        'initial_pose_error': {'heading_std_deg': 5.0, 'position_std_cm': 0.5}})
+    x, y, heading = mean_start_pose(runs)
+    assert abs(x) < 0.001 and abs(y) < 0.001            # 0.5 cm / sqrt(400) = 0.25 mm
+    assert heading == pytest.approx(math.pi / 2, abs=math.radians(1.0))
+    expected = runs.poses[:, 0]
+    assert x == pytest.approx(expected[:, 0].mean())
+    assert y == pytest.approx(expected[:, 1].mean())
+
+
+@pytest.mark.parametrize('frequency', [1.5, 2.0, 2.17, 2.3, 3.1])
+def test_the_stride_frequency_guess_lies_within_half_a_spectral_bin_of_the_truth(frequency):
+    t = np.arange(251) / 50.0                      # 5 s, not a whole number of cycles
+    runs = om.simulate(40, seed=2, t=t,
+                       parameters=replace(NOMINAL, stride_frequency=frequency))
+    guess = stride_frequency_guess(runs.positions.mean(axis=0), t, fallback=9.0)
+    half_bin = 0.5 / (len(t) * 0.02) / 2           # speed bin, halved (two stances a cycle)
+    assert abs(guess - frequency) <= half_bin
+
+
+def test_the_stride_frequency_guess_falls_back_on_runs_too_short_for_a_spectrum():
+    t = np.arange(10) / 50.0
+    runs = om.simulate(3, seed=2, t=t)
+    assert stride_frequency_guess(runs.positions.mean(axis=0), t, fallback=1.7) == 1.7
+
+
+def test_the_fit_refuses_runs_of_fewer_than_three_samples():
+    t = np.arange(2) / 50.0
+    with pytest.raises(DataError, match='three samples'):
+        fit_nominal(om.simulate(3, seed=1, t=t))
+
+
+def test_the_fit_refuses_a_non_finite_average_path():
+    runs = om.simulate(3, seed=1, cycles=1)
+    poses = runs.poses.copy()
+    poses[1, 5, 0] = np.nan
+    with pytest.raises(DataError, match='not finite'):
+        fit_nominal(om.Paths(runs.t, poses))
