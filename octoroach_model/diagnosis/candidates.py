@@ -3,8 +3,8 @@
 Every candidate names one cause of the contract's table, a statistic of a run set that the
 cause moves, and a grid of its main parameter. The parameter is estimated by simulated
 moments: the extended model is simulated over the grid on common random numbers, and the
-measured statistic is read off the (monotone) curve. The same curve, with the statistic's
-spread across data sets of the measured size, says how small an effect the data can detect.
+measured statistic is read off the (monotone) curve. Causes that move the average path are
+instead fitted jointly with the geometry (eq. 9 extended).
 """
 from __future__ import annotations
 
@@ -65,10 +65,6 @@ CANDIDATES: tuple[Candidate, ...] = (
 )
 BY_CAUSE = {candidate.cause: candidate for candidate in CANDIDATES}
 
-# One-sided 5 % test with 80 % power: the shift a statistic must make to be detected.
-DETECTION_Z = 1.645 + 0.842
-
-
 def read_off_curve(grid: np.ndarray, curve: np.ndarray, value: float, signed: bool) -> float:
     """The parameter whose statistic equals `value`, by linear interpolation on the curve.
 
@@ -86,22 +82,6 @@ def read_off_curve(grid: np.ndarray, curve: np.ndarray, value: float, signed: bo
     # strictly increasing support for np.interp: drop flat repeats
     keep = np.concatenate([[True], np.diff(monotone) > 0])
     return float(np.interp(target, monotone[keep], np.asarray(grid)[keep]))
-
-
-def detection_limit(grid: np.ndarray, curve: np.ndarray, null_spread: float) -> float | None:
-    """Smallest positive parameter whose statistic moves by DETECTION_Z null standard
-    deviations from its value at zero (None: not even the largest grid value does)."""
-    grid = np.asarray(grid, dtype=float)
-    zero = int(np.argmin(np.abs(grid)))
-    positive = grid > 0
-    values = np.concatenate([[0.0], grid[positive]])
-    shifts = np.maximum.accumulate(np.concatenate([[0.0],
-                                                   np.abs(curve[positive] - curve[zero])]))
-    threshold = DETECTION_Z * null_spread
-    if shifts[-1] < threshold:
-        return None
-    keep = np.concatenate([[True], np.diff(shifts) > 0])
-    return float(np.interp(threshold, shifts[keep], values[keep]))
 
 
 def direct_extra_parameters(cause: str, train_features: np.ndarray,

@@ -25,8 +25,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from octoroach_model.diagnosis.candidates import (
-    CANDIDATES, DETECTION_Z, Candidate, detection_limit, direct_extra_parameters,
-    read_off_curve)
+    CANDIDATES, Candidate, direct_extra_parameters, read_off_curve)
 from octoroach_model.diagnosis.features import FEATURES, INDEX, run_features
 from octoroach_model.diagnosis.statistics import (
     STATISTICS, energy_scores, gaussian_log_score, paired_improvement, statistics_with_errors)
@@ -54,7 +53,7 @@ class DiagnosisSettings:
     score_runs: int = 1500
     bootstrap: int = 100
     heading_weight_m: float = 0.13
-    null_replicates: int = 3
+    baseline_heading_weight_m: float = 0.13
     validation: ValidationSettings = field(default_factory=ValidationSettings)
     validate_models: bool = True
 
@@ -73,10 +72,11 @@ class _Context:
     seed: np.random.SeedSequence
 
     def simulate(self, effects: dict | None, n_runs: int, sigmas=None,
-                 model: FourBarModel | None = None) -> Paths:
+                 model: FourBarModel | None = None,
+                 seed: np.random.SeedSequence | None = None) -> Paths:
         t = self.measured.t
         model = replace(model or self.model, effects=effects or {})
-        poses = model(sigmas or self.sigmas, self.seed, n_runs, t)
+        poses = model(sigmas or self.sigmas, seed or self.seed, n_runs, t)
         return Paths(t, poses)
 
     def features(self, paths: Paths) -> np.ndarray:
@@ -179,7 +179,7 @@ def _calibrate_baseline(measured: Paths, settings: DiagnosisSettings) -> _Contex
     order = np.random.default_rng(settings.seed).permutation(measured.n_paths)
     half = measured.n_paths // 2
     train, test = measured.subset(order[:half]), measured.subset(order[half:])
-    nominal = fit_nominal(train, heading_weight_m=settings.heading_weight_m)
+    nominal = fit_nominal(train, heading_weight_m=settings.baseline_heading_weight_m)
     start = mean_start_pose(train)
     model = FourBarModel(nominal.parameters, start)
     seed = np.random.SeedSequence([settings.seed, 1])
@@ -231,11 +231,13 @@ def _scores(context: _Context, effects: dict | None, test_features: np.ndarray,
             settings: DiagnosisSettings, model: FourBarModel | None = None,
             sigmas: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
     simulated = context.simulate(effects, settings.score_runs, sigmas, model)
-    log = gaussian_log_score(context.features(simulated), test_features)
+    features = context.features(simulated)
+    log = gaussian_log_score(features, test_features)
     picks = [int(round(f * (len(context.measured.t) - 1))) for f in ENERGY_TIMES]
     model_points = simulated.poses[:, picks, :2].reshape(simulated.n_paths, -1) * 100
     observed = context.test.poses[:, picks, :2].reshape(context.test.n_paths, -1) * 100
-    return {'log': log, 'energy': energy_scores(model_points[:500], observed)}
+    return {'log': log, 'energy': energy_scores(model_points[:500], observed),
+            'features': features}
 
 
 def _evaluate(candidate: Candidate, context: _Context, train_features: np.ndarray,
@@ -253,11 +255,13 @@ def _evaluate(candidate: Candidate, context: _Context, train_features: np.ndarra
     sigmas = _calibrate_sigmas(context, model, settings)
     scores = _scores(context, effects, test_features, settings, model, sigmas)
     gain, p_value = paired_improvement(scores['log'], baseline_scores['log'])
+    limit, power_curve = _detection_limit(candidate, context, settings, baseline_scores)
+    evidence['power'] = power_curve
     return {'cause': candidate.cause, 'parameters': parameters, 'gain': gain,
             'p_value': p_value,
             'energy_gain_cm': float(baseline_scores['energy'].mean() - scores['energy'].mean()),
             'statistic': candidate.statistic_name,
-            'detectable': {candidate.parameter: evidence.pop('detectable')},
+            'detectable': {candidate.parameter: limit},
             'nominal': model.parameters.table(),
             'sigma1': sigmas[0], 'sigma2': sigmas[1],
             'estimation': evidence,
@@ -268,53 +272,62 @@ def _estimate_by_moments(candidate: Candidate, context: _Context, train_features
                          settings: DiagnosisSettings) -> tuple[float, dict]:
     """Simulated moments: the statistic over the parameter grid, read off at the data's."""
     grid = np.array(candidate.grid, dtype=float)
-    curve, null_stats = [], []
-    for value in grid:
-        features = context.features(context.simulate(candidate.effects(float(value)),
-                                                     settings.calibration_runs))
-        curve.append(candidate.statistic(features))
-        if value == 0:
-            # spread of the statistic across data sets of the calibration half's size
-            size = max(3, context.train.n_paths)
-            null_stats = [candidate.statistic(features[i:i + size])
-                          for i in range(0, len(features) - size + 1, max(1, size // 2))]
-    curve = np.array(curve)
-    estimate = read_off_curve(grid, curve, candidate.statistic(train_features), candidate.signed)
-    null_spread = float(np.std(null_stats, ddof=1)) if len(null_stats) > 1 else float('nan')
-    # the limit speaks of the whole data set, not of its calibration half
-    null_spread *= math.sqrt(context.train.n_paths / max(context.measured.n_paths, 1))
-    limit = detection_limit(grid, curve, null_spread) if np.isfinite(null_spread) else None
+    curve = [candidate.statistic(context.features(context.simulate(
+        candidate.effects(float(value)), settings.calibration_runs))) for value in grid]
+    estimate = read_off_curve(grid, np.array(curve), candidate.statistic(train_features),
+                              candidate.signed)
     return estimate, {'method': 'simulated moments', 'grid': grid.tolist(),
-                      'statistic_curve': curve.tolist(), 'detectable': limit}
+                      'statistic_curve': [float(c) for c in curve]}
 
 
 def _estimate_jointly(candidate: Candidate, context: _Context, settings: DiagnosisSettings
                       ) -> tuple[float, FourBarModel, dict]:
     """Least squares of the geometry and the effect's parameter together (eq. 9 extended):
     the effect moves the average path, which the geometry alone would bend to mimic."""
-    bounds = (min(candidate.grid), max(candidate.grid))
-
-    def joint_fit(paths: Paths):
-        return fit_nominal(paths, initial=context.model.parameters,
-                           free_effect=(candidate.cause, candidate.parameter),
-                           free_effect_bounds=bounds, heading_weight_m=settings.heading_weight_m,
-                           multistart=False)
-
-    fit = joint_fit(context.train)
+    fit = fit_nominal(context.train, initial=context.model.parameters,
+                      free_effect=(candidate.cause, candidate.parameter),
+                      free_effect_bounds=(min(candidate.grid), max(candidate.grid)),
+                      heading_weight_m=settings.heading_weight_m, multistart=False)
     estimate = float(fit.effects[candidate.cause][candidate.parameter])
     model = replace(context.model, parameters=fit.parameters)
-    # detection: spread of the estimate over baseline-made data sets of the measured size
-    null_estimates = []
-    for replicate in range(settings.null_replicates):
-        seed = np.random.SeedSequence([settings.seed, 2, replicate])
-        poses = context.model(context.sigmas, seed, context.measured.n_paths,
-                              context.measured.t)
-        null_fit = joint_fit(Paths(context.measured.t, poses))
-        null_estimates.append(float(null_fit.effects[candidate.cause][candidate.parameter]))
-    spread = float(np.std(null_estimates, ddof=1)) if len(null_estimates) > 1 else float('nan')
-    limit = DETECTION_Z * spread if np.isfinite(spread) else None
     return estimate, model, {'method': 'joint least squares with the geometry (eq. 9)',
-                             'null_estimates': null_estimates, 'detectable': limit}
+                             'rms_error_cm': fit.rms_error_m * 100}
+
+
+def _detection_limit(candidate: Candidate, context: _Context, settings: DiagnosisSettings,
+                     baseline_scores: dict) -> tuple[float | None, dict]:
+    """Smallest effect the decision would catch with 80 % power at this data's size.
+
+    For each positive grid value, data sets of the held-out size are simulated with the effect
+    and scored exactly as the real held-out runs are; the expected t statistic of the paired
+    test is read off against the one-sided quantile at the per-candidate level."""
+    from scipy import stats
+
+    n_test = context.test.n_paths
+    level = settings.alpha / len(CANDIDATES)
+    needed = float(stats.norm.isf(level) + stats.norm.isf(0.2))
+    baseline_features = baseline_scores['features']
+    values, t_values = [0.0], [0.0]
+    for value in sorted(v for v in candidate.grid if v > 0):
+        effects = candidate.effects(float(value))
+        model_features = context.features(context.simulate(effects, settings.calibration_runs))
+        pseudo = context.features(context.simulate(
+            effects, n_test, seed=np.random.SeedSequence([settings.seed, 3])))
+        gain = gaussian_log_score(model_features, pseudo) \
+            - gaussian_log_score(baseline_features, pseudo)
+        spread = float(np.std(gain, ddof=1))
+        t = float(gain.mean() / spread * math.sqrt(n_test)) if spread > 0 else (
+            math.inf if gain.mean() > 0 else 0.0)
+        values.append(float(value))
+        t_values.append(t)
+        if t >= needed:
+            break
+    curve = {'values': values, 't': t_values, 't_needed': needed}
+    envelope = np.maximum.accumulate(np.nan_to_num(t_values, posinf=1e9))
+    if envelope[-1] < needed:
+        return None, curve
+    keep = np.concatenate([[True], np.diff(envelope) > 0])
+    return float(np.interp(needed, envelope[keep], np.array(values)[keep])), curve
 
 
 def _paper_validation(context: _Context, effects: dict, settings: DiagnosisSettings,

@@ -14,6 +14,8 @@ between measured and simulated runs:
 | heading_rate | least-squares slope of heading over time, rad/s | persistent_turning |
 | increment_var | within-run variance of the heading change per cycle, rad^2 | sigma1, sigma2 |
 | end_lateral, end_progress | final displacement across / along the reference heading, m | overall spread |
+| sway_amplitude | amplitude of the heading's sway at the stride frequency, rad | gait geometry |
+| lateral_sway_1, lateral_sway_2 | amplitude of the sideways position sway at f and 2f, m | gait geometry |
 """
 from __future__ import annotations
 
@@ -22,12 +24,14 @@ import numpy as np
 from octoroach_model.paths import Paths
 
 FEATURES = ('start_heading', 'start_x', 'start_y', 'log_jitter', 'slip_angle', 'stride_frequency',
-            'progress_ratio', 'heading_rate', 'increment_var', 'end_lateral', 'end_progress')
+            'progress_ratio', 'heading_rate', 'increment_var', 'end_lateral', 'end_progress',
+            'sway_amplitude', 'lateral_sway_1', 'lateral_sway_2')
 INDEX = {name: i for i, name in enumerate(FEATURES)}
 
 # Smallest standard deviation a feature is taken to have (its resolution): keeps the Gaussian
 # score finite where a model has no spread at all (e.g. the paper's model at t = 0).
-RESOLUTION = np.array([1e-3, 1e-4, 1e-4, 0.05, 1e-3, 5e-3, 2e-3, 1e-3, 1e-6, 1e-4, 1e-4])
+RESOLUTION = np.array([1e-3, 1e-4, 1e-4, 0.05, 1e-3, 5e-3, 2e-3, 1e-3, 1e-6, 1e-4, 1e-4, 1e-3,
+                       1e-5, 1e-5])
 
 
 def run_features(paths: Paths, stride_frequency: float, reference_heading: float) -> np.ndarray:
@@ -43,7 +47,8 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     out[:, 3] = np.log((second ** 2).mean(axis=(1, 2)) + 1e-14)
     cycle = max(2, int(round(1.0 / (stride_frequency * dt))))
     out[:, 4] = _slip_angle(xy, heading, cycle)
-    out[:, 5] = _stride_frequency(heading, dt, stride_frequency)
+    out[:, 5], out[:, 11] = _heading_sway(heading, dt, stride_frequency)
+    out[:, 12], out[:, 13] = _lateral_sway(xy, heading, t, out[:, 5])
     half = len(t) // 2
     first = np.linalg.norm(xy[:, half] - xy[:, 0], axis=-1)
     second_half = np.linalg.norm(xy[:, -1] - xy[:, half], axis=-1)
@@ -70,14 +75,16 @@ def _slip_angle(xy: np.ndarray, heading: np.ndarray, cycle: int) -> np.ndarray:
     return np.angle(np.exp(1j * offset)).mean(axis=1)
 
 
-def _stride_frequency(heading: np.ndarray, dt: float, nominal: float) -> np.ndarray:
-    """Per-run stride frequency: the body sways once per cycle (right stance turns one way,
-    left stance the other). Heading, unlike a speed from differenced positions, is not
-    drowned by position noise."""
+def _heading_sway(heading: np.ndarray, dt: float, nominal: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Per-run stride frequency and sway amplitude: the body sways once per cycle (right
+    stance turns one way, left stance the other); how far depends on the leg geometry.
+    Heading, unlike a speed from differenced positions, is not drowned by position noise."""
     centred_t = np.arange(heading.shape[1]) - 0.5 * (heading.shape[1] - 1)
     slope = (heading @ centred_t) / (centred_t @ centred_t)
     sway = heading - heading.mean(axis=1, keepdims=True) - slope[:, None] * centred_t
-    sway *= np.hanning(sway.shape[1])
+    window = np.hanning(sway.shape[1])
+    sway *= window
     n_fft = 8192
     spectrum = np.abs(np.fft.rfft(sway, n=n_fft, axis=1))
     freqs = np.fft.rfftfreq(n_fft, dt)
@@ -89,4 +96,22 @@ def _stride_frequency(heading: np.ndarray, dt: float, nominal: float) -> np.ndar
     curvature = left - 2 * centre + right
     shift = np.where(curvature < 0, 0.5 * (left - right) / np.where(curvature < 0, curvature, -1),
                      0.0)
-    return freqs[peak] + shift * (freqs[1] - freqs[0])
+    amplitude = 2.0 * (centre - 0.25 * (left - right) * shift) / window.sum()
+    return freqs[peak] + shift * (freqs[1] - freqs[0]), amplitude
+
+
+def _lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
+                  frequency: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Amplitudes of the sideways sway of G (across the run's mean heading, linear trend
+    removed) at the stride frequency and twice it: the shape of a stance."""
+    mean_heading = heading.mean(axis=1, keepdims=True)
+    across = xy[..., 0] * np.sin(mean_heading) - xy[..., 1] * np.cos(mean_heading)
+    centred_t = t - t.mean()
+    slope = across @ centred_t / (centred_t @ centred_t)
+    residual = across - across.mean(axis=1, keepdims=True) - slope[:, None] * centred_t
+    window = np.hanning(len(t))
+    amplitudes = []
+    for harmonic in (1, 2):
+        phase = np.exp(-2j * np.pi * harmonic * frequency[:, None] * t[None, :])
+        amplitudes.append(2 * np.abs((residual * window * phase).sum(axis=1)) / window.sum())
+    return amplitudes[0], amplitudes[1]

@@ -113,48 +113,234 @@ def integrate_stances(angles, phase, start_pose, leg_length, hip_distance):
     Returns
     -------
     (n, T, 3) x [m], y [m], heading [rad].
+
+    Notes
+    -----
+    Same formulas as `stance_motion`, rearranged for speed (results agree to rounding):
+    everything fixed during a stance (touchdown feet, span, closure branch, where the stance
+    starts in the world) is computed once per stance; per sample only the rear angle's
+    cos/sin, one square root for the closure and one arctan2 for the heading remain. The
+    front foot comes from the closure's closed form without evaluating the front angle
+    (cos and sin of atan2(b, a) +- acos(ratio) by the addition formulas), and G from the
+    fixed rear foot seen along the fixed foot-to-foot segment.
     """
     angles = np.asarray(angles, dtype=float)
     n_runs, n_stances = angles.shape[:2]
-    is_right = (np.arange(n_stances) % 2 == 0)
-    mirror = np.where(is_right, 1.0, -1.0)
-    rear_td = np.where(is_right, angles[..., 0], angles[..., 2])
-    front_td = np.where(is_right, angles[..., 1], angles[..., 3])
-    rear_lo = np.where(is_right, angles[..., 4], angles[..., 5])
-
-    # Where each stance ends, relative to where it began; then chain them.
-    end_dx, end_dy, end_dheading = stance_motion(rear_td, front_td, rear_lo, 1.0, mirror,
-                                                 leg_length, hip_distance)
+    geometry = _Geometry(float(leg_length), float(hip_distance))
     start = np.broadcast_to(np.asarray(start_pose, dtype=float), (n_runs, 3))
-    stance_heading = start[:, 2:3] + np.concatenate(
-        [np.zeros((n_runs, 1)), np.cumsum(end_dheading, axis=1)[:, :-1]], axis=1)
-    step_x, step_y = _body_to_world(end_dx, end_dy, stance_heading)
-    stance_x = start[:, 0:1] + np.concatenate(
-        [np.zeros((n_runs, 1)), np.cumsum(step_x, axis=1)[:, :-1]], axis=1)
-    stance_y = start[:, 1:2] + np.concatenate(
-        [np.zeros((n_runs, 1)), np.cumsum(step_y, axis=1)[:, :-1]], axis=1)
-
-    phase = np.broadcast_to(np.asarray(phase, dtype=float), (n_runs, np.shape(phase)[-1]))
-    index = np.clip(np.floor(phase).astype(np.intp), 0, n_stances - 1)
-    within = np.clip(phase - index, 0.0, 1.0)
-
-    def at_sample(per_stance):
-        return np.take_along_axis(per_stance, index, axis=1)
-
-    dx, dy, dheading = stance_motion(at_sample(rear_td), at_sample(front_td),
-                                     at_sample(rear_lo), within, mirror[index],
-                                     leg_length, hip_distance)
-    heading0 = at_sample(stance_heading)
-    world_dx, world_dy = _body_to_world(dx, dy, heading0)
-    poses = np.empty(phase.shape + (3,))
-    poses[..., 0] = at_sample(stance_x) + world_dx
-    poses[..., 1] = at_sample(stance_y) + world_dy
-    poses[..., 2] = heading0 + dheading
+    phase = np.asarray(phase, dtype=float)
+    n_samples = phase.shape[-1]
+    poses = np.empty((n_runs, n_samples, 3))
+    if n_samples == 0:
+        return poses
+    # Blocks of runs small enough that the temporaries of one stance (about n_samples /
+    # n_stances samples per run) stay in the CPU cache.
+    stance_rows = max(1, _BLOCK * n_stances // n_samples)
+    if phase.ndim == 1 or _rows_equal(phase):
+        # One time grid for every run: the samples of stance k are the same columns in each
+        # run, so per-stance values broadcast along them; no gather needed, and the run axis
+        # is the long inner axis of every operation.
+        phase = phase.reshape(-1, n_samples)[0]
+        index = np.clip(np.floor(phase).astype(np.intp), 0, n_stances - 1)
+        within = np.clip(phase - index, 0.0, 1.0)[:, None]
+        groups = [(k, _columns(index == k)) for k in np.unique(index)]
+        for rows in _row_blocks(n_runs, stance_rows):
+            table = _stances(angles[rows], start[rows], geometry)
+            block = np.empty((n_samples, table.shape[2], 3))
+            for k, columns in groups:
+                if isinstance(columns, slice):
+                    geometry.poses(table[:, k], within[columns], out=block[columns])
+                else:  # an unsorted time grid: scattered columns
+                    target = np.empty((len(columns),) + block.shape[1:])
+                    geometry.poses(table[:, k], within[columns], out=target)
+                    block[columns] = target
+            poses[rows] = block.transpose(1, 0, 2)
+    else:
+        # Every run on its own clock: gather each sample's stance values, in smaller blocks.
+        phase = np.broadcast_to(phase, (n_runs, n_samples))
+        for rows in _row_blocks(n_runs, stance_rows):
+            table = _stances(angles[rows], start[rows], geometry)
+            flat_table = table.reshape(len(table), -1)
+            for sub in _row_blocks(table.shape[2], max(1, _BLOCK // n_samples)):
+                block = phase[rows][sub]
+                index = np.clip(np.floor(block).astype(np.intp), 0, n_stances - 1)
+                within = np.clip(block - index, 0.0, 1.0)
+                # flat position of (stance, run) in the table: stance * runs + run
+                flat = index * table.shape[2] + np.arange(sub.start, sub.stop)[:, None]
+                geometry.poses(np.take(flat_table, flat, axis=1), within,
+                               out=poses[rows][sub])
     return poses
 
 
-def _body_to_world(dx, dy, heading):
-    """Rotate body-frame vectors (x right, y forward) into the world for a given heading."""
-    # R(heading - pi/2) = [[sin h, cos h], [-cos h, sin h]]
-    sin_h, cos_h = np.sin(heading), np.cos(heading)
-    return sin_h * dx + cos_h * dy, -cos_h * dx + sin_h * dy
+# Samples per block of work: small enough that the temporaries stay in the CPU cache.
+_BLOCK = 1 << 13
+
+
+def _cos_sin(angle, scale=1.0):
+    """scale * cos and scale * sin through the half-angle tangent: one SIMD tan, no sin/cos.
+
+    Accurate to a few units in the last place, like np.cos and np.sin (numpy's float64 tan
+    is vectorised on x86-64, its sin and cos are several times slower).
+    """
+    t = np.tan(0.5 * angle)
+    t2 = t * t
+    inverse = scale / (1.0 + t2)
+    return (1.0 - t2) * inverse, (t + t) * inverse
+
+
+class _Geometry:
+    """The closure and the pose of G for given leg and hip geometry, on arrays of samples."""
+
+    def __init__(self, leg_length: float, hip_distance: float) -> None:
+        self.l = leg_length
+        self.d = hip_distance
+        # |B - rear foot|^2 = l^2 + d^2 - 2 d l sin(rear) (P of solve_front_angle, squared).
+        self.reach_sq = leg_length ** 2 + hip_distance ** 2
+        # Heading changes within a stance stay inside (-pi, pi) when the foot-to-foot segment
+        # always points forward (its y is at least d - 2 l): then no wrapping is needed.
+        self.wrap = not 2.0 * leg_length < hip_distance
+
+    def sweep(self, rear_angle, closure_offset, branch, mirror):
+        """Rear foot and foot-to-foot segment in the body frame at the given rear angles.
+
+        closure_offset = (span^2 - 2 l^2 - d^2) / (2 l) per stance, so that the closure's
+        ratio c / hypot(a, b) of `solve_front_angle` is (offset + d sin(rear)) / |P|.
+        Returns rear_x, rear_y, segment_x, segment_y (segment = front foot - rear foot).
+        """
+        l, d = self.l, self.d
+        l_cos_r, l_sin_r = _cos_sin(rear_angle, l)
+        # P = B - rear foot in the pair's frame is (l cos r, d - l sin r)
+        p_y = d - l_sin_r
+        inv_p = 1.0 / np.sqrt(self.reach_sq - (2.0 * d) * l_sin_r)
+        ratio = (closure_offset + (d / l) * l_sin_r) * inv_p
+        np.clip(ratio, -1.0, 1.0, out=ratio)
+        # front angle f = atan2(b, a) + branch acos(ratio), with (a, b) along P / |P|:
+        # l cos f and l sin f by the addition formulas
+        scale = l * inv_p
+        l_cos_a = l_cos_r * scale
+        l_sin_a = p_y * scale
+        sin_b = np.sqrt((1.0 - ratio) * (1.0 + ratio))
+        sin_b *= branch
+        l_cos_f = l_cos_a * ratio - l_sin_a * sin_b
+        l_sin_f = l_sin_a * ratio + l_cos_a * sin_b
+        rear_x = -mirror * l_cos_r
+        rear_y = l_sin_r - 0.5 * d
+        segment_x = mirror * (l_cos_f + l_cos_r)
+        segment_y = d + (l_sin_f - l_sin_r)
+        return rear_x, rear_y, segment_x, segment_y
+
+    def poses(self, stance, within, out):
+        """World poses of G at fractions `within` of stances, written into `out` (..., 3).
+
+        stance : the 11 per-stance fields of `_stances`, each broadcastable with `within`
+        to out's shape without its last axis.
+        """
+        (rear_td, sweep, closure_offset, branch, mirror, heading0, segment_angle,
+         axis_x, axis_y, foot_x, foot_y) = stance
+        rear_x, rear_y, seg_x, seg_y = self.sweep(rear_td + within * sweep, closure_offset,
+                                                  branch, mirror)
+        dheading = segment_angle - np.arctan2(seg_y, seg_x)
+        if self.wrap:
+            dheading = (dheading + np.pi) % (2.0 * np.pi) - np.pi
+        np.add(heading0, dheading, out=out[..., 2])
+        # The rear foot, in coordinates along (u) and across (v) the foot-to-foot segment,
+        # whose world direction (axis) is fixed for the stance: G = foot - u axis - v normal.
+        inv_s = 1.0 / np.sqrt(seg_x * seg_x + seg_y * seg_y)
+        u = (seg_x * rear_x + seg_y * rear_y) * inv_s
+        v = (seg_x * rear_y - seg_y * rear_x) * inv_s
+        np.subtract(foot_x, axis_x * u - axis_y * v, out=out[..., 0])
+        np.subtract(foot_y, axis_y * u + axis_x * v, out=out[..., 1])
+
+
+def _stances(angles, start, geometry: _Geometry):
+    """Everything constant during each stance, as one (11, S, n) array.
+
+    angles : (n, S, 6); start : (n, 3) pose at the first touchdown. The 11 fields, in order:
+    rear touchdown angle, its sweep (liftoff - touchdown), closure offset (see
+    `_Geometry.sweep`), closure branch, mirror sign, heading at touchdown, body-frame angle
+    of the foot-to-foot segment at touchdown, that segment's world direction (x, y) and the
+    rear foot's world position (x, y). Stances come before runs so that one stance's values
+    for all runs are contiguous.
+    """
+    n_runs, n_stances = angles.shape[:2]
+    l, d = geometry.l, geometry.d
+    # (S, n) touchdown and liftoff angles: right stances (even) use phi1, phi2, phi_R^lo,
+    # left ones phi3, phi4, phi_L^lo.
+    by_stance = angles.transpose(2, 1, 0)
+    rear_td, front_td, rear_lo = np.empty((3, n_stances, n_runs))
+    for field, right, left in ((rear_td, 0, 2), (front_td, 1, 3), (rear_lo, 4, 5)):
+        field[0::2] = by_stance[right, 0::2]
+        field[1::2] = by_stance[left, 1::2]
+    mirror = np.where(np.arange(n_stances) % 2 == 0, 1.0, -1.0)[:, None]
+
+    cos_r, sin_r = _cos_sin(rear_td)
+    cos_f, sin_f = _cos_sin(front_td)
+    rear0_x, rear0_y = -mirror * l * cos_r, l * sin_r - 0.5 * d
+    seg0_x = mirror * l * (cos_f + cos_r)
+    seg0_y = d + l * (sin_f - sin_r)
+    span = np.sqrt(seg0_x * seg0_x + seg0_y * seg0_y)
+    # closure_branch, with the same P = B - rear foot
+    branch = np.where(front_td >= np.arctan2(d - l * sin_r, l * cos_r), 1.0, -1.0)
+    # (span^2 - 2 l^2 - d^2) / (2 l), expanded so that nothing cancels
+    closure_offset = l * (cos_f * cos_r - sin_f * sin_r) + d * (sin_f - sin_r)
+    segment_angle = np.arctan2(seg0_y, seg0_x)
+    sweep = rear_lo - rear_td
+
+    # Where each stance ends, relative to where it began (stance_motion at phase 1).
+    end_x, end_y, end_sx, end_sy = geometry.sweep(rear_td + 1.0 * sweep, closure_offset,
+                                                  branch, mirror)
+    end_dheading = segment_angle - np.arctan2(end_sy, end_sx)
+    if geometry.wrap:
+        end_dheading = (end_dheading + np.pi) % (2.0 * np.pi) - np.pi
+    # R(dheading) turns the end segment onto the touchdown one.
+    scale = 1.0 / (span * np.sqrt(end_sx * end_sx + end_sy * end_sy))
+    cos_h = (seg0_x * end_sx + seg0_y * end_sy) * scale
+    sin_h = (seg0_y * end_sx - seg0_x * end_sy) * scale
+    end_dx = rear0_x - (cos_h * end_x - sin_h * end_y)
+    end_dy = rear0_y - (sin_h * end_x + cos_h * end_y)
+
+    # Chain the stances in the world.
+    heading0 = _starts(start[:, 2], end_dheading)
+    cos_0, sin_0 = _cos_sin(heading0)
+    step_x, step_y = sin_0 * end_dx + cos_0 * end_dy, -cos_0 * end_dx + sin_0 * end_dy
+    start_x, start_y = _starts(start[:, 0], step_x), _starts(start[:, 1], step_y)
+    # The rear foot in the world, and the world direction of the foot-to-foot segment
+    # (angle heading0 - pi/2 + segment_angle), both fixed for the stance.
+    foot_x = start_x + (sin_0 * rear0_x + cos_0 * rear0_y)
+    foot_y = start_y + (-cos_0 * rear0_x + sin_0 * rear0_y)
+    cos_s, sin_s = seg0_x / span, seg0_y / span
+    axis_x = sin_0 * cos_s + cos_0 * sin_s
+    axis_y = sin_0 * sin_s - cos_0 * cos_s
+    fields = (rear_td, sweep, closure_offset, branch, mirror, heading0, segment_angle,
+              axis_x, axis_y, foot_x, foot_y)
+    return np.stack([np.broadcast_to(field, (n_stances, n_runs)) for field in fields])
+
+
+def _starts(first, increments):
+    """(S, n) value at the start of each stance: first + cumulative sum of earlier stances."""
+    out = np.empty(increments.shape)
+    out[0] = first
+    if len(increments) > 1:
+        np.cumsum(increments[:-1], axis=0, out=out[1:])
+        out[1:] += first
+    return out
+
+
+def _rows_equal(phase) -> bool:
+    """Whether a (n, T) phase array is the same in every row (a broadcast grid)."""
+    if phase.shape[0] == 1 or phase.strides[0] == 0:
+        return True
+    return bool(np.array_equal(phase, np.broadcast_to(phase[0], phase.shape)))
+
+
+def _columns(mask):
+    """The columns where `mask` holds: a slice when they are contiguous, else an index array."""
+    where = np.flatnonzero(mask)
+    if where.size and where[-1] - where[0] + 1 == where.size:
+        return slice(int(where[0]), int(where[-1]) + 1)
+    return where
+
+
+def _row_blocks(n_rows: int, size: int):
+    """Consecutive slices of at most `size` rows covering range(n_rows)."""
+    return [slice(start, min(start + size, n_rows)) for start in range(0, n_rows, size)]

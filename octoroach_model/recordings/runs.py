@@ -123,7 +123,8 @@ class RunSet:
                                 f'{longest:.3f} s)')
         durations = np.array([run.duration_s for run in runs])
         duration = float(durations.min())
-        n_samples = int(np.floor(duration * rate_hz + 1e-6)) + 1
+        # a quarter sample of slack: live stamps jitter, and a 2 s run must not lose its end
+        n_samples = int(np.floor(duration * rate_hz + 0.25)) + 1
         if n_samples < 2:
             raise DataError(f'the shortest run lasts {duration:.3f} s, less than one sample '
                             f'at {rate_hz:g} Hz ({runs[int(durations.argmin())].source})')

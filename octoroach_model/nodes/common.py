@@ -1,0 +1,445 @@
+"""What every node shares: parameters with ranges, VICON message conversion, spin and shutdown.
+
+Parameters are declared from `ParamSpec` tables, so the same table gives the ROS descriptors
+(description, FloatingPointRange / IntegerRange), the checks in the set-parameters callbacks and
+the `--help` text, and the three cannot drift apart.
+
+Heading <-> quaternion follows the VICON convention of the contract: the child frame's yaw is
+the heading, unit quaternion (0, 0, sin(h/2), cos(h/2)).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import struct
+import sys
+import textwrap
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, NoReturn
+
+import numpy as np
+
+from octoroach_model.errors import OctoroachError, ParameterError
+
+if TYPE_CHECKING:
+    from geometry_msgs.msg import TransformStamped
+    from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from rclpy.qos import QoSProfile
+
+# VICON stream QoS: reliable so a recorder loses nothing, keep_last 100 (2 s at 50 Hz) so a
+# slow subscriber is not dropped at once while a publisher never blocks.
+VICON_QOS_DEPTH = 100
+
+ParamValue = bool | int | float | str | list[str]
+MAX_RANGE_WIDTH = 24  # longer choice lists go into the description column of --help
+
+
+class UsageError(OctoroachError):
+    """Bad command line (flags or --ros-args)."""
+
+
+# -- parameters -----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One ROS parameter: default, description, unit and allowed values.
+
+    The type is the default's type (bool, int, float, str or list of str); `low`/`high` give an
+    inclusive range for numbers, `choices` the allowed strings.
+    """
+
+    name: str
+    default: ParamValue
+    description: str
+    unit: str = ''
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] = ()
+    read_only: bool = False
+
+    @property
+    def kind(self) -> str:
+        """Parameter type as the user writes it."""
+        value = self.default
+        if isinstance(value, bool):
+            return 'bool'
+        if isinstance(value, int):
+            return 'integer'
+        if isinstance(value, float):
+            return 'double'
+        if isinstance(value, str):
+            return 'string'
+        return 'string array'
+
+    def range_text(self) -> str:
+        """Allowed values for humans: '[lo, hi]', 'a | b', or ''."""
+        if self.choices:
+            return ' | '.join(self.choices)
+        if self.low is not None and self.high is not None:
+            return f'[{_number(self.low)}, {_number(self.high)}]'
+        return ''
+
+    def descriptor(self) -> ParameterDescriptor:
+        """The ROS descriptor: type, description with unit, range, read-only flag."""
+        from rcl_interfaces.msg import (
+            FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType)
+
+        types = {'bool': ParameterType.PARAMETER_BOOL,
+                 'integer': ParameterType.PARAMETER_INTEGER,
+                 'double': ParameterType.PARAMETER_DOUBLE,
+                 'string': ParameterType.PARAMETER_STRING,
+                 'string array': ParameterType.PARAMETER_STRING_ARRAY}
+        unit = f' [{self.unit}]' if self.unit else ''
+        descriptor = ParameterDescriptor(name=self.name, type=types[self.kind],
+                                         description=self.description + unit,
+                                         read_only=self.read_only)
+        if self.choices:
+            descriptor.additional_constraints = 'one of: ' + ', '.join(self.choices)
+        if self.low is not None and self.high is not None:
+            if self.kind == 'double':
+                descriptor.floating_point_range = [FloatingPointRange(
+                    from_value=float(self.low), to_value=float(self.high), step=0.0)]
+            elif self.kind == 'integer':
+                descriptor.integer_range = [IntegerRange(
+                    from_value=int(self.low), to_value=int(self.high), step=1)]
+        return descriptor
+
+    def check(self, value: Any) -> str | None:
+        """Why `value` is not allowed, or None when it is."""
+        if not _has_kind(value, self.kind):
+            return (f'{self.name} must be a {self.kind}, got {value!r}'
+                    + (' (write doubles with a decimal point, e.g. 50.0)'
+                       if self.kind == 'double' else ''))
+        if self.kind == 'double' and not math.isfinite(value):
+            return f'{self.name} must be finite, got {value}'
+        if self.low is not None and self.high is not None and self.kind in ('double', 'integer'):
+            if not self.low <= value <= self.high:
+                unit = f' {self.unit}' if self.unit else ''
+                return f'{self.name} = {value}{unit} is outside {self.range_text()}'
+        if self.choices and value not in self.choices:
+            return f'{self.name} = {value!r} is not one of {", ".join(self.choices)}'
+        return None
+
+
+def _has_kind(value: Any, kind: str) -> bool:
+    if kind == 'bool':
+        return isinstance(value, bool)
+    if kind == 'integer':
+        return isinstance(value, int) and not isinstance(value, bool)
+    if kind == 'double':
+        return isinstance(value, float)
+    if kind == 'string':
+        return isinstance(value, str)
+    return isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value)
+
+
+def _number(value: float) -> str:
+    return f'{value:g}' if isinstance(value, float) else str(value)
+
+
+def declare_parameters(node: Node, specs: Sequence[ParamSpec]) -> dict[str, ParamValue]:
+    """Declare every spec on `node`; the values in force (defaults or --ros-args overrides).
+
+    Raises ParameterError with a one-line reason when an override has the wrong type or lies
+    outside its range.
+    """
+    from rclpy.exceptions import ParameterException
+
+    for spec in specs:
+        try:
+            node.declare_parameter(spec.name, spec.default, spec.descriptor())
+        except ParameterException as error:
+            # The rejected override, to say why in our words; rclpy's text as a fallback.
+            override = getattr(node, '_parameter_overrides', {}).get(spec.name)
+            reason = spec.check(_plain(override.value if override is not None
+                                       else spec.default))
+            raise ParameterError(reason or f'parameter {spec.name}: {error}') from None
+    values = current_values(node, specs)
+    reason = check_values(specs, values)
+    if reason:
+        raise ParameterError(reason)
+    return values
+
+
+def current_values(node: Node, specs: Iterable[ParamSpec]) -> dict[str, ParamValue]:
+    """Name -> value of the declared parameters in `specs`."""
+    return {spec.name: _plain(node.get_parameter(spec.name).value) for spec in specs}
+
+
+def _plain(value: Any) -> ParamValue:
+    """rclpy hands string arrays back as lists or array-likes; make them lists."""
+    if isinstance(value, (bool, int, float, str)):
+        return value
+    return [str(v) for v in value]
+
+
+def check_values(specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> str | None:
+    """First reason why one of `values` is not allowed by its spec, or None."""
+    for spec in specs:
+        if spec.name in values:
+            reason = spec.check(values[spec.name])
+            if reason:
+                return reason
+    return None
+
+
+def set_parameters_callback(
+        node: Node, specs: Sequence[ParamSpec],
+        check_all: Callable[[dict[str, ParamValue]], str | None] | None = None,
+) -> Callable[[list[Parameter]], SetParametersResult]:
+    """A callback for `add_on_set_parameters_callback`: ranges, choices, then `check_all`.
+
+    `check_all` sees every value as it would be after the change (for checks across
+    parameters) and returns a reason to reject, or None.
+    """
+    from rcl_interfaces.msg import SetParametersResult
+
+    by_name = {spec.name: spec for spec in specs}
+
+    def callback(parameters: list[Parameter]) -> SetParametersResult:
+        values = current_values(node, specs)
+        for parameter in parameters:
+            spec = by_name.get(parameter.name)
+            if spec is None:
+                continue  # rclpy's own parameters (use_sim_time, ...)
+            value = _plain(parameter.value)
+            if spec.read_only:
+                return SetParametersResult(successful=False,
+                                           reason=f'{spec.name} is read-only')
+            reason = spec.check(value)
+            if reason:
+                return SetParametersResult(successful=False, reason=reason)
+            values[spec.name] = value
+        reason = check_all(values) if check_all else None
+        if reason:
+            return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    return callback
+
+
+# -- command line ---------------------------------------------------------------------------
+
+class NodeArgumentParser(argparse.ArgumentParser):
+    """argparse that reports bad flags as one `error: ...` line (UsageError), not usage text."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(message)
+
+
+def node_parser(prog: str, summary: str, specs: Sequence[ParamSpec],
+                topics: Sequence[tuple[str, str, str]], notes: str = '',
+                arguments: str = '[options]') -> NodeArgumentParser:
+    """Parser whose --help explains the node: what it does, parameters, topics."""
+    return NodeArgumentParser(
+        prog=f'python -m octoroach_model {prog}',
+        usage=f'%(prog)s [--help] {arguments} [--ros-args -p NAME:=VALUE ...]',
+        description=summary,
+        epilog=help_epilog(specs, topics, notes),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
+def help_epilog(specs: Sequence[ParamSpec], topics: Sequence[tuple[str, str, str]],
+                notes: str = '') -> str:
+    """Parameter and topic tables for --help."""
+    def range_cell(spec: ParamSpec) -> str:
+        text = spec.range_text() or '-'
+        return text if len(text) <= MAX_RANGE_WIDTH else 'see description'
+
+    def description(spec: ParamSpec) -> str:
+        long_choices = len(spec.range_text()) > MAX_RANGE_WIDTH and spec.choices
+        return (spec.description + (' (read-only)' if spec.read_only else '')
+                + (f'; one of: {", ".join(spec.choices)}' if long_choices else ''))
+
+    rows = [(s.name, _show(s.default), range_cell(s), s.unit or '-') for s in specs]
+    widths = [max(len(r[i]) for r in rows + [('name', 'default', 'range', 'unit')])
+              for i in range(4)]
+    lines = ['ROS parameters (--ros-args -p NAME:=VALUE; doubles need a decimal point):',
+             '  ' + '  '.join(h.ljust(w) for h, w in zip(('name', 'default', 'range', 'unit'),
+                                                         widths)) + '  description']
+    for spec, row in zip(specs, rows):
+        lines.append('  ' + '  '.join(c.ljust(w) for c, w in zip(row, widths)) + '  '
+                     + description(spec))
+    if topics:
+        lines += ['', 'Topics and services:']
+        width = max(len(t[1]) for t in topics)
+        lines += [f'  {kind:<10} {name.ljust(width)}  {kind_type}'
+                  for kind, name, kind_type in topics]
+    if notes:
+        lines += [''] + textwrap.wrap(textwrap.dedent(notes).strip(), 95)
+    return '\n'.join(lines)
+
+
+def _show(value: ParamValue) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, float):
+        return f'{value:g}' if '.' in f'{value:g}' or 'e' in f'{value:g}' else f'{value:g}.0'
+    if isinstance(value, str):
+        return repr(value) if value == '' else value
+    if isinstance(value, list):
+        return '[' + ', '.join(value) + ']'
+    return str(value)
+
+
+def split_ros_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
+    """(node's own flags, ROS arguments incl. '--ros-args') from a command line.
+
+    ROS arguments run from each '--ros-args' to the next '--' or the end. `-p` rules are checked
+    here so that a malformed one gives one clear line instead of an rcl parse error.
+    """
+    own: list[str] = []
+    ros: list[str] = []
+    inside = False
+    expect_rule = False
+    for arg in argv:
+        if arg == '--ros-args':
+            inside = True
+            ros.append(arg)
+        elif inside and arg == '--':
+            inside = False
+        elif inside:
+            if expect_rule and ':=' not in arg:
+                raise UsageError(f'parameter rule {arg!r} must read NAME:=VALUE')
+            expect_rule = arg in ('-p', '--param')
+            ros.append(arg)
+        else:
+            own.append(arg)
+    if expect_rule:
+        raise UsageError('-p at the end of --ros-args needs NAME:=VALUE')
+    return own, ros
+
+
+def fail(message: str, code: int = 2) -> int:
+    """Print the one-line reason a user gets, return the exit code."""
+    sys.stderr.write('error: ' + ' '.join(str(message).split()) + '\n')
+    return code
+
+
+# -- spin and shutdown ----------------------------------------------------------------------
+
+def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = None,
+             prog: str = 'octoroach_model') -> int:
+    """Init, build the node, spin until Ctrl-C / SIGTERM / done, shut down; an exit code.
+
+    The Jazzy talker pattern. A node may have `done` (an rclpy Future: spin until its result,
+    the exit code) and `finish() -> int` (called after destroy_node, when rclpy may already be
+    shut down by a signal, to close files; its code wins when non-zero). Domain errors raised
+    while building or spinning the node end as one `error:` line.
+    """
+    import rclpy
+    from rclpy.exceptions import ParameterException
+    from rclpy.executors import ExternalShutdownException
+
+    try:
+        rclpy.init(args=[prog, *(ros_args or [])])
+    except Exception as error:  # noqa: BLE001 - RCLError for malformed --ros-args
+        return fail(f'bad ROS arguments: {str(error).splitlines()[0]}')
+    node = None
+    code = 0
+    try:
+        node = node_factory()
+        done = getattr(node, 'done', None)
+        if done is None:
+            rclpy.spin(node)
+        else:
+            rclpy.spin_until_future_complete(node, done)
+            code = int(done.result() or 0) if done.done() else 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (OctoroachError, ParameterException) as error:
+        code = fail(str(error))
+    finally:
+        if node is not None:
+            node.destroy_node()
+            finish = getattr(node, 'finish', None)
+            if finish is not None:
+                code = int(finish() or 0) or code
+        rclpy.try_shutdown()
+    return code
+
+
+def vicon_qos(depth: int = VICON_QOS_DEPTH) -> QoSProfile:
+    """Reliable, volatile, keep_last `depth`: the QoS of every VICON-style publisher here."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+# -- poses and messages ---------------------------------------------------------------------
+
+def heading_to_quaternion(heading: np.ndarray | float) -> np.ndarray:
+    """(..., 4) unit quaternions x, y, z, w of a rotation by `heading` about +z."""
+    half = np.asarray(heading, dtype=float) / 2.0
+    zeros = np.zeros_like(half)
+    return np.stack([zeros, zeros, np.sin(half), np.cos(half)], axis=-1)
+
+
+def quaternion_to_heading(x: float, y: float, z: float, w: float) -> float:
+    """Yaw (rad) of a quaternion (ZYX convention), i.e. the child frame's heading."""
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def pose_to_transform(pose: Sequence[float], stamp_ns: int, frame_id: str,
+                      child_frame_id: str) -> TransformStamped:
+    """TransformStamped of a planar pose (x [m], y [m], heading [rad]) at `stamp_ns`."""
+    from geometry_msgs.msg import TransformStamped
+
+    msg = TransformStamped()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
+    msg.header.frame_id = frame_id
+    msg.child_frame_id = child_frame_id
+    msg.transform.translation.x = float(pose[0])
+    msg.transform.translation.y = float(pose[1])
+    q = heading_to_quaternion(float(pose[2]))
+    rotation = msg.transform.rotation
+    rotation.x, rotation.y, rotation.z, rotation.w = (float(v) for v in q)
+    return msg
+
+
+def transform_to_pose(msg: TransformStamped) -> tuple[float, float, float]:
+    """(x [m], y [m], heading [rad]) of a TransformStamped (or a PoseStamped)."""
+    if hasattr(msg, 'transform'):
+        position, rotation = msg.transform.translation, msg.transform.rotation
+    else:
+        position, rotation = msg.pose.position, msg.pose.orientation
+    heading = quaternion_to_heading(rotation.x, rotation.y, rotation.z, rotation.w)
+    return float(position.x), float(position.y), heading
+
+
+STAMP = slice(4, 12)  # where header.stamp (int32 sec, uint32 nanosec) sits in the CDR bytes
+
+
+def stamp_bytes(stamp_ns: int) -> bytes:
+    """header.stamp as little-endian CDR: int32 sec, uint32 nanosec."""
+    sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+    return struct.pack('<iI', sec, nanosec)
+
+
+def encode_transforms(poses: np.ndarray, frame_id: str, child_frame_id: str) -> np.ndarray:
+    """(T, L) uint8: serialized TransformStamped (CDR, little endian) of each planar pose.
+
+    Encodes a whole run in a few array operations so the publisher only patches in the stamp
+    (bytes STAMP) and hands the row to `publish` (raw). The layout is the XCDR1 one of
+    geometry_msgs/msg/TransformStamped: stamp, frame_id, child_frame_id, then 7 float64
+    aligned to 8 (translation x y z, rotation x y z w).
+    """
+    poses = np.asarray(poses, dtype=float)
+    head = bytearray(b'\x00\x01\x00\x00') + bytes(8)  # encapsulation + stamp placeholder
+    for name in (frame_id, child_frame_id):
+        head += bytes(-(len(head) - 4) % 4)
+        data = name.encode() + b'\x00'
+        head += struct.pack('<I', len(data)) + data
+    head += bytes(-(len(head) - 4) % 8)
+    values = np.zeros((len(poses), 7))
+    values[:, 0:2] = poses[:, 0:2]
+    values[:, 3:7] = heading_to_quaternion(poses[:, 2])
+    rows = np.empty((len(poses), len(head) + 56), dtype=np.uint8)
+    rows[:, :len(head)] = np.frombuffer(bytes(head), dtype=np.uint8)
+    rows[:, len(head):] = values.astype('<f8').view(np.uint8).reshape(len(poses), 56)
+    return rows

@@ -1,0 +1,401 @@
+"""recorder: VICON topics to a rosbag2 MCAP bag, and the bag to a multisample data set.
+
+Messages are taken raw (serialized CDR, as in demo_nodes_py's listener_serialized) and handed
+to rosbags' Writer unchanged, so message definitions, type hashes (RIHS01), metadata.yaml and
+the publishers' offered QoS profiles are written as rosbag2 writes them.
+
+Why the extra machinery around the Writer:
+
+- Arrival order is what splits runs (a run marker cuts its stream where it was received), but
+  an executor may hand over two topics' messages out of order when it falls behind. Messages
+  are therefore held for REORDER_WINDOW_S and written sorted by their middleware reception
+  time (also their log time).
+- rosbags closes an MCAP chunk only at 1 MiB; a recorder killed with SIGKILL would lose it.
+  Every `flush_period_s` the open chunk is closed and the file flushed, so a killed recorder
+  leaves an .mcap without summary that `read_runs` reads up to the last flush.
+"""
+from __future__ import annotations
+
+import fnmatch
+import functools
+import importlib
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from octoroach_model.errors import BagError, DataError, OctoroachError
+from octoroach_model.nodes.common import (
+    ParamSpec, UsageError, declare_parameters, fail, node_parser, run_node,
+    set_parameters_callback, split_ros_args, vicon_qos)
+
+SUMMARY = ('ROS node: records VICON pose topics (TransformStamped or PoseStamped) and run '
+           'markers to a rosbag2 MCAP bag directory, flushed every second; on exit (SIGINT, '
+           'SIGTERM) it closes the bag and, if `dataset` is set, turns it into a multisample '
+           'data set (.npz); the ~/export service does that on demand.')
+NOTES = """
+Topics are subscribed when they appear in the ROS graph, with the type they are published
+with; entries of `topics` may be fnmatch patterns ('/vicon/*'). The data set holds the runs
+as read_runs splits them (run markers, else gaps longer than gap_s), resampled at
+export_rate_hz over their common duration. Log time in the bag = middleware reception time.
+A recorder killed with SIGKILL leaves an .mcap without metadata.yaml that the package's
+readers still read, up to about one flush period before the kill.
+"""
+TOPICS = (
+    ('subscribes', '`topics`', 'TransformStamped / PoseStamped / UInt32 (raw CDR)'),
+    ('service', '~/export', 'std_srvs/srv/Trigger: write the data set now'),
+)
+REORDER_WINDOW_S = 0.2
+DRAIN_PERIOD_S = 0.1
+DISCOVERY_PERIOD_S = 0.2
+MAX_TAKEN_PER_CALLBACK = 1000  # then let timers (flush, drain) run
+
+
+def recorder_specs() -> list[ParamSpec]:
+    """The recorder's parameters."""
+    from octoroach_model.recordings import (
+        DEFAULT_GAP_S, DEFAULT_MARKER_TOPIC, DEFAULT_POSE_TOPIC, DEFAULT_RATE_HZ)
+
+    return [
+        ParamSpec('output', '', 'bag directory to create; empty: ./octoroach_YYYYmmdd_HHMMSS',
+                  read_only=True),
+        ParamSpec('topics', [DEFAULT_POSE_TOPIC, DEFAULT_MARKER_TOPIC],
+                  'topics to record (names or fnmatch patterns)', read_only=True),
+        ParamSpec('dataset', '', 'data set file (.npz) written on exit and by ~/export; '
+                  'empty: none'),
+        ParamSpec('gap_s', float(DEFAULT_GAP_S), 'run split at longer pose gaps (no markers)',
+                  's', 0.01, 60.0),
+        ParamSpec('export_rate_hz', float(DEFAULT_RATE_HZ), 'sample rate of the data set',
+                  'Hz', 1.0, 1000.0),
+        ParamSpec('flush_period_s', 1.0, 'bag file flushed this often', 's', 0.1, 10.0),
+        ParamSpec('log_period_s', 5.0, 'progress logged this often', 's', 0.5, 3600.0),
+        ParamSpec('qos_depth', 1000, 'history depth of the subscriptions', '', 1, 100_000,
+                  read_only=True),
+    ]
+
+
+def default_output() -> str:
+    """./octoroach_YYYYmmdd_HHMMSS, like rosbag2's default name."""
+    return datetime.now().strftime('octoroach_%Y%m%d_%H%M%S')
+
+
+class BagRecorder:
+    """A rosbags MCAP Writer that orders messages by reception and flushes on request."""
+
+    def __init__(self, path: Path) -> None:
+        from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = path
+        self.typestore = get_typestore(Stores.ROS2_JAZZY)
+        try:
+            self._writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+            self._writer.open()
+        except (WriterError, OSError) as error:
+            raise BagError(f'cannot create bag {path}: {error}') from None
+        storage = self._writer.storage
+        if not all(hasattr(storage, name) for name in ('close_chunk', 'chunk', 'bio')):
+            self._writer.abort()
+            raise BagError('this rosbags version cannot flush MCAP chunks (need 0.11)')
+        self._storage = storage
+        self._pending: list[tuple[int, int, Any, bytes]] = []
+        self._serial = 0
+        self.written = 0
+        self.per_topic: dict[str, int] = {}
+        self.closed = False
+
+    def knows(self, msgtype: str) -> bool:
+        """Whether the bag can describe `msgtype` (definition and hash)."""
+        return msgtype in self.typestore.fielddefs
+
+    def add_topic(self, topic: str, msgtype: str, offered_qos: Sequence[Any]) -> Any:
+        """A new connection (rosbags) for `topic` with the publishers' QoS profiles."""
+        self.per_topic.setdefault(topic, 0)
+        return self._writer.add_connection(topic, msgtype, typestore=self.typestore,
+                                           offered_qos_profiles=list(offered_qos))
+
+    def push(self, connection: Any, received_ns: int, data: bytes) -> None:
+        """Queue one message; written by `drain` in reception order."""
+        self._serial += 1
+        self._pending.append((received_ns, self._serial, connection, data))
+
+    def drain(self, older_than_ns: int | None = None) -> None:
+        """Write queued messages received before `older_than_ns` (None: all), oldest first."""
+        if not self._pending:
+            return
+        self._pending.sort(key=lambda item: (item[0], item[1]))
+        cut = len(self._pending)
+        if older_than_ns is not None:
+            cut = next((i for i, item in enumerate(self._pending) if item[0] >= older_than_ns),
+                       len(self._pending))
+        for received_ns, _, connection, data in self._pending[:cut]:
+            self._writer.write(connection, received_ns, data)
+            self.per_topic[connection.topic] += 1
+        self.written += cut
+        del self._pending[:cut]
+
+    def flush(self) -> None:
+        """Close the open MCAP chunk and push the file to the OS (survives SIGKILL)."""
+        if self._storage.chunk.bio.tell():
+            self._storage.close_chunk()
+        self._storage.bio.flush()
+
+    def close(self) -> None:
+        """Write what is queued, the MCAP summary and metadata.yaml."""
+        if self.closed:
+            return
+        self.drain()
+        self._writer.close()
+        self.closed = True
+
+
+def _bag_qos(profile: Any) -> Any:
+    """rclpy QoSProfile -> rosbags Qos (the enums share rmw's numbering)."""
+    from rosbags.interfaces import (
+        Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime)
+
+    def span(duration: Any) -> Any:
+        nanoseconds = int(duration.nanoseconds)
+        if nanoseconds >= (2**31 - 1) * 10**9:  # rmw's "infinite", as rosbag2 writes it
+            return QosTime(2**31 - 1, 2**32 - 1)
+        return QosTime(*divmod(nanoseconds, 10**9))
+
+    return Qos(QosHistory(int(profile.history)), int(profile.depth),
+               QosReliability(int(profile.reliability)),
+               QosDurability(int(profile.durability)), span(profile.deadline),
+               span(profile.lifespan), QosLiveliness(int(profile.liveliness)),
+               span(profile.liveliness_lease_duration),
+               bool(profile.avoid_ros_namespace_conventions))
+
+
+def _message_class(msgtype: str) -> Any:
+    """Python class of 'pkg/msg/Name', or None when not installed."""
+    package, _, name = msgtype.split('/')
+    try:
+        return getattr(importlib.import_module(f'{package}.msg'), name)
+    except (ImportError, AttributeError):
+        return None
+
+
+def export_dataset(bag: Path, dataset: str, gap_s: float, rate_hz: float) -> str:
+    """Runs of `bag` (read_runs) resampled into data set `dataset`; a one-line summary."""
+    from octoroach_model.recordings import read_runs, save_dataset
+
+    paths = read_runs([bag], gap_s=gap_s).to_paths(rate_hz=rate_hz)
+    target = save_dataset(dataset, paths)
+    return f'{paths.n_paths} run(s) of {paths.t[-1]:.2f} s at {rate_hz:g} Hz written to {target}'
+
+
+@dataclass
+class _Recorded:
+    """One recorded topic: its type, its publishers' QoS, its subscription."""
+
+    topic: str
+    msgtype: str
+    offered: list[Any]
+    subscription: Any = None
+
+
+try:  # the node class needs rclpy; --help does not
+    from rclpy.node import Node
+except ImportError:  # pragma: no cover
+    Node = object  # type: ignore[assignment,misc]
+
+
+class Recorder(Node):  # type: ignore[misc,valid-type]
+    """Records the configured topics; see the module docstring."""
+
+    def __init__(self, defaults: dict[str, Any] | None = None, **node_options: Any) -> None:
+        super().__init__('recorder', **node_options)
+        self._specs = [replace(spec, default=(defaults or {})[spec.name])
+                       if spec.name in (defaults or {}) else spec
+                       for spec in recorder_specs()]
+        values = declare_parameters(self, self._specs)
+        self.add_on_set_parameters_callback(set_parameters_callback(self, self._specs))
+        self._patterns = [self._resolve(topic) for topic in values['topics']]
+        output = Path(values['output'] or default_output())
+        self._bag = BagRecorder(output)
+        self._recording: dict[str, _Recorded] = {}
+        self._connections: dict[tuple[str, str], Any] = {}
+        self._refused: set[str] = set()
+        self._logged = 0
+        self.get_logger().info(f'recording {", ".join(self._patterns)} to {output}')
+        self._discover()
+        self.create_timer(DISCOVERY_PERIOD_S, self._discover)
+        self.create_timer(DRAIN_PERIOD_S, self._drain)
+        self._flush_timer = self.create_timer(values['flush_period_s'], self._flush)
+        self._log_timer = self.create_timer(values['log_period_s'], self._log_progress)
+        self.add_post_set_parameters_callback(self._on_parameters_set)
+        from std_srvs.srv import Trigger
+
+        self.create_service(Trigger, '~/export', self._on_export)
+
+    @property
+    def bag_path(self) -> Path:
+        """The bag directory being written."""
+        return self._bag.path
+
+    def _resolve(self, topic: str) -> str:
+        if any(ch in topic for ch in '*?['):
+            return topic
+        try:
+            return self.resolve_topic_name(topic)
+        except Exception as error:  # noqa: BLE001 - rclpy raises several name errors
+            raise UsageError(f'bad topic name {topic!r}: {error}') from None
+
+    def _wanted(self, topic: str) -> bool:
+        return any(fnmatch.fnmatchcase(topic, pattern) for pattern in self._patterns)
+
+    def _discover(self) -> None:
+        """Subscribe to wanted topics that have appeared, with the type they are published with.
+
+        A topic listed with several types (a stale endpoint of a process gone, a publisher
+        that changed type) gets the first usable one; when no publisher of that type is left
+        but another type is on offer, the subscription switches to it.
+        """
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._refused or not self._wanted(topic):
+                continue
+            current = self._recording.get(topic)
+            if current is not None and (types == [current.msgtype]
+                                        or current.subscription.get_publisher_count()):
+                continue
+            usable = [t for t in types if self._bag.knows(t) and _message_class(t)
+                      and (current is None or t != current.msgtype)]
+            if not usable:
+                if current is None:
+                    self.get_logger().warning(f'not recording {topic}: type(s) '
+                                              f'{", ".join(types)} unknown here')
+                    self._refused.add(topic)
+                continue
+            if current is not None:
+                self.get_logger().warning(f'{topic}: no publisher of {current.msgtype} left; '
+                                          f'switching to {usable[0]}')
+                self.destroy_subscription(current.subscription)
+            elif len(types) > 1:
+                self.get_logger().warning(f'{topic} has several types {types}; '
+                                          f'recording {usable[0]}')
+            self._subscribe(topic, usable[0])
+
+    def _subscribe(self, topic: str, msgtype: str) -> None:
+        from rclpy.qos import ReliabilityPolicy
+
+        offered = [info.qos_profile for info in self.get_publishers_info_by_topic(topic)
+                   if info.topic_type == msgtype]
+        qos = vicon_qos(int(self.get_parameter('qos_depth').value))
+        if any(profile.reliability == ReliabilityPolicy.BEST_EFFORT for profile in offered):
+            qos.reliability = ReliabilityPolicy.BEST_EFFORT  # else we would match none of them
+        recorded = _Recorded(topic, msgtype, [_bag_qos(p) for p in offered])
+        recorded.subscription = self.create_subscription(
+            _message_class(msgtype), topic, functools.partial(self._on_message, recorded), qos,
+            raw=True)
+        self._recording[topic] = recorded
+        self.get_logger().info(f'recording {topic} [{msgtype}]')
+
+    def _connection(self, recorded: _Recorded) -> Any:
+        """The bag connection of a topic and type, made at its first message (so a type that
+        never delivers leaves no trace in the bag)."""
+        key = (recorded.topic, recorded.msgtype)
+        connection = self._connections.get(key)
+        if connection is None:
+            connection = self._connections[key] = self._bag.add_topic(
+                recorded.topic, recorded.msgtype, recorded.offered)
+        return connection
+
+    def _on_message(self, recorded: _Recorded, data: bytes, info: dict[str, Any]) -> None:
+        """Queue the message, then whatever else waits on its subscription.
+
+        The executor hands over one message per wake-up at a cost of a few hundred
+        microseconds; taking the backlog here (as rclpy's wait_for_message does) lets a
+        recorder keep up with bursts such as a replay at 100x.
+        """
+        push, connection = self._bag.push, self._connection(recorded)
+        push(connection, int(info.get('received_timestamp') or time.time_ns()), data)
+        subscription = recorded.subscription
+        with subscription.handle:
+            for _ in range(MAX_TAKEN_PER_CALLBACK):
+                taken = subscription.handle.take_message(subscription.msg_type, True)
+                if taken is None:
+                    break
+                data, info = taken
+                push(connection, int(info.get('received_timestamp') or time.time_ns()), data)
+
+    def _drain(self) -> None:
+        self._bag.drain(time.time_ns() - int(REORDER_WINDOW_S * 1e9))
+
+    def _flush(self) -> None:
+        self._drain()
+        self._bag.flush()
+
+    def _log_progress(self) -> None:
+        if self._bag.written != self._logged:
+            self._logged = self._bag.written
+            counts = self._bag.per_topic
+            detail = ', '.join(f'{topic} {count}' for topic, count in counts.items()) \
+                if len(counts) <= 4 else f'{len(counts)} topics'
+            self.get_logger().info(f'{self._bag.written} messages recorded ({detail})')
+
+    def _on_parameters_set(self, parameters: list[Any]) -> None:
+        for parameter in parameters:
+            if parameter.name == 'flush_period_s':
+                self._flush_timer.timer_period_ns = int(parameter.value * 1e9)
+            elif parameter.name == 'log_period_s':
+                self._log_timer.timer_period_ns = int(parameter.value * 1e9)
+
+    def _export(self) -> str:
+        dataset = str(self.get_parameter('dataset').value)
+        if not dataset:
+            raise DataError('parameter dataset is empty: no data set file to write')
+        return export_dataset(self._bag.path, dataset,
+                              float(self.get_parameter('gap_s').value),
+                              float(self.get_parameter('export_rate_hz').value))
+
+    def _on_export(self, request: Any, response: Any) -> Any:
+        """~/export: flush the bag, write the data set from it, say what was written."""
+        self._bag.drain()
+        self._bag.flush()
+        try:
+            response.message = self._export()
+            response.success = True
+        except OctoroachError as error:
+            response.message = str(error)
+            response.success = False
+        self.get_logger().info(f'export: {response.message}')
+        return response
+
+    def finish(self) -> int:
+        """Close the bag (metadata.yaml); write the data set if asked. The exit code."""
+        self._bag.close()
+        self.get_logger().info(f'bag {self._bag.path} closed: {self._bag.written} messages')
+        if not self.get_parameter('dataset').value:
+            return 0
+        try:
+            self.get_logger().info(self._export())
+        except OctoroachError as error:
+            return fail(f'cannot write the data set: {error}', 1)
+        return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """`recorder [-o BAG] [--dataset FILE] [--topics T ...] [--ros-args ...]`."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        own, ros = split_ros_args(argv)
+        parser = node_parser('recorder', SUMMARY, recorder_specs(), TOPICS, NOTES,
+                             '[-o BAG] [--dataset FILE] [--topics TOPIC ...]')
+        parser.add_argument('-o', '--output', help='bag directory (parameter output)')
+        parser.add_argument('--dataset', help='data set file (parameter dataset)')
+        parser.add_argument('--topics', nargs='+', metavar='TOPIC',
+                            help='topics or patterns (parameter topics)')
+        args = parser.parse_args(own)
+    except SystemExit as stop:  # --help
+        return int(stop.code or 0)
+    except (UsageError, OctoroachError) as error:
+        return fail(str(error))
+    defaults = {name: value for name, value in
+                (('output', args.output), ('dataset', args.dataset), ('topics', args.topics))
+                if value is not None}
+    return run_node(lambda: Recorder(defaults), ros, 'recorder')

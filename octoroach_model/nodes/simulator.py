@@ -1,0 +1,418 @@
+"""simulator: the model's runs as a live VICON pose stream, so ROS tools can be tried on it.
+
+Runs of `cycles` gait cycles follow one another, separated by a pause of `pause_s` with no
+poses; a run marker (std_msgs/msg/UInt32, data = run index) goes out one sample period before
+each run's first pose. Each run is drawn in one `simulate(...)` call during the pause before
+it, with the parameters in force then (drawn again at its start if they changed meanwhile),
+and encoded to CDR bytes in one go. A single steady (wall-rate) timer then sends, for all
+robots at once, the samples due on the run's schedule as raw bytes, with the header stamp
+patched in from the node clock (so use_sim_time is honoured). Python work per message is a
+copy and a publish call, so 50 robots at 50 Hz keep their rate; a late tick delays samples
+but never drops them.
+"""
+from __future__ import annotations
+
+import math
+import re
+import secrets
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from octoroach_model.errors import OctoroachError, ParameterError
+from octoroach_model.nodes.common import (
+    STAMP, ParamSpec, ParamValue, UsageError, current_values, declare_parameters,
+    encode_transforms, fail, node_parser, run_node, set_parameters_callback, split_ros_args,
+    stamp_bytes, vicon_qos)
+
+SUMMARY = ('ROS node: publishes model-generated VICON poses (geometry_msgs/msg/TransformStamped,'
+           ' metres, unit quaternion, heading = yaw) at `rate` Hz, runs one after another with a'
+           ' pause and a run marker between them. Every setting is a ROS parameter; changes are'
+           ' checked when set and apply from the next run.')
+NOTES = """
+Effect parameters keep the contract's keys and units (heading_std_deg is in degrees,
+position_std_cm in centimetres, ...); only the ones of the selected `effect` are used.
+With robots > 1 each robot i is subject SUBJECT_i (segment SEGMENT_i, or SUBJECT_i when
+segment is empty) on /vicon/SUBJECT_i/SEGMENT_i with markers on /SUBJECT_i/run_start; all
+robots start their runs together. QoS of every topic: reliable, volatile, keep_last 100.
+Example: python -m octoroach_model simulator --ros-args -p robots:=3 -p sigma1:=0.2
+"""
+TOPICS = (
+    ('publishes', '/vicon/SUBJECT/SEGMENT', 'geometry_msgs/msg/TransformStamped, `rate` Hz'),
+    ('publishes', '/SUBJECT/run_start', 'std_msgs/msg/UInt32 run index, before each run'),
+)
+NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+FRAME = re.compile(r'^[A-Za-z0-9_/]+$')
+_EFFECT_UNITS = {'_deg_s': 'deg/s', '_cm_s': 'cm/s', '_deg': 'deg', '_cm': 'cm'}
+
+
+def _effect_unit(key: str) -> str:
+    return next((unit for suffix, unit in _EFFECT_UNITS.items() if key.endswith(suffix)), '1')
+
+
+def simulator_specs() -> list[ParamSpec]:
+    """The simulator's parameters; model defaults come from config/table2.yaml."""
+    from octoroach_model.model import (
+        DRAWS, EFFECT_NAMES, EFFECT_PARAMETERS, PARAMETER_RANGES, ModelParameters,
+        nominal_sigmas)
+
+    nominal = ModelParameters.nominal()
+    sigma1, sigma2 = nominal_sigmas()
+    specs = [
+        ParamSpec('robots', 1, 'number of robots, each its own subject and topics', '',
+                  1, 100),
+        ParamSpec('subject', 'octoroach', 'VICON subject name (robots > 1: SUBJECT_i)'),
+        ParamSpec('segment', '', 'VICON segment name; empty: the subject name'),
+        ParamSpec('world_frame', 'vicon/world', 'header.frame_id of the poses'),
+        ParamSpec('rate', float(nominal.sample_rate), 'publishing rate = model sample rate',
+                  'Hz', 1.0, 1000.0),
+        ParamSpec('pause_s', 1.0, 'pause without poses between runs', 's', 0.5, 3600.0),
+        ParamSpec('runs', 0, 'runs to publish, then exit (0: go on until stopped)', '',
+                  0, 1_000_000),
+        ParamSpec('wait_subscribers', 0, 'before the first run, wait until every pose and '
+                  'marker topic has this many subscribers', '', 0, 1000),
+        ParamSpec('wait_timeout_s', 10.0, 'longest wait for wait_subscribers, then start',
+                  's', 0.0, 3600.0),
+        ParamSpec('cycles', 10, 'gait cycles per run', '', 1, 1000),
+        ParamSpec('sigma1', sigma1, 'spread of the touchdown angles (eq. 11)', 'rad',
+                  0.0, 1.0),
+        ParamSpec('sigma2', sigma2, 'spread of the liftoff angles (eq. 11)', 'rad', 0.0, 1.0),
+        ParamSpec('stride_frequency', float(nominal.stride_frequency),
+                  'gait cycles per second', 'Hz', 0.1, 20.0),
+        ParamSpec('draws', DRAWS[0], 'new random angles at every stance, or once per run',
+                  choices=tuple(DRAWS)),
+        ParamSpec('seed', -1, 'run k uses a seed derived from (seed, k); -1: fresh entropy',
+                  '', -1, 2**31 - 1),
+        ParamSpec('start_x', 0.0, 'x at the start of every run', 'm', -1000.0, 1000.0),
+        ParamSpec('start_y', 0.0, 'y at the start of every run', 'm', -1000.0, 1000.0),
+        ParamSpec('start_heading', math.pi / 2, 'heading at the start (pi/2: along +y)',
+                  'rad', -2 * math.pi, 2 * math.pi),
+        ParamSpec('effect', 'none', 'model extension (contract table) added to every run',
+                  choices=('none', *EFFECT_NAMES)),
+    ]
+    for key, (low, high) in PARAMETER_RANGES.items():
+        users = ', '.join(name for name, keys in EFFECT_PARAMETERS.items() if key in keys)
+        specs.append(ParamSpec(f'effect_params.{key}', 0.0, f'parameter of {users}',
+                               _effect_unit(key), float(low), float(high)))
+    return specs
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """What one run needs, taken from the parameters in force when the run starts."""
+
+    robots: int
+    subject: str
+    segment: str
+    world_frame: str
+    rate: float
+    pause_s: float
+    cycles: int
+    sigma1: float
+    sigma2: float
+    stride_frequency: float
+    draws: str
+    seed: int
+    start_pose: tuple[float, float, float]
+    effect: str
+    effect_params: Mapping[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, Any]) -> RunSettings:
+        """Settings from parameter values; ParameterError where they do not fit together."""
+        for key in ('subject', 'segment'):
+            if values[key] and not NAME.match(values[key]):
+                raise ParameterError(f'{key} {values[key]!r} must be a name: a letter, then '
+                                     'letters, digits or _')
+        if not values['subject']:
+            raise ParameterError('subject must not be empty')
+        if not FRAME.match(values['world_frame']):
+            raise ParameterError(f'world_frame {values["world_frame"]!r} must be a frame '
+                                 'name of letters, digits, _ and /')
+        settings = cls(
+            robots=int(values['robots']), subject=values['subject'],
+            segment=values['segment'], world_frame=values['world_frame'],
+            rate=float(values['rate']), pause_s=float(values['pause_s']),
+            cycles=int(values['cycles']), sigma1=float(values['sigma1']),
+            sigma2=float(values['sigma2']),
+            stride_frequency=float(values['stride_frequency']), draws=values['draws'],
+            seed=int(values['seed']),
+            start_pose=(float(values['start_x']), float(values['start_y']),
+                        float(values['start_heading'])),
+            effect=values['effect'],
+            effect_params={key[len('effect_params.'):]: float(value)
+                           for key, value in values.items()
+                           if key.startswith('effect_params.')})
+        from octoroach_model.model import check_effects
+
+        check_effects(settings.effects())
+        settings.model_parameters()
+        return settings
+
+    def subjects(self) -> list[tuple[str, str]]:
+        """(subject, segment) of each robot."""
+        if self.robots == 1:
+            return [(self.subject, self.segment or self.subject)]
+        return [(f'{self.subject}_{i}', f'{self.segment}_{i}' if self.segment
+                 else f'{self.subject}_{i}') for i in range(self.robots)]
+
+    def effects(self) -> dict[str, dict[str, float]] | None:
+        """{effect: {key: value}} for `simulate`, None without an effect."""
+        if self.effect == 'none':
+            return None
+        from octoroach_model.model import EFFECT_PARAMETERS
+
+        return {self.effect: {key: self.effect_params.get(key, 0.0)
+                              for key in EFFECT_PARAMETERS[self.effect]}}
+
+    def model_parameters(self) -> Any:
+        """Table II with this stride frequency and sample rate."""
+        from octoroach_model.model import ModelParameters
+
+        return replace(ModelParameters.nominal(), stride_frequency=self.stride_frequency,
+                       sample_rate=self.rate)
+
+    def run_seed(self, run_index: int) -> int:
+        """Seed of run `run_index`: derived from (seed, index), or fresh entropy."""
+        if self.seed < 0:
+            return secrets.randbits(63)
+        state = np.random.SeedSequence([self.seed, run_index]).generate_state(2, np.uint32)
+        return int(state[0]) << 31 | int(state[1]) >> 1
+
+    def simulate(self, seed: int) -> Any:
+        """One run per robot: Paths with poses (robots, T, 3)."""
+        from octoroach_model.model import simulate
+
+        return simulate(self.robots, seed=seed, sigma1=self.sigma1, sigma2=self.sigma2,
+                        cycles=self.cycles, parameters=self.model_parameters(),
+                        draws=self.draws, effects=self.effects(), start_pose=self.start_pose)
+
+
+def _reject_reason(values: dict[str, ParamValue]) -> str | None:
+    try:
+        RunSettings.from_values(values)
+    except OctoroachError as error:
+        return str(error)
+    return None
+
+
+def pose_topic(subject: str, segment: str) -> str:
+    """VICON topic of a subject's segment (vicon_bridge convention)."""
+    return f'/vicon/{subject}/{segment}'
+
+
+def marker_topic(subject: str) -> str:
+    """Run-marker topic of a subject."""
+    return f'/{subject}/run_start'
+
+
+try:  # the node class needs rclpy; --help and the settings above do not
+    from rclpy.clock import Clock, ClockType
+    from rclpy.node import Node
+    from rclpy.task import Future
+except ImportError:  # pragma: no cover - rclpy missing: main() reports it
+    Node = object  # type: ignore[assignment,misc]
+
+
+@dataclass
+class _Robot:
+    subject: str
+    poses: Any  # rclpy Publisher of TransformStamped, fed raw CDR
+    marker: Any  # rclpy Publisher of UInt32
+
+
+@dataclass
+class _PreparedRun:
+    """The next run, drawn during the pause so that its start costs no time."""
+
+    values: dict[str, ParamValue]
+    settings: RunSettings
+    seed: int
+    duration_s: float
+    frames: list[np.ndarray]  # per robot (T, L) CDR rows, stamps patched in when sent
+
+
+class Simulator(Node):  # type: ignore[misc,valid-type]
+    """Publishes model runs as VICON poses; see the module docstring.
+
+    Sample k of a run is due at t0 + k / rate on the steady clock (t0: the timer tick after
+    the run's marker). Each tick sends every sample due by then, so a late or skipped tick
+    delays samples but never drops them or stretches the run; the header stamp of sample k
+    is its due time on the node clock.
+    """
+
+    def __init__(self, **node_options: Any) -> None:
+        super().__init__('simulator', **node_options)
+        self._specs = simulator_specs()
+        values = declare_parameters(self, self._specs)
+        self._settings = RunSettings.from_values(values)
+        self.add_on_set_parameters_callback(
+            set_parameters_callback(self, self._specs, _reject_reason))
+        self.done = Future()
+        self._robots: list[_Robot] = []
+        self._frames: list[np.ndarray] = []
+        self._next: _PreparedRun | None = None
+        self._in_run = False
+        self._sample = 0
+        self._t0_ns = 0
+        self._run_index = 0
+        self._published = 0
+        self._created = time.monotonic()
+        self._waited = False
+        self._build_publishers(self._settings)
+        self._pause_left = self._pause_ticks(self._settings)  # discovery time before run 0
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._timer = self.create_timer(1.0 / self._settings.rate, self._tick,
+                                        clock=self._steady)
+        self.get_logger().info(
+            f'publishing {self._settings.robots} robot(s) at {self._settings.rate:g} Hz on '
+            f'{", ".join(r.poses.topic_name for r in self._robots[:3])}'
+            f'{" ..." if len(self._robots) > 3 else ""}')
+
+    @staticmethod
+    def _pause_ticks(settings: RunSettings) -> int:
+        return max(1, round(settings.pause_s * settings.rate))
+
+    def _build_publishers(self, settings: RunSettings) -> None:
+        from geometry_msgs.msg import TransformStamped
+        from std_msgs.msg import UInt32
+
+        for robot in self._robots:
+            self.destroy_publisher(robot.poses)
+            self.destroy_publisher(robot.marker)
+        self._robots = [
+            _Robot(subject,
+                   self.create_publisher(TransformStamped, pose_topic(subject, segment),
+                                         vicon_qos()),
+                   self.create_publisher(UInt32, marker_topic(subject), vicon_qos()))
+            for subject, segment in settings.subjects()]
+
+    def _tick(self) -> None:
+        """One timer period: send the samples due, else prepare / count down / start a run."""
+        if self._in_run:
+            self._publish_due()
+        elif self._pause_left > 1:
+            self._pause_left -= 1
+            if self._next is None:
+                self._next = self._prepare()
+        elif self._subscribers_ready():
+            self._start_run()
+
+    def _prepare(self) -> _PreparedRun:
+        """Draw and encode the next run with the parameters in force now."""
+        values = current_values(self, self._specs)
+        settings = RunSettings.from_values(values)
+        seed = settings.run_seed(self._run_index)
+        paths = settings.simulate(seed)
+        frames = [encode_transforms(paths.poses[i], settings.world_frame,
+                                    f'vicon/{subject}/{segment}')
+                  for i, (subject, segment) in enumerate(settings.subjects())]
+        return _PreparedRun(values, settings, seed, float(paths.t[-1]), frames)
+
+    def _publish_due(self) -> None:
+        """Send samples self._sample .. (due now) - 1 of every robot, raw, stamped."""
+        now_ns = self._steady.now().nanoseconds
+        period_ns = 1e9 / self._settings.rate
+        due = min(len(self._frames[0]), int((now_ns - self._t0_ns) / period_ns + 0.1) + 1)
+        if due <= self._sample:
+            return
+        clock_ns = self.get_clock().now().nanoseconds
+        for k in range(self._sample, due):
+            late_ns = now_ns - (self._t0_ns + round(k * period_ns))
+            stamp = np.frombuffer(stamp_bytes(clock_ns - late_ns), np.uint8)
+            for robot, frames in zip(self._robots, self._frames):
+                row = frames[k]
+                row[STAMP] = stamp
+                robot.poses.publish(row.tobytes())
+        self._published += (due - self._sample) * len(self._robots)
+        self._sample = due
+        if due == len(self._frames[0]):
+            self._end_run()
+
+    def _subscribers_ready(self) -> bool:
+        """Before the first run: are `wait_subscribers` subscribers matched on every topic?"""
+        if self._waited:
+            return True
+        wanted = int(self.get_parameter('wait_subscribers').value)
+        ready = all(robot.poses.get_subscription_count() >= wanted
+                    and robot.marker.get_subscription_count() >= wanted
+                    for robot in self._robots)
+        timeout = float(self.get_parameter('wait_timeout_s').value)
+        if not ready and time.monotonic() - self._created < timeout:
+            return False
+        if not ready:
+            self.get_logger().warning(f'fewer than {wanted} subscriber(s) after {timeout:g} s;'
+                                      ' starting anyway')
+        self._waited = True
+        return True
+
+    def _start_run(self) -> None:
+        """Send the markers; the run's first sample goes at the next tick."""
+        from std_msgs.msg import UInt32
+
+        if self._next is None or self._next.values != current_values(self, self._specs):
+            self._next = self._prepare()  # parameters changed during the pause
+        run, self._next = self._next, None
+        settings = run.settings
+        if settings.subjects() != self._settings.subjects():
+            self._build_publishers(settings)
+        if settings.rate != self._settings.rate:
+            self._timer.timer_period_ns = round(1e9 / settings.rate)
+        self._settings = settings
+        self._frames = run.frames
+        for robot in self._robots:
+            robot.marker.publish(UInt32(data=self._run_index % 2**32))
+        self._t0_ns = self._steady.now().nanoseconds + self._timer.time_until_next_call()
+        self.get_logger().info(
+            f'run {self._run_index}: {settings.robots} x {len(run.frames[0])} poses '
+            f'({run.duration_s:.2f} s), seed {run.seed}, sigma1 {settings.sigma1:g} rad, '
+            f'sigma2 {settings.sigma2:g} rad, draws {settings.draws}, effect {settings.effect}')
+        self._in_run = True
+        self._sample = 0
+
+    def _end_run(self) -> None:
+        self._in_run = False
+        self._run_index += 1
+        self._pause_left = self._pause_ticks(self._settings)
+        runs = int(self.get_parameter('runs').value)
+        if runs and self._run_index >= runs:
+            from rclpy.duration import Duration
+
+            for robot in self._robots:  # reliable: let subscribers have the last samples
+                robot.poses.wait_for_all_acked(Duration(seconds=2.0))
+                robot.marker.wait_for_all_acked(Duration(seconds=2.0))
+            self.get_logger().info(f'{runs} run(s) published ({self._published} poses); done')
+            self._timer.cancel()
+            self.done.set_result(0)
+
+    @property
+    def published(self) -> int:
+        """Poses published so far, all robots."""
+        return self._published
+
+    @property
+    def run_index(self) -> int:
+        """Index of the current (or next) run."""
+        return self._run_index
+
+    @property
+    def settings(self) -> RunSettings:
+        """Settings of the current (or last) run."""
+        return self._settings
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """`simulator [--help] [--ros-args ...]`; returns the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        own, ros = split_ros_args(argv)
+        node_parser('simulator', SUMMARY, simulator_specs(), TOPICS, NOTES).parse_args(own)
+    except SystemExit as stop:  # --help
+        return int(stop.code or 0)
+    except (UsageError, OctoroachError) as error:
+        return fail(str(error))
+    return run_node(Simulator, ros, 'simulator')
