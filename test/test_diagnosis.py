@@ -23,11 +23,15 @@ N_RUNS = 300
 DETECTABLE_RANGE = {
     'initial_pose_error': ('heading_std_deg', 2.0, 8.0, False, {'position_std_cm': 0.3}),
     'measurement_noise': ('position_std_cm', 0.05, 0.3, False, {}),
-    'gait_frequency_variation': ('relative_std', 0.02, 0.1, False, {}),
+    'gait_frequency_variation': ('relative_std', 0.02, 0.04, False, {}),
     'speed_decay': ('fraction', 0.1, 0.4, False, {}),
     'lateral_slip': ('velocity_cm_s', 1.0, 3.0, True, {}),
     'persistent_turning': ('yaw_rate_std_deg_s', 5.0, 12.0, False, {}),
 }
+# Smallest size the held-out test catches with 80 % power in 300 runs (the `detectable` field
+# of a report on such data); the weaker of two hidden effects sits at this size.
+DETECTION_LIMIT = {'gait_frequency_variation': 0.0073, 'speed_decay': 0.0055,
+                   'lateral_slip': 0.12, 'persistent_turning': 3.95}
 FAST = DiagnosisSettings(validate_models=False, score_runs=1000, calibration_runs=300)
 
 
@@ -72,15 +76,14 @@ def test_data_from_the_paper_model_gives_none():
 
 def test_with_two_effects_the_stronger_is_named():
     rng = random.Random(SEED * 10 + 5)
-    # the stronger at the top of its range, the weaker just above the smallest size the
-    # decision can catch (causes the baseline has some spread for, so "weak" is meaningful)
-    strong_cause, weak_cause = rng.sample(['gait_frequency_variation', 'speed_decay',
-                                           'lateral_slip', 'persistent_turning',
-                                           'initial_pose_error'], 2)
-    if weak_cause == 'initial_pose_error':
-        strong_cause, weak_cause = weak_cause, strong_cause
+    # the stronger at the top of its range (at least three times its detection limit), the
+    # weaker at its detection limit; "weak" needs a cause the baseline already has some
+    # spread in, so the weaker is drawn among those
+    weak_cause = rng.choice(sorted(DETECTION_LIMIT))
+    strong_cause = rng.choice(sorted(set(DETECTABLE_RANGE) - {weak_cause}))
+    weak_parameter = DETECTABLE_RANGE[weak_cause][0]
     effects = {**draw_effect(rng, strong_cause, where=1.0),
-               **draw_effect(rng, weak_cause, where=0.0)}
+               weak_cause: {weak_parameter: DETECTION_LIMIT[weak_cause]}}
     measured = om.simulate(N_RUNS, seed=SEED + 11, effects=effects)
     report = diagnose(measured, DiagnosisSettings(**{**FAST.__dict__, 'seed': SEED}))
     assert report['cause'] == strong_cause, (SEED, effects, report['candidates'])

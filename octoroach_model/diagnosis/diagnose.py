@@ -20,17 +20,16 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from octoroach_model.diagnosis.candidates import (
     CANDIDATES, Candidate, direct_extra_parameters, read_off_curve)
-from octoroach_model.diagnosis.features import FEATURES, INDEX, run_features
+from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.statistics import (
     STATISTICS, energy_scores, gaussian_log_score, paired_improvement, statistics_with_errors)
 from octoroach_model.errors import DataError
-from octoroach_model.model import RandomStreams, model_poses
 from octoroach_model.paths import Paths
 from octoroach_model.validation import (
     FourBarModel, ValidationSettings, chernoff_sample_size, fit_nominal, validate)
@@ -70,6 +69,8 @@ class _Context:
     reference_heading: float
     stride_frequency: float
     seed: np.random.SeedSequence
+    nominal_report: dict = field(default_factory=dict)
+    train_features: np.ndarray | None = None
 
     def simulate(self, effects: dict | None, n_runs: int, sigmas=None,
                  model: FourBarModel | None = None,
@@ -199,8 +200,8 @@ def _calibrate_sigmas(context: _Context, model: FourBarModel,
     curve = []
     for scale in SCALE_GRID:
         sigmas = (scale * SIGMA_DIRECTION[0], scale * SIGMA_DIRECTION[1])
-        simulated = context.features(context.simulate(model.effects, settings.calibration_runs // 2,
-                                                      sigmas, model))
+        simulated = context.features(context.simulate(
+            model.effects, settings.calibration_runs // 2, sigmas, model))
         curve.append(simulated[:, INDEX['increment_var']].mean())
     scale = read_off_curve(np.array(SCALE_GRID), np.array(curve), target, signed=False)
     return scale * SIGMA_DIRECTION[0], scale * SIGMA_DIRECTION[1]

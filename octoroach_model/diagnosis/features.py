@@ -3,19 +3,19 @@
 Each feature answers one question about a run; together they are what the diagnosis compares
 between measured and simulated runs:
 
-| feature | what it measures | cause it reveals |
+| feature | what it measures | reveals |
 | --- | --- | --- |
 | start_heading | heading at t = 0, rad | initial_pose_error |
-| start_x, start_y | position at t = 0, m | initial_pose_error, measurement_noise |
-| log_jitter | log of the mean squared second difference of x and y (m^2) | measurement_noise (adds 6 s^2) |
-| slip_angle | mean angle from heading to direction of travel over whole cycles, rad | lateral_slip |
-| stride_frequency | spectral peak of the heading's sway (once per cycle), Hz | gait_frequency_variation |
+| start_x, start_y | position at t = 0, m | initial_pose_error, noise |
+| log_jitter | log mean squared second difference of x, y (noise adds 6 s^2) | noise |
+| slip_angle | mean angle heading -> direction of travel over cycles, rad | lateral_slip |
+| stride_frequency | spectral peak of the heading's sway (once per cycle), Hz | gait frequency |
 | progress_ratio | log(distance in 2nd half / distance in 1st half) | speed_decay |
 | heading_rate | least-squares slope of heading over time, rad/s | persistent_turning |
 | increment_var | within-run variance of the heading change per cycle, rad^2 | sigma1, sigma2 |
-| end_lateral, end_progress | final displacement across / along the reference heading, m | overall spread |
-| sway_amplitude | amplitude of the heading's sway at the stride frequency, rad | gait geometry |
-| lateral_sway_1, lateral_sway_2 | amplitude of the sideways position sway at f and 2f, m | gait geometry |
+| end_lateral, end_progress | final displacement across / along the heading, m | spread |
+| sway_amplitude | amplitude of the heading's sway at the stride frequency, rad | geometry |
+| lateral_sway_1, _2 | amplitude of the sideways sway at f and 2f, m | geometry, slip |
 """
 from __future__ import annotations
 
@@ -54,8 +54,10 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     second_half = np.linalg.norm(xy[:, -1] - xy[:, half], axis=-1)
     out[:, 6] = np.log(np.maximum(second_half, 1e-9) / np.maximum(first, 1e-9))
     centred_t = t - t.mean()
-    out[:, 7] = (heading - heading.mean(axis=1, keepdims=True)) @ centred_t / (centred_t @ centred_t)
-    increments = heading[:, cycle::cycle] - heading[:, :-cycle:cycle][:, :heading[:, cycle::cycle].shape[1]]
+    out[:, 7] = (heading - heading.mean(axis=1, keepdims=True)) @ centred_t \
+        / (centred_t @ centred_t)
+    later = heading[:, cycle::cycle]
+    increments = later - heading[:, :-cycle:cycle][:, :later.shape[1]]
     out[:, 8] = increments.var(axis=1, ddof=1) if increments.shape[1] > 1 else 0.0
     end = xy[:, -1] - xy[:, 0]
     forward = np.array([np.cos(reference_heading), np.sin(reference_heading)])
