@@ -30,6 +30,7 @@ from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.statistics import (
     STATISTICS, energy_scores, gaussian_log_score, paired_improvement, statistics_with_errors)
 from octoroach_model.errors import DataError
+from octoroach_model.model import ModelParameters
 from octoroach_model.paths import Paths
 from octoroach_model.validation import (
     FourBarModel, ValidationSettings, chernoff_sample_size, fit_nominal, validate)
@@ -52,6 +53,7 @@ class DiagnosisSettings:
     score_runs: int = 1500
     bootstrap: int = 100
     heading_weight_m: float = 0.13
+    min_gain: float = 0.1
     baseline_heading_weight_m: float = 0.13
     validation: ValidationSettings = field(default_factory=ValidationSettings)
     validate_models: bool = True
@@ -118,7 +120,8 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             f'p = {candidates[-1]["p_value"]:.2g}')
 
     threshold = settings.alpha / len(CANDIDATES)
-    significant = [c for c in candidates if c['p_value'] < threshold and c['gain'] > 0]
+    significant = [c for c in candidates
+                   if c['p_value'] < threshold and c['gain'] >= settings.min_gain]
     chosen = max(significant, key=lambda c: c['gain']) if significant else None
     cause = chosen['cause'] if chosen else 'none'
     parameters = chosen['parameters'] if chosen else {}
@@ -159,7 +162,9 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
                                       extended_scores['energy'].mean(), lower_is_better=True)},
         },
         'decision': {'alpha': settings.alpha, 'per_candidate_level': threshold,
-                     'test': 'one-sided paired t-test of per-run log-score gains'},
+                     'min_gain': settings.min_gain,
+                     'test': 'one-sided paired t-test of per-run log-score gains, and a gain '
+                             'of at least min_gain nats per run'},
     }
     if settings.validate_models:
         say(0.70, "paper's validation of the baseline (search 15)")
@@ -285,10 +290,19 @@ def _estimate_jointly(candidate: Candidate, context: _Context, settings: Diagnos
                       ) -> tuple[float, FourBarModel, dict]:
     """Least squares of the geometry and the effect's parameter together (eq. 9 extended):
     the effect moves the average path, which the geometry alone would bend to mimic."""
-    fit = fit_nominal(context.train, initial=context.model.parameters,
-                      free_effect=(candidate.cause, candidate.parameter),
-                      free_effect_bounds=(min(candidate.grid), max(candidate.grid)),
-                      heading_weight_m=settings.heading_weight_m, multistart=False)
+    bounds = (min(candidate.grid), max(candidate.grid))
+    # restarts: from the baseline geometry (which may have bent to mimic the effect) and from
+    # Table II, with the effect at zero and at half its range either way; the best fit wins
+    starts = [(context.model.parameters, 0.0)] + [
+        (replace(ModelParameters.nominal(),
+                 stride_frequency=context.model.parameters.stride_frequency), value)
+        for value in (0.0, 0.5 * bounds[0], 0.5 * bounds[1]) if bounds[0] <= value <= bounds[1]]
+    fits = [fit_nominal(context.train, initial=initial,
+                        free_effect=(candidate.cause, candidate.parameter),
+                        free_effect_bounds=bounds, free_effect_start=value,
+                        heading_weight_m=settings.heading_weight_m, multistart=False)
+            for initial, value in starts]
+    fit = min(fits, key=lambda f: f.cost)
     estimate = float(fit.effects[candidate.cause][candidate.parameter])
     model = replace(context.model, parameters=fit.parameters)
     return estimate, model, {'method': 'joint least squares with the geometry (eq. 9)',
@@ -320,8 +334,9 @@ def _detection_limit(candidate: Candidate, context: _Context, settings: Diagnosi
         t = float(gain.mean() / spread * math.sqrt(n_test)) if spread > 0 else (
             math.inf if gain.mean() > 0 else 0.0)
         values.append(float(value))
-        t_values.append(t)
-        if t >= needed:
+        # a gain below min_gain would not be named however significant: count it as unseen
+        t_values.append(t if gain.mean() >= settings.min_gain else min(t, 0.0))
+        if t_values[-1] >= needed:
             break
     curve = {'values': values, 't': t_values, 't_needed': needed}
     envelope = np.maximum.accumulate(np.nan_to_num(t_values, posinf=1e9))

@@ -47,6 +47,7 @@ class NominalFit:
     rms_error_m: float
     average_path: np.ndarray     # (T, 2) the measured average it was fitted to
     effects: dict = field(default_factory=dict)   # effects in the model, incl. a fitted one
+    cost: float = 0.0            # least-squares cost at the solution (compares restarts)
 
     def report(self) -> dict:
         return {**self.parameters.table(),
@@ -92,7 +93,7 @@ def mean_start_pose(measured: Paths) -> tuple[float, float, float]:
 def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
                 heading_weight_m: float = 0.0, effects: dict | None = None,
                 free_effect: tuple[str, str] | None = None, free_effect_bounds=(-50.0, 50.0),
-                multistart: bool = True) -> NominalFit:
+                free_effect_start: float = 0.0, multistart: bool = True) -> NominalFit:
     """Solve eq. (9) on the average of `measured`; see the module docstring for the options.
 
     `multistart` also starts from the spectral guess of the stride frequency; a refit from a
@@ -112,7 +113,7 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
         if heading_weight_m > 0 else None
     fixed_effects = {name: dict(values) for name, values in (effects or {}).items()}
     if free_effect:
-        fixed_effects.setdefault(free_effect[0], {}).setdefault(free_effect[1], 0.0)
+        fixed_effects.setdefault(free_effect[0], {})[free_effect[1]] = float(free_effect_start)
 
     def build(vector):
         parameters = replace(initial, leg_length=vector[0], touchdown_angles=tuple(vector[1:5]),
@@ -152,7 +153,7 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
     parameters, model_effects = build(best.x)
     path = deterministic_path(parameters, start_pose, t, model_effects)
     rms = float(np.sqrt(np.mean(np.sum((path[:, :2] - average) ** 2, axis=1))))
-    return NominalFit(parameters, start_pose, rms, average, model_effects)
+    return NominalFit(parameters, start_pose, rms, average, model_effects, float(best.cost))
 
 
 def _two_stage_least_squares(residuals, start, lower, upper, x_scale):
