@@ -23,7 +23,7 @@ N_RUNS = 300
 DETECTABLE_RANGE = {
     'initial_pose_error': ('heading_std_deg', 2.0, 8.0, False, {'position_std_cm': 0.3}),
     'measurement_noise': ('position_std_cm', 0.05, 0.3, False, {}),
-    'gait_frequency_variation': ('relative_std', 0.02, 0.04, False, {}),
+    'gait_frequency_variation': ('relative_std', 0.02, 0.1, False, {}),
     'speed_decay': ('fraction', 0.1, 0.4, False, {}),
     'lateral_slip': ('velocity_cm_s', 1.0, 3.0, True, {}),
     'persistent_turning': ('yaw_rate_std_deg_s', 5.0, 12.0, False, {}),

@@ -54,6 +54,7 @@ class DiagnosisSettings:
     bootstrap: int = 100
     heading_weight_m: float = 0.13
     min_gain: float = 0.1
+    align_gait: bool = True
     baseline_heading_weight_m: float = 0.13
     validation: ValidationSettings = field(default_factory=ValidationSettings)
     validate_models: bool = True
@@ -185,7 +186,8 @@ def _calibrate_baseline(measured: Paths, settings: DiagnosisSettings) -> _Contex
     order = np.random.default_rng(settings.seed).permutation(measured.n_paths)
     half = measured.n_paths // 2
     train, test = measured.subset(order[:half]), measured.subset(order[half:])
-    nominal = fit_nominal(train, heading_weight_m=settings.baseline_heading_weight_m)
+    nominal = fit_nominal(train, heading_weight_m=settings.baseline_heading_weight_m,
+                          align_gait=settings.align_gait)
     start = mean_start_pose(train)
     model = FourBarModel(nominal.parameters, start)
     seed = np.random.SeedSequence([settings.seed, 1])
@@ -300,7 +302,8 @@ def _estimate_jointly(candidate: Candidate, context: _Context, settings: Diagnos
     fits = [fit_nominal(context.train, initial=initial,
                         free_effect=(candidate.cause, candidate.parameter),
                         free_effect_bounds=bounds, free_effect_start=value,
-                        heading_weight_m=settings.heading_weight_m, multistart=False)
+                        heading_weight_m=settings.heading_weight_m, multistart=False,
+                        align_gait=settings.align_gait)
             for initial, value in starts]
     fit = min(fits, key=lambda f: f.cost)
     estimate = float(fit.effects[candidate.cause][candidate.parameter])

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from octoroach_model.paths import Paths
+from octoroach_model.validation.gait import heading_sway
 
 FEATURES = ('start_heading', 'start_x', 'start_y', 'log_jitter', 'slip_angle', 'stride_frequency',
             'progress_ratio', 'heading_rate', 'increment_var', 'end_lateral', 'end_progress',
@@ -47,7 +48,7 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     out[:, 3] = np.log((second ** 2).mean(axis=(1, 2)) + 1e-14)
     cycle = max(2, int(round(1.0 / (stride_frequency * dt))))
     out[:, 4] = _slip_angle(xy, heading, cycle)
-    out[:, 5], out[:, 11] = _heading_sway(heading, dt, stride_frequency)
+    out[:, 5], out[:, 11] = heading_sway(heading, dt, stride_frequency)
     out[:, 12], out[:, 13] = _lateral_sway(xy, heading, t, out[:, 5])
     half = len(t) // 2
     first = np.linalg.norm(xy[:, half] - xy[:, 0], axis=-1)
@@ -75,31 +76,6 @@ def _slip_angle(xy: np.ndarray, heading: np.ndarray, cycle: int) -> np.ndarray:
     mean_heading = np.apply_along_axis(lambda h: np.convolve(h, kernel, mode='valid'), 1, heading)
     offset = travel - mean_heading
     return np.angle(np.exp(1j * offset)).mean(axis=1)
-
-
-def _heading_sway(heading: np.ndarray, dt: float, nominal: float
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-run stride frequency and sway amplitude: the body sways once per cycle (right
-    stance turns one way, left stance the other); how far depends on the leg geometry.
-    Heading, unlike a speed from differenced positions, is not drowned by position noise."""
-    centred_t = np.arange(heading.shape[1]) - 0.5 * (heading.shape[1] - 1)
-    slope = (heading @ centred_t) / (centred_t @ centred_t)
-    sway = heading - heading.mean(axis=1, keepdims=True) - slope[:, None] * centred_t
-    window = np.hanning(sway.shape[1])
-    sway *= window
-    n_fft = 8192
-    spectrum = np.abs(np.fft.rfft(sway, n=n_fft, axis=1))
-    freqs = np.fft.rfftfreq(n_fft, dt)
-    band_index = np.flatnonzero((freqs > nominal * 0.6) & (freqs < nominal * 1.4))
-    rows = np.arange(heading.shape[0])
-    peak = band_index[np.argmax(spectrum[:, band_index], axis=1)]
-    left, centre = spectrum[rows, peak - 1], spectrum[rows, peak]
-    right = spectrum[rows, np.minimum(peak + 1, len(freqs) - 1)]
-    curvature = left - 2 * centre + right
-    shift = np.where(curvature < 0, 0.5 * (left - right) / np.where(curvature < 0, curvature, -1),
-                     0.0)
-    amplitude = 2.0 * (centre - 0.25 * (left - right) * shift) / window.sum()
-    return freqs[peak] + shift * (freqs[1] - freqs[0]), amplitude
 
 
 def _lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,

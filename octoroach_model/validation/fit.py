@@ -32,6 +32,7 @@ from octoroach_model.errors import DataError
 from octoroach_model.model import ModelParameters, RandomStreams, check_effects, model_poses
 from octoroach_model.model.kinematics import integrate_stances
 from octoroach_model.paths import Paths
+from octoroach_model.validation.gait import gait_aligned_average
 
 LOWER = [0.003, 0.05, 0.05, 0.05, 0.05, 0.2]
 UPPER = [0.08, 1.45, 1.45, 1.45, 1.45, 20.0]
@@ -93,24 +94,28 @@ def mean_start_pose(measured: Paths) -> tuple[float, float, float]:
 def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
                 heading_weight_m: float = 0.0, effects: dict | None = None,
                 free_effect: tuple[str, str] | None = None, free_effect_bounds=(-50.0, 50.0),
-                free_effect_start: float = 0.0, multistart: bool = True) -> NominalFit:
+                free_effect_start: float = 0.0, multistart: bool = True,
+                align_gait: bool = False) -> NominalFit:
     """Solve eq. (9) on the average of `measured`; see the module docstring for the options.
 
     `multistart` also starts from the spectral guess of the stride frequency; a refit from a
-    good `initial` can skip it.
+    good `initial` can skip it. `align_gait` fits the average taken on a common gait clock
+    (`gait.gait_aligned_average`), which stride-to-stride frequency spread does not smear.
     """
     initial = (initial or ModelParameters.nominal()).with_paper_liftoff()
     if measured.n_paths < 1 or len(measured.t) < 3:
         raise DataError('the nominal fit needs at least one run of three samples')
-    t = measured.t
-    average = measured.positions.mean(axis=0)
-    if not np.isfinite(average).all():
-        raise DataError('the average measured path is not finite')
+    if not np.isfinite(measured.poses).all():
+        raise DataError('the measured runs are not finite')
     start_pose = mean_start_pose(measured)
-    heading = measured.poses[..., 2]
-    # mean heading relative to the mean start heading (wrap-safe: runs are unwrapped)
-    average_heading = np.angle(np.exp(1j * (heading - start_pose[2]))).mean(axis=0) \
-        if heading_weight_m > 0 else None
+    if align_gait:
+        t, average, turn, _ = gait_aligned_average(measured, initial.stride_frequency)
+    else:
+        t = measured.t
+        average = measured.positions.mean(axis=0)
+        # mean heading change since the mean start heading (wrap-safe: runs are unwrapped)
+        turn = np.angle(np.exp(1j * (measured.poses[..., 2] - start_pose[2]))).mean(axis=0)
+    average_heading = turn if heading_weight_m > 0 else None
     fixed_effects = {name: dict(values) for name, values in (effects or {}).items()}
     if free_effect:
         fixed_effects.setdefault(free_effect[0], {})[free_effect[1]] = float(free_effect_start)
