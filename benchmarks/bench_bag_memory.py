@@ -104,8 +104,9 @@ def main() -> int:
         ('fixed cost of first use', f'{baseline_mb - cold_mb:.0f} MB (typestore, imports)'),
         ('peak RSS growth of read_runs', f'{rss_growth_mb:.0f} MB'),
         ('  of which the returned runs', f'{result_mb:.0f} MB'),
-        ('tracemalloc peak of read_runs', f'{traced_mb:.0f} MB'),
     ]
+    if args.tracemalloc:
+        rows.append(('tracemalloc peak of read_runs', f'{traced_mb:.0f} MB'))
     width = max(len(name) for name, _ in rows)
     for name, value in rows:
         print(f'{name:<{width}}  {value}')
