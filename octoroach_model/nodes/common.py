@@ -15,7 +15,7 @@ import struct
 import sys
 import textwrap
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
@@ -138,6 +138,14 @@ def _has_kind(value: Any, kind: str) -> bool:
 
 def _number(value: float) -> str:
     return f'{value:g}' if isinstance(value, float) else str(value)
+
+
+def with_defaults(specs: Sequence[ParamSpec], defaults: dict[str, Any] | None
+                  ) -> list[ParamSpec]:
+    """The specs with some defaults replaced (command-line flags that preset a parameter)."""
+    defaults = defaults or {}
+    return [replace(spec, default=defaults[spec.name]) if spec.name in defaults else spec
+            for spec in specs]
 
 
 def declare_parameters(node: Node, specs: Sequence[ParamSpec]) -> dict[str, ParamValue]:

@@ -22,7 +22,7 @@ import importlib
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -30,6 +30,7 @@ from typing import Any
 from octoroach_model.errors import BagError, DataError, OctoroachError
 from octoroach_model.nodes.common import (
     ParamSpec, UsageError, declare_parameters, fail, node_parser, run_node,
+    with_defaults,
     set_parameters_callback, split_ros_args, vicon_qos)
 
 SUMMARY = ('ROS node: records VICON pose topics (TransformStamped or PoseStamped) and run '
@@ -210,9 +211,7 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
 
     def __init__(self, defaults: dict[str, Any] | None = None, **node_options: Any) -> None:
         super().__init__('recorder', **node_options)
-        self._specs = [replace(spec, default=(defaults or {})[spec.name])
-                       if spec.name in (defaults or {}) else spec
-                       for spec in recorder_specs()]
+        self._specs = with_defaults(recorder_specs(), defaults)
         values = declare_parameters(self, self._specs)
         self.add_on_set_parameters_callback(set_parameters_callback(self, self._specs))
         self._patterns = [self._resolve(topic) for topic in values['topics']]

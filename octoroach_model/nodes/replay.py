@@ -16,13 +16,14 @@ import sys
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from octoroach_model.errors import BagError, OctoroachError
 from octoroach_model.nodes.common import (
     ParamSpec, UsageError, declare_parameters, fail, node_parser, run_node,
+    with_defaults,
     set_parameters_callback, split_ros_args, vicon_qos)
 
 SUMMARY = ('ROS node: publishes every message of a rosbag2 MCAP bag (directory or .mcap file) '
@@ -131,8 +132,7 @@ class Replay(Node):  # type: ignore[misc,valid-type]
 
     def __init__(self, defaults: dict[str, Any] | None = None, **node_options: Any) -> None:
         super().__init__('replay', **node_options)
-        self._specs = [replace(spec, default=(defaults or {})[spec.name])
-                       if spec.name in (defaults or {}) else spec for spec in replay_specs()]
+        self._specs = with_defaults(replay_specs(), defaults)
         values = declare_parameters(self, self._specs)
         self.add_on_set_parameters_callback(set_parameters_callback(self, self._specs))
         if not values['bag']:
