@@ -4,6 +4,8 @@
   by a raw subscriber; achieved rate = (samples - 1) / (last - first reception) per robot
   (worst robot reported), jitter = p50 / p99 of the inter-message intervals per topic
   (middleware reception times, so this process's own lag does not count).
+- simulator -> recorder, live: the same runs recorded by a recorder subscribed to every
+  VICON topic; loss = poses and markers sent - messages in the recorded bag.
 - replay -> recorder: a bag of `--runs` model runs written offline, replayed at 20x (and
   100x) into a recorder; throughput = messages / replay wall time, loss = messages in the
   bag - messages in the recorded bag.
@@ -147,6 +149,40 @@ def bench_replay(rate: float, runs: int, workdir: Path) -> dict[str, float]:
             'throughput': published / seconds if seconds else float('nan')}
 
 
+def bench_live_recording(robots: int, cycles: int, workdir: Path) -> dict[str, float]:
+    """Simulator with `robots` robots (one run each) into a recorder: messages lost."""
+    import yaml
+
+    copy = workdir / f'live_{robots}'
+    topics = '[/vicon/*,/*/run_start]'
+    recorder, recorder_log = _start('recorder', ['-o', str(copy), '--ros-args', '-p',
+                                                 f'topics:={topics}', '-p',
+                                                 'log_period_s:=0.5'],
+                                    workdir / f'live_rec{robots}.log')
+    while 'recording' not in recorder_log.read_text():
+        time.sleep(0.05)
+    simulator, _ = _start('simulator', ['--ros-args', '-p', f'robots:={robots}', '-p',
+                                        'runs:=1', '-p', f'cycles:={cycles}', '-p', 'seed:=3',
+                                        '-p', 'wait_subscribers:=1'],
+                          workdir / f'live_sim{robots}.log')
+    simulator.wait(timeout=600)
+    samples = int(round(cycles / 2.0 * 50)) + 1        # default stride frequency 2 Hz
+    expected = robots * (samples + 1)                   # poses and one marker per robot
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        counts = [int(n) for n in re.findall(r'(\d+) messages recorded',
+                                             recorder_log.read_text())]
+        if counts and counts[-1] >= expected:
+            break
+        time.sleep(0.1)
+    recorder.send_signal(signal.SIGINT)
+    recorder.wait(timeout=60)
+    recorded = yaml.safe_load((copy / 'metadata.yaml').read_text())[
+        'rosbag2_bagfile_information']['message_count']
+    return {'expected': expected, 'recorded': int(recorded),
+            'loss': expected - int(recorded)}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--cycles', type=int, default=20, help='cycles of the simulated run')
@@ -167,6 +203,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f'{robots:>6} {r["messages"]:>6}/{r["expected"]:<6} {r["rate_hz"]:>13.3f} '
                   f'{r["rate_hz"] / 50.0:>10.2%} {r["p50_ms"]:>8.2f} {r["p99_ms"]:>8.2f} '
                   f'{r["max_ms"]:>8.2f} {r["sent_p50_ms"]:>8.2f} {r["sent_p99_ms"]:>8.2f}')
+        print('\nsimulator -> recorder, live (one run per robot)')
+        print(f'{"robots":>6} {"messages":>8} {"recorded":>8} {"loss":>5}')
+        for robots in args.robots:
+            r = bench_live_recording(robots, args.cycles, workdir)
+            print(f'{robots:>6} {r["expected"]:>8} {r["recorded"]:>8} {r["loss"]:>5}')
         print('\nreplay -> recorder')
         print(f'{"rate":>5} {"messages":>8} {"recorded":>8} {"loss":>5} {"wall s":>7} '
               f'{"nominal s":>9} {"msg/s":>8}')
