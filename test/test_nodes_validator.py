@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import statistics
 import subprocess
 import sys
 import threading
@@ -373,8 +372,7 @@ def test_parameters_and_a_second_call_are_answered_at_once_while_a_validation_ru
 
         timings = f'get {get_s}, set {set_s}, busy {busy_s}\n{node.log}'
         for seconds in (get_s, set_s, busy_s):
-            assert statistics.median(seconds) < FAST_S, timings
-            assert max(seconds) < 5 * FAST_S, timings
+            assert max(seconds) < FAST_S, timings
         stopped = time.monotonic()
         assert node.stop(signal.SIGINT, timeout=20) == 0, node.log
         assert time.monotonic() - stopped < 10, 'SIGINT during a validation took too long'

@@ -97,8 +97,9 @@ def model_poses(parameters: ModelParameters, streams: RandomStreams, n_runs: int
                 start_pose: Sequence[float] = DEFAULT_START_POSE) -> np.ndarray:
     """(n, T, 3) poses; the array-level core of `simulate` (no validation of arguments)."""
     effects = effects or {}
+    # one shared (T,) gait clock unless a time warp gives each run its own (n, T)
     clock = warped_time(effects, t, n_runs, streams.effects) \
-        if any(name in effects for name in TIME_WARPS) else np.broadcast_to(t, (n_runs, len(t)))
+        if any(name in effects for name in TIME_WARPS) else t
     phase = 2.0 * parameters.stride_frequency * clock
     base_stances = int(math.ceil(2 * (cycles if cycles else t[-1] * parameters.stride_frequency)
                                  - 1e-9))
