@@ -2,18 +2,23 @@
 
 Method (README, "How the diagnosis decides"):
 1. Split the runs at random into a calibration half and a held-out half.
-2. Calibrate the baseline on the calibration half: the nominal fit (eq. 9) and one spread
-   scale s, (sigma1, sigma2) = s (0.12, 0.15), matched to the within-run variance of the
-   per-cycle heading change (simulated moments, common random numbers).
+2. Calibrate the baseline on the calibration half: the nominal fit (eq. 9, with the average
+   heading in the residuals and the runs on a common gait clock) and one spread scale s,
+   (sigma1, sigma2) = s (0.12, 0.15), matched to the within-run variance of the per-cycle
+   heading change (simulated moments, common random numbers).
 3. Discrepancies: every statistic of `statistics.STATISTICS` on all runs against the
    baseline, with bootstrap errors, as z-scores.
-4. Every candidate of `candidates.CANDIDATES` gets its parameter by simulated moments on the
-   calibration half.
+4. Every candidate of `candidates.CANDIDATES` gets its parameter on the calibration half: by
+   simulated moments, or, for causes that move the average path, jointly with the geometry;
+   then its own spread scale.
 5. Each fitted candidate and the baseline are scored on the held-out runs with the log score
    of a Gaussian synthetic likelihood of the run features; the per-run gain over the baseline
    is tested with a one-sided paired t-test at level alpha / (number of candidates).
-6. The cause is the significant candidate with the largest gain, or `none`.
-7. The paper's validation (search 15) runs for the baseline and for the extended model.
+6. The cause is the significant candidate with the largest gain (at least `min_gain` nats per
+   run), or `none`.
+7. Detection limits: for each cause, the size at which that test reaches 80 % power on data
+   sets of the held-out size simulated with the effect.
+8. The paper's validation (search 15) runs for the baseline and for the extended model.
 """
 from __future__ import annotations
 
@@ -45,7 +50,13 @@ MIN_RUNS = 40
 
 @dataclass(frozen=True)
 class DiagnosisSettings:
-    """Knobs of the diagnosis; the defaults are what README's figures use."""
+    """Knobs of the diagnosis; the defaults are what README's figures use.
+
+    calibration_runs / score_runs: simulated runs per calibration point / per scored model;
+    heading_weight_m, baseline_heading_weight_m: weight (m per rad) of the average heading in
+    the nominal fits; min_gain: nats per held-out run a cause must gain to be named;
+    align_gait: fit the nominal model on the gait-aligned average path.
+    """
 
     seed: int = 0
     alpha: float = 0.01
