@@ -330,37 +330,49 @@ def fail(message: str, code: int = 2) -> int:
 # -- spin and shutdown ----------------------------------------------------------------------
 
 def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = None,
-             prog: str = 'octoroach_model') -> int:
+             prog: str = 'octoroach_model', executor_threads: int = 1) -> int:
     """Init, build the node, spin until Ctrl-C / SIGTERM / done, shut down; an exit code.
 
     The Jazzy talker pattern. A node may have `done` (an rclpy Future: spin until its result,
-    the exit code) and `finish() -> int` (called after destroy_node, when rclpy may already be
-    shut down by a signal, to close files; its code wins when non-zero). Domain errors raised
-    while building or spinning the node end as one `error:` line.
+    the exit code), `stop_jobs()` (called first on the way out, to stop worker threads) and
+    `finish() -> int` (called after destroy_node, when rclpy may already be shut down by a
+    signal, to close files; its code wins when non-zero). With executor_threads > 1 a
+    MultiThreadedExecutor spins the node, so a callback that waits never blocks the others.
+    Domain errors raised while building or spinning the node end as one `error:` line.
     """
     import rclpy
     from rclpy.exceptions import ParameterException
-    from rclpy.executors import ExternalShutdownException
+    from rclpy.executors import (
+        ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
 
     try:
         rclpy.init(args=[prog, *(ros_args or [])])
     except Exception as error:  # noqa: BLE001 - RCLError for malformed --ros-args
         return fail(f'bad ROS arguments: {str(error).splitlines()[0]}')
     node = None
+    executor = None
     code = 0
     try:
         node = node_factory()
+        executor = MultiThreadedExecutor(num_threads=executor_threads) \
+            if executor_threads > 1 else SingleThreadedExecutor()
+        executor.add_node(node)
         done = getattr(node, 'done', None)
         if done is None:
-            rclpy.spin(node)
+            executor.spin()
         else:
-            rclpy.spin_until_future_complete(node, done)
+            executor.spin_until_future_complete(done)
             code = int(done.result() or 0) if done.done() else 0
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (OctoroachError, ParameterException) as error:
         code = fail(str(error))
     finally:
+        stop_jobs = getattr(node, 'stop_jobs', None)
+        if stop_jobs is not None:
+            stop_jobs()
+        if executor is not None:
+            executor.shutdown(timeout_sec=5.0)
         if node is not None:
             node.destroy_node()
             finish = getattr(node, 'finish', None)

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 from octoroach_model.errors import OctoroachError, ParameterError
 from octoroach_model.nodes.common import (
     ParamSpec, ParamValue, UsageError, current_values, declare_parameters, fail, node_parser,
-    set_parameters_callback, split_ros_args)
+    run_node, set_parameters_callback, split_ros_args)
 
 if TYPE_CHECKING:
     from octoroach_model.paths import Paths
@@ -553,43 +553,6 @@ class Validator(Node):  # type: ignore[misc,valid-type]
 
 # -- command line ---------------------------------------------------------------------------
 
-def spin(ros_args: Sequence[str], prog: str = 'validator') -> int:
-    """Init, build the node, spin a MultiThreadedExecutor until Ctrl-C; an exit code.
-
-    Like common.run_node (the Jazzy talker pattern), but with several executor threads so
-    that a job's waiting callback never blocks the parameter services.
-    """
-    import rclpy
-    from rclpy.exceptions import ParameterException
-    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-
-    try:
-        rclpy.init(args=[prog, *ros_args])
-    except Exception as error:  # noqa: BLE001 - RCLError for malformed --ros-args
-        return fail(f'bad ROS arguments: {str(error).splitlines()[0]}')
-    node: Validator | None = None
-    executor = None
-    code = 0
-    try:
-        node = Validator()
-        executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (OctoroachError, ParameterException) as error:
-        code = fail(str(error))
-    finally:
-        if node is not None:
-            node.stop_jobs()
-        if executor is not None:
-            executor.shutdown(timeout_sec=5.0)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """`validator [--help] [--ros-args ...]`; returns the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -601,7 +564,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(stop.code or 0)
     except (UsageError, OctoroachError) as error:
         return fail(str(error))
-    return spin(ros)
+    return run_node(Validator, ros, prog='validator', executor_threads=EXECUTOR_THREADS)
 
 
 if __name__ == '__main__':
