@@ -108,6 +108,23 @@ def bench_simulator(robots: int, cycles: int, workdir: Path) -> dict[str, float]
             'sent_p99_ms': float(np.percentile(sent_steps, 99)), 'log': str(log)}
 
 
+def _stop_recorder(recorder: subprocess.Popen, log: Path, expected: int, bag: Path) -> int:
+    """Wait (10 s at most) until the recorder logs `expected` messages, stop it with SIGINT,
+    and return the message count of the bag it closed."""
+    import yaml
+
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        counts = [int(n) for n in re.findall(r'(\d+) messages recorded', log.read_text())]
+        if counts and counts[-1] >= expected:
+            break
+        time.sleep(0.1)
+    recorder.send_signal(signal.SIGINT)
+    recorder.wait(timeout=60)
+    return int(yaml.safe_load((bag / 'metadata.yaml').read_text())[
+        'rosbag2_bagfile_information']['message_count'])
+
+
 def bench_replay(rate: float, runs: int, workdir: Path) -> dict[str, float]:
     """Replay a bag of `runs` model runs at `rate` into a recorder; throughput and loss."""
     import yaml
@@ -132,27 +149,15 @@ def bench_replay(rate: float, runs: int, workdir: Path) -> dict[str, float]:
     found = re.search(r'published (\d+) messages on \d+ topic\(s\) in ([\d.]+) s',
                       replay_log.read_text())
     published, seconds = (int(found[1]), float(found[2])) if found else (0, float('nan'))
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
-        counts = [int(n) for n in re.findall(r'(\d+) messages recorded',
-                                             recorder_log.read_text())]
-        if counts and counts[-1] >= expected:
-            break
-        time.sleep(0.1)
-    recorder.send_signal(signal.SIGINT)
-    recorder.wait(timeout=60)
-    recorded = yaml.safe_load((copy / 'metadata.yaml').read_text())[
-        'rosbag2_bagfile_information']['message_count']
+    recorded = _stop_recorder(recorder, recorder_log, expected, copy)
     duration = (int(info['duration']['nanoseconds']) / 1e9) / rate
-    return {'messages': expected, 'published': published, 'recorded': int(recorded),
-            'loss': expected - int(recorded), 'seconds': seconds, 'nominal_s': duration,
+    return {'messages': expected, 'published': published, 'recorded': recorded,
+            'loss': expected - recorded, 'seconds': seconds, 'nominal_s': duration,
             'throughput': published / seconds if seconds else float('nan')}
 
 
 def bench_live_recording(robots: int, cycles: int, workdir: Path) -> dict[str, float]:
     """Simulator with `robots` robots (one run each) into a recorder: messages lost."""
-    import yaml
-
     copy = workdir / f'live_{robots}'
     topics = '[/vicon/*,/*/run_start]'
     recorder, recorder_log = _start('recorder', ['-o', str(copy), '--ros-args', '-p',
@@ -168,19 +173,8 @@ def bench_live_recording(robots: int, cycles: int, workdir: Path) -> dict[str, f
     simulator.wait(timeout=600)
     samples = int(round(cycles / 2.0 * 50)) + 1        # default stride frequency 2 Hz
     expected = robots * (samples + 1)                   # poses and one marker per robot
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
-        counts = [int(n) for n in re.findall(r'(\d+) messages recorded',
-                                             recorder_log.read_text())]
-        if counts and counts[-1] >= expected:
-            break
-        time.sleep(0.1)
-    recorder.send_signal(signal.SIGINT)
-    recorder.wait(timeout=60)
-    recorded = yaml.safe_load((copy / 'metadata.yaml').read_text())[
-        'rosbag2_bagfile_information']['message_count']
-    return {'expected': expected, 'recorded': int(recorded),
-            'loss': expected - int(recorded)}
+    recorded = _stop_recorder(recorder, recorder_log, expected, copy)
+    return {'expected': expected, 'recorded': recorded, 'loss': expected - recorded}
 
 
 def main(argv: list[str] | None = None) -> int:
