@@ -4,6 +4,9 @@ from glob import glob
 from setuptools import find_packages, setup
 
 PACKAGE = 'octoroach_model'
+# every executable X has octoroach_model.cli.X_main; keep in step with cli.py
+EXECUTABLES = ('simulator', 'recorder', 'validator', 'replay', 'simulate', 'validate',
+               'diagnose')
 
 setup(
     name=PACKAGE,
@@ -25,8 +28,7 @@ setup(
     entry_points={
         'console_scripts': [
             f'{name} = {PACKAGE}.cli:{name}_main'
-            for name in ('simulator', 'recorder', 'validator', 'replay',
-                         'simulate', 'validate', 'diagnose')
+            for name in EXECUTABLES
         ],
     },
 )

@@ -1,14 +1,18 @@
 """Command-line entry points. Parsing only: the work is in the layers below.
 
 Each executable `X` has a function `X_main(argv=None) -> int`, used both by the console
-scripts that `ros2 run` finds and by `python -m octoroach_model X`.
+scripts that `ros2 run` finds (setup.py) and by `python -m octoroach_model X`.
 """
 from __future__ import annotations
 
 import sys
 
 NODES = ('simulator', 'recorder', 'validator', 'replay')
-OFFLINE = ('simulate', 'validate', 'diagnose')
+
+
+def _offline() -> dict[str, str]:
+    from octoroach_model.commands import OFFLINE
+    return OFFLINE
 
 
 def _node_main(name: str, argv: list[str] | None) -> int:
@@ -16,6 +20,11 @@ def _node_main(name: str, argv: list[str] | None) -> int:
 
     module = importlib.import_module(f'octoroach_model.nodes.{name}')
     return int(module.main(argv) or 0)
+
+
+def _command_main(name: str, argv: list[str] | None) -> int:
+    from octoroach_model.commands import run_command
+    return run_command(name, argv)
 
 
 def simulator_main(argv: list[str] | None = None) -> int:
@@ -35,32 +44,37 @@ def replay_main(argv: list[str] | None = None) -> int:
 
 
 def simulate_main(argv: list[str] | None = None) -> int:
-    from octoroach_model.commands import run_command
-    return run_command('simulate', argv)
+    return _command_main('simulate', argv)
 
 
 def validate_main(argv: list[str] | None = None) -> int:
-    from octoroach_model.commands import run_command
-    return run_command('validate', argv)
+    return _command_main('validate', argv)
 
 
 def diagnose_main(argv: list[str] | None = None) -> int:
-    from octoroach_model.commands import run_command
-    return run_command('diagnose', argv)
+    return _command_main('diagnose', argv)
 
 
-USAGE = ('usage: python -m octoroach_model {' + ','.join(NODES + OFFLINE) + '} [--help] ...\n'
-         '  ROS nodes: ' + ', '.join(NODES) + '\n'
-         '  offline:   ' + ', '.join(OFFLINE) + '\n')
+def usage() -> str:
+    """What `python -m octoroach_model --help` prints."""
+    offline = _offline()
+    lines = ['usage: python -m octoroach_model {' + ','.join((*NODES, *offline)) + '} ...',
+             '  ROS nodes: ' + ', '.join(NODES),
+             '  offline programs:']
+    lines += [f'    {name:<10} {text}' for name, text in offline.items()]
+    lines += ['  X --help explains X. Exit codes: 0 done, 1 bad data or value, 2 usage error.']
+    return '\n'.join(lines) + '\n'
 
 
 def dispatch(argv: list[str]) -> int:
     """Run executable argv[0] with the rest of argv."""
     if not argv or argv[0] in ('-h', '--help'):
-        (sys.stdout if argv else sys.stderr).write(USAGE)
+        (sys.stdout if argv else sys.stderr).write(usage())
         return 0 if argv else 2
     name, rest = argv[0], argv[1:]
-    if name not in NODES + OFFLINE:
-        sys.stderr.write(f'error: unknown executable {name!r}\n{USAGE}')
-        return 2
-    return globals()[f'{name}_main'](rest)
+    if name in NODES:
+        return _node_main(name, rest)
+    if name in _offline():
+        return _command_main(name, rest)
+    sys.stderr.write(f'error: unknown executable {name!r}\n{usage()}')
+    return 2

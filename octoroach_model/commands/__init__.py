@@ -1,0 +1,37 @@
+"""The offline programs (`python -m octoroach_model X`, `ros2 run octoroach_model X`).
+
+One module per program, each with `parser()` (argparse, parsing only) and `run(args)` (the
+work, in the layers below). `run_command` turns every domain error into one line on stderr
+and the exit codes of `common` (usage 2, data 1), never a traceback.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+
+from octoroach_model.commands.common import EXIT_ERROR, EXIT_INTERRUPTED
+from octoroach_model.errors import OctoroachError
+
+# name -> one line for the dispatcher's usage text; the module octoroach_model.commands.<name>
+OFFLINE: dict[str, str] = {
+    'simulate': 'writes N model runs to a bag',
+    'validate': "the paper's validation of measured runs, as JSON",
+    'diagnose': 'what the model gets wrong, the causes, the extended model and its gain',
+}
+
+
+def run_command(name: str, argv: list[str] | None) -> int:
+    """Parse argv for command `name` and run it; one-line errors, exit codes 0/1/2/130."""
+    module = importlib.import_module(f'octoroach_model.commands.{name}')
+    args = module.parser().parse_args(argv)
+    try:
+        return int(module.run(args) or 0)
+    except OctoroachError as error:
+        sys.stderr.write(f'error: {name}: {error}\n')
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        sys.stderr.write(f'error: {name}: interrupted\n')
+        return EXIT_INTERRUPTED
+    except (OSError, ValueError, MemoryError) as error:
+        sys.stderr.write(f'error: {name}: {type(error).__name__}: {error}\n')
+        return EXIT_ERROR

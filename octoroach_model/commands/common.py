@@ -1,0 +1,114 @@
+"""What every offline program shares: the parser, argument types, progress lines, exit codes.
+
+Exit codes (README, "Offline programs"): 0 success, 1 the data or a value cannot be used
+(`error: ...` on stderr), 2 a usage error (unknown option, missing argument, malformed value),
+130 interrupted.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from octoroach_model.errors import ParameterError
+
+EXIT_OK = 0
+EXIT_ERROR = 1
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+Progress = Callable[[float, str], None]
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """--help shows the default of every option that has one."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ''
+        if action.default not in (None, False, argparse.SUPPRESS) and '%(default)' not in text:
+            text += ' (default: %(default)s)'
+        return text
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse that reports a usage error as one line (and exit 2), not usage + error."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault('formatter_class', HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(EXIT_USAGE, f'error: {self.prog}: {message} (see --help)\n')
+
+
+def progress_printer(label: str) -> Progress:
+    """Progress lines on stderr, at most one per percent step, for long work."""
+    state = {'last': -1.0, 'start': time.monotonic()}
+
+    def report(fraction: float, message: str) -> None:
+        if fraction - state['last'] >= 0.01 or fraction >= 1.0:
+            state['last'] = fraction
+            elapsed = time.monotonic() - state['start']
+            sys.stderr.write(f'[{label} {fraction * 100:5.1f}% {elapsed:6.1f}s] {message}\n')
+            sys.stderr.flush()
+    return report
+
+
+def positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    value = _whole(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'must be a positive whole number, got {text}')
+    return value
+
+
+def nonnegative_int(text: str) -> int:
+    """argparse type: a whole number >= 0 (seeds)."""
+    value = _whole(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'must be a non-negative whole number, got {text}')
+    return value
+
+
+def finite_float(text: str) -> float:
+    """argparse type: a finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f'must be a finite number, got {text}')
+    return value
+
+
+def _whole(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be a whole number, got {text!r}') from None
+
+
+def new_output(path: Path, option: str, *, directory_ok: bool = False) -> Path:
+    """Check before any work that `path` can be written: not an existing file (or, unless
+    `directory_ok`, an existing directory), and its parent can be created."""
+    if path.exists() and not (directory_ok and path.is_dir()):
+        raise ParameterError(f'{option} {path} exists already; choose a new path')
+    parent = path.resolve().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ParameterError(f'{option} {path}: {parent} is not a directory')
+    return path
+
+
+def add_input_arguments(parser: argparse.ArgumentParser) -> None:
+    """The measured runs: bags, .mcap files or data sets, and how to split them."""
+    parser.add_argument('bags', nargs='+', type=Path, metavar='BAG',
+                        help='bag directories, .mcap files or .npz data sets')
+    parser.add_argument('--topic', default=None,
+                        help='pose topic (default: the VICON one, or the only pose topic)')
+    parser.add_argument('--gap-s', type=finite_float, default=0.5,
+                        help='a pause longer than this (s) splits runs where there is no marker')

@@ -1,0 +1,104 @@
+"""`simulate`: N runs of the model written to a bag (and optionally a data set)."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from octoroach_model.commands.common import (
+    OneLineParser, finite_float, new_output, nonnegative_int, positive_int)
+from octoroach_model.errors import ParameterError
+
+
+def parse_effects(pairs: list[tuple[str, str]]) -> dict[str, dict[str, float]]:
+    """--effect NAME and --effect-param KEY=VALUE, in command-line order: a parameter belongs
+    to the --effect before it (or, written NAME.KEY=VALUE, to NAME)."""
+    effects: dict[str, dict[str, float]] = {}
+    current = None
+    for option, value in pairs:
+        if option == 'effect':
+            current = value
+            effects.setdefault(value, {})
+            continue
+        key, sep, number = value.partition('=')
+        if not sep:
+            raise ParameterError(f'--effect-param takes KEY=VALUE, got {value!r}')
+        name, dot, key = key.rpartition('.')
+        name = name if dot else current
+        if name is None:
+            raise ParameterError(f'--effect-param {value} comes before any --effect NAME')
+        try:
+            effects.setdefault(name, {})[key] = float(number)
+        except ValueError:
+            raise ParameterError(f'--effect-param {value}: {number!r} is not a number') from None
+    return effects
+
+
+class OrderedEffectAction(argparse.Action):
+    """Keeps --effect and --effect-param in the order they were given."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        pairs = getattr(namespace, 'effect_pairs', None) or []
+        pairs.append((self.dest, values))
+        namespace.effect_pairs = pairs
+
+
+def parser() -> argparse.ArgumentParser:
+    """The `simulate` command line."""
+    from octoroach_model.model import ModelParameters, nominal_sigmas
+
+    sigma1, sigma2 = nominal_sigmas()
+    result = OneLineParser(
+        prog='simulate', description='Write N runs of the model to a rosbag2 MCAP bag '
+        '(VICON convention: TransformStamped on /vicon/octoroach/octoroach at 50 Hz, a run '
+        'marker on /octoroach/run_start, and at least 1 s between runs). Without --effect it '
+        "is the paper's model exactly (eqs. 3-11), every run starting at x = y = 0 heading +y.")
+    result.add_argument('--paths', type=positive_int, required=True, help='number of runs')
+    result.add_argument('--seed', type=nonnegative_int, default=0,
+                        help='seed of every random draw')
+    result.add_argument('--out', type=Path, required=True, help='bag directory to create')
+    result.add_argument('--cycles', type=finite_float, default=10.0, help='gait cycles per run')
+    result.add_argument('--sigma1', type=finite_float, default=sigma1,
+                        help='touchdown angle spread, rad')
+    result.add_argument('--sigma2', type=finite_float, default=sigma2,
+                        help='liftoff angle spread, rad')
+    result.add_argument('--draws', choices=('stance', 'run'), default='stance',
+                        help='new angles at every stance, or once per run')
+    result.add_argument('--stride-frequency', type=finite_float,
+                        default=ModelParameters.nominal().stride_frequency,
+                        help='gait cycles per second')
+    result.add_argument('--effect', action=OrderedEffectAction, dest='effect',
+                        help='a cause from the table of causes (docs/causes.md); repeatable')
+    result.add_argument('--effect-param', action=OrderedEffectAction, dest='effect_param',
+                        metavar='KEY=VALUE', help="a parameter of the preceding --effect, in "
+                        "the table's units (e.g. heading_std_deg=4.5)")
+    result.add_argument('--dataset', type=Path, default=None,
+                        help='also save the runs as a multisample data set (.npz)')
+    return result
+
+
+def run(args: argparse.Namespace) -> int:
+    """Simulate and write; prints a JSON summary of what was written."""
+    from dataclasses import replace
+
+    from octoroach_model.model import ModelParameters, simulate
+    from octoroach_model.recordings import save_dataset, write_paths_bag
+
+    new_output(args.out, '--out')
+    if args.dataset:
+        new_output(args.dataset, '--dataset')
+    if args.stride_frequency <= 0:
+        raise ParameterError(f'--stride-frequency must be positive, got {args.stride_frequency}')
+    parameters = replace(ModelParameters.nominal(), stride_frequency=args.stride_frequency)
+    effects = parse_effects(getattr(args, 'effect_pairs', None) or [])
+    paths = simulate(args.paths, seed=args.seed, sigma1=args.sigma1, sigma2=args.sigma2,
+                     cycles=args.cycles, parameters=parameters, draws=args.draws,
+                     effects=effects)
+    bag = write_paths_bag(args.out, paths)
+    if args.dataset:
+        save_dataset(args.dataset, paths)
+    print(json.dumps({'bag': str(bag), 'paths': paths.n_paths, 'samples_per_run': len(paths.t),
+                      'duration_s': float(paths.t[-1]), 'seed': args.seed,
+                      'sigma1': args.sigma1, 'sigma2': args.sigma2, 'draws': args.draws,
+                      'effects': paths.info['effects']}, indent=2))
+    return 0

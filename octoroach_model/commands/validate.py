@@ -1,0 +1,85 @@
+"""`validate`: the paper's probabilistic validation of measured runs, printed as JSON."""
+from __future__ import annotations
+
+import argparse
+import json
+
+from octoroach_model.commands.common import (
+    OneLineParser, add_input_arguments, finite_float, nonnegative_int, positive_int,
+    progress_printer)
+from octoroach_model.errors import DataError, ParameterError
+
+
+def parser() -> argparse.ArgumentParser:
+    """The `validate` command line."""
+    from octoroach_model.validation import ValidationSettings
+
+    defaults = ValidationSettings()
+    result = OneLineParser(
+        prog='validate', description="The paper's probabilistic validation on measured runs: "
+        'fits the nominal model (eq. 9), then finds the widest (sigma1, sigma2) whose '
+        'estimated probability of violation stays below rho (eq. 15), or with --sigma1 and '
+        '--sigma2 only estimates it there. Prints JSON.')
+    add_input_arguments(result)
+    result.add_argument('--rho', type=finite_float, default=defaults.rho,
+                        help='largest acceptable probability of violation')
+    result.add_argument('--epsilon', type=finite_float, default=defaults.epsilon,
+                        help='accuracy of the estimate of E_k (eq. 16)')
+    result.add_argument('--delta', type=finite_float, default=defaults.delta,
+                        help='1 - confidence of the estimate of E_k (eq. 16)')
+    result.add_argument('--k', type=positive_int, default=defaults.k,
+                        help='runs per multisample')
+    result.add_argument('--gamma', type=finite_float, default=defaults.gamma,
+                        help='confidence level of the region')
+    result.add_argument('--seed', type=nonnegative_int, default=defaults.seed,
+                        help='seed of the multisamples and the model runs')
+    result.add_argument('--grid-points', type=positive_int, default=defaults.grid_points,
+                        help='grid points per spread in the search (15)')
+    result.add_argument('--sigma1-max', type=finite_float, default=defaults.sigma1_max,
+                        help='largest touchdown spread searched, rad')
+    result.add_argument('--sigma2-max', type=finite_float, default=defaults.sigma2_max,
+                        help='largest liftoff spread searched, rad')
+    result.add_argument('--sigma1', type=finite_float, default=None,
+                        help='evaluate at this touchdown spread (rad) instead of searching')
+    result.add_argument('--sigma2', type=finite_float, default=None,
+                        help='evaluate at this liftoff spread (rad) instead of searching')
+    result.add_argument('--nominal', choices=('fit', 'table2'), default='fit',
+                        help='fit the nominal model to the data (eq. 9) or use Table II')
+    result.add_argument('--draws', choices=('stance', 'run'), default='stance',
+                        help='model angles drawn at every stance, or once per run')
+    return result
+
+
+def run(args: argparse.Namespace) -> int:
+    """Validate and print the result as JSON."""
+    from octoroach_model.model import ModelParameters
+    from octoroach_model.recordings import load_measured
+    from octoroach_model.validation import (
+        FourBarModel, ValidationSettings, fit_nominal, validate)
+    from octoroach_model.validation.fit import mean_start_pose
+
+    if (args.sigma1 is None) != (args.sigma2 is None):
+        raise ParameterError('give both --sigma1 and --sigma2, or neither')
+    settings = ValidationSettings(rho=args.rho, epsilon=args.epsilon, delta=args.delta,
+                                  k=args.k, gamma=args.gamma, seed=args.seed,
+                                  sigma1_max=args.sigma1_max, sigma2_max=args.sigma2_max,
+                                  grid_points=args.grid_points)
+    measured = load_measured(args.bags, topic=args.topic, gap_s=args.gap_s)
+    if measured.n_paths < settings.runs_needed:
+        raise DataError(f'{measured.n_paths} runs are too few: n x k = {settings.n} x '
+                        f'{settings.k} needs {settings.runs_needed} runs (lower --k, or raise '
+                        f'--epsilon/--delta to lower n)')
+    if args.nominal == 'fit':
+        nominal = fit_nominal(measured)
+        model = FourBarModel(nominal.parameters, nominal.start_pose, args.draws)
+        fit_report = nominal.report()
+    else:
+        model = FourBarModel(ModelParameters.nominal(), mean_start_pose(measured), args.draws)
+        fit_report = {**ModelParameters.nominal().table(), 'source': 'Table II'}
+    sigmas = None if args.sigma1 is None else (args.sigma1, args.sigma2)
+    result = validate(measured, settings, model, sigmas, progress_printer('validate'))
+    result['nominal'] = fit_report
+    result['sources'] = [str(path) for path in args.bags]
+    result['notes'] = measured.info.get('notes', [])
+    print(json.dumps(result, indent=2))
+    return 0
