@@ -251,7 +251,7 @@ def four_bar_search(four_bar_data, search_settings):
 def test_the_search_is_reproducible_for_a_seed(four_bar_data, search_settings):
     first = validate(four_bar_data, search_settings)
     second = validate(four_bar_data, search_settings)
-    assert json.dumps(first, sort_keys=True) == json.dumps(second, sort_keys=True)
+    assert json.dumps(first.to_json()) == json.dumps(second.to_json())
 
 
 def test_the_chosen_spreads_are_admissible(four_bar_search, search_settings):
@@ -294,9 +294,9 @@ def test_when_no_spread_is_admissible_the_result_is_not_accepted():
     data = om.simulate(120, seed=2, cycles=5, sigma1=0.0, sigma2=0.0)
     wrong_geometry = FourBarModel(replace(om.ModelParameters.nominal(), leg_length=0.03))
     result = validate(data, ValidationSettings(**SMALL, grid_points=3), wrong_geometry)
-    assert result['accepted'] is False
-    assert result['violation'] == 1.0
-    assert (result['sigma1'], result['sigma2']) == (0.0, 0.0)
+    assert result.accepted is False
+    assert result.violation == 1.0
+    assert (result.sigma1, result.sigma2) == (0.0, 0.0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -312,7 +312,7 @@ def test_the_unicycle_plug_in_is_reproducible_for_a_seed():
 @pytest.mark.parametrize('truth, larger', [((0.2, 0.05), 'sigma1'), ((0.05, 0.2), 'sigma2')])
 def test_a_unicycle_model_is_validated_through_the_same_code(truth, larger):
     settings = ValidationSettings(**UNICYCLE_SETTINGS, seed=1)
-    result = validate(unicycle_data(truth), settings, unicycle)
+    result = validate(unicycle_data(truth), settings, unicycle).to_json()
     assert REQUIRED_KEYS <= set(result)
     assert result['n'] == 29 and result['k'] == 10 and result['paths_used'] == 290
     assert result['accepted'] and result['violation'] <= settings.rho
@@ -326,8 +326,8 @@ def test_a_unicycle_model_is_validated_through_the_same_code(truth, larger):
 def test_a_unicycle_at_the_spreads_that_made_the_data_is_accepted_and_a_wider_one_is_not():
     data = unicycle_data((0.1, 0.1))
     settings = ValidationSettings(**UNICYCLE_SETTINGS, seed=2)
-    right = validate(data, settings, unicycle, sigmas=(0.1, 0.1))
-    wide = validate(data, settings, unicycle, sigmas=(0.4, 0.4))
+    right = validate(data, settings, unicycle, sigmas=(0.1, 0.1)).to_json()
+    wide = validate(data, settings, unicycle, sigmas=(0.4, 0.4)).to_json()
     assert right['accepted'] and right['violation'] <= 0.35
     assert not wide['accepted'] and wide['violation'] >= 0.8
     assert (right['sigma1'], right['sigma2']) == (0.1, 0.1)
@@ -338,7 +338,7 @@ def test_a_unicycle_at_the_spreads_that_made_the_data_is_accepted_and_a_wider_on
 
 def test_the_result_is_json_with_the_required_fields_and_a_guarantee_in_words(four_bar_data):
     settings = ValidationSettings(**SMALL, grid_points=3)
-    result = json.loads(json.dumps(validate(four_bar_data, settings)))
+    result = json.loads(json.dumps(validate(four_bar_data, settings).to_json()))
     assert REQUIRED_KEYS <= set(result)
     assert (result['n'], result['k'], result['paths_used']) == (29, 4, 116)
     assert (result['rho'], result['epsilon'], result['delta'], result['gamma']) == \

@@ -2,12 +2,10 @@
 from __future__ import annotations
 
 import argparse
-import json
-
 from octoroach_model.commands.common import (
     OneLineParser, add_input_arguments, finite_float, nonnegative_int, positive_int,
     progress_printer)
-from octoroach_model.errors import DataError, ParameterError
+from octoroach_model.errors import ParameterError
 
 
 def parser() -> argparse.ArgumentParser:
@@ -52,11 +50,9 @@ def parser() -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Validate and print the result as JSON."""
-    from octoroach_model.model import ModelParameters
+    from octoroach_model.jsonio import dumps
     from octoroach_model.recordings import load_measured
-    from octoroach_model.validation import (
-        FourBarModel, ValidationSettings, fit_nominal, validate)
-    from octoroach_model.validation.fit import mean_start_pose
+    from octoroach_model.validation import ValidationSettings, validate_measured
 
     if (args.sigma1 is None) != (args.sigma2 is None):
         raise ParameterError('give both --sigma1 and --sigma2, or neither')
@@ -65,21 +61,9 @@ def run(args: argparse.Namespace) -> int:
                                   sigma1_max=args.sigma1_max, sigma2_max=args.sigma2_max,
                                   grid_points=args.grid_points)
     measured = load_measured(args.bags, topic=args.topic, gap_s=args.gap_s)
-    if measured.n_paths < settings.runs_needed:
-        raise DataError(f'{measured.n_paths} runs are too few: n x k = {settings.n} x '
-                        f'{settings.k} needs {settings.runs_needed} runs (lower --k, or raise '
-                        f'--epsilon/--delta to lower n)')
-    if args.nominal == 'fit':
-        nominal = fit_nominal(measured)
-        model = FourBarModel(nominal.parameters, nominal.start_pose, args.draws)
-        fit_report = nominal.report()
-    else:
-        model = FourBarModel(ModelParameters.nominal(), mean_start_pose(measured), args.draws)
-        fit_report = {**ModelParameters.nominal().table(), 'source': 'Table II'}
     sigmas = None if args.sigma1 is None else (args.sigma1, args.sigma2)
-    result = validate(measured, settings, model, sigmas, progress_printer('validate'))
-    result['nominal'] = fit_report
-    result['sources'] = [str(path) for path in args.bags]
-    result['notes'] = measured.info.get('notes', [])
-    print(json.dumps(result, indent=2))
+    result = validate_measured(measured, settings, nominal=args.nominal, draws=args.draws,
+                               sigmas=sigmas, sources=[str(path) for path in args.bags],
+                               progress=progress_printer('validate'))
+    print(dumps(result, indent=2))
     return 0

@@ -374,9 +374,9 @@ def _paper_validation(context: _Context, effects: dict, settings: DiagnosisSetti
         note = f'k lowered to {k}: {context.measured.n_paths} runs < n x k'
     model = replace(model or context.model, effects=effects)
     result = validate(context.measured, validation_settings, model)
-    summary = {key: result[key] for key in ('sigma1', 'sigma2', 'violation', 'n', 'k',
-                                            'rho', 'accepted')}
-    summary['grid'] = result['grid']
+    plain = result.to_json()
+    summary = {key: plain[key] for key in ('sigma1', 'sigma2', 'violation', 'n', 'k',
+                                           'rho', 'accepted', 'grid')}
     if note:
         summary['note'] = note
     return summary

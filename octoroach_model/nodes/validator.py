@@ -177,7 +177,7 @@ class Cancelled(Exception):
 
 
 class Workbench:
-    """Measured runs and nominal model, kept between calls and rebuilt when inputs change.
+    """Measured runs, kept between calls and rebuilt when inputs change.
 
     Only the running job uses it (one at a time), so it needs no lock.
     """
@@ -185,7 +185,6 @@ class Workbench:
     def __init__(self) -> None:
         self._measured_key: tuple | None = None
         self._measured: Paths | None = None
-        self._models: dict[tuple[str, str], tuple[Any, dict]] = {}
 
     def measured(self, job: Job) -> Paths:
         """The runs of `job.sources`, from the cache when neither names nor files changed."""
@@ -196,26 +195,7 @@ class Workbench:
         if key != self._measured_key or self._measured is None:
             self._measured = load_measured(list(job.sources), gap_s=job.gap_s, topic=job.topic)
             self._measured_key = key
-            self._models = {}
         return self._measured
-
-    def model(self, job: Job, measured: Paths) -> tuple[Any, dict]:
-        """(FourBarModel, report of the nominal) as the offline `validate` builds them."""
-        from octoroach_model.model import ModelParameters
-        from octoroach_model.validation import FourBarModel, fit_nominal
-        from octoroach_model.validation.fit import mean_start_pose
-
-        key = (job.nominal, job.draws)
-        if key not in self._models:
-            if job.nominal == 'fit':
-                nominal = fit_nominal(measured)
-                self._models[key] = (FourBarModel(nominal.parameters, nominal.start_pose,
-                                                  job.draws), nominal.report())
-            else:
-                table = ModelParameters.nominal()
-                self._models[key] = (FourBarModel(table, mean_start_pose(measured), job.draws),
-                                     {**table.table(), 'source': 'Table II'})
-        return self._models[key]
 
 
 def _file_stamps(sources: Sequence[str]) -> tuple:
@@ -241,20 +221,15 @@ Progress = Callable[[float, str], None]
 
 def run_validation(job: Job, bench: Workbench, progress: Progress) -> dict:
     """The offline `validate` command's chain (load, nominal, validate) as a JSON-ready dict."""
-    from octoroach_model.validation import validate
+    from octoroach_model.validation import validate_measured
 
-    sigmas = job.sigmas()
     progress(0.0, 'loading the measured runs')
     measured = bench.measured(job)
     progress(0.0, f'{measured.n_paths} runs loaded; nominal model: {job.nominal}')
-    model, nominal_report = bench.model(job, measured)
-    result = validate(measured, job.settings, model, sigmas, progress)
-    result['mode'] = 'search' if sigmas is None else 'fixed'
-    result['nominal'] = nominal_report
-    result['draws'] = job.draws
-    result['sources'] = list(job.sources)
-    result['notes'] = list(measured.info.get('notes', []))
-    return result
+    result = validate_measured(measured, job.settings, nominal=job.nominal, draws=job.draws,
+                               sigmas=job.sigmas(), sources=list(job.sources),
+                               progress=progress)
+    return result.to_json()
 
 
 def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict:

@@ -22,6 +22,7 @@ from typing import Any, Union
 import numpy as np
 
 from octoroach_model.errors import DataError
+from octoroach_model.jsonio import jsonable
 from octoroach_model.paths import Paths
 
 FORMAT_NAME = 'octoroach_model.dataset'
@@ -31,32 +32,13 @@ DATASET_SUFFIX = '.npz'
 PathLike = Union[str, 'os.PathLike[str]']
 
 
-def _jsonable(value: Any) -> Any:
-    """`value` with numpy scalars/arrays as plain JSON; anything else unknown as text."""
-    if isinstance(value, dict):
-        return {str(key): _jsonable(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(item) for item in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, np.generic):
-        return _jsonable(value.item())
-    if isinstance(value, float) and not np.isfinite(value):
-        return None if np.isnan(value) else str(value)
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    return repr(value)
-
-
 def save_dataset(path: PathLike, paths: Paths) -> Path:
     """Writes `paths` as a data set file (format in the module docstring); returns its path.
 
     Written to a temporary file first and then renamed, so a crash never leaves half a file.
     """
     target = Path(path)
-    info = _jsonable(dict(paths.info))
+    info = jsonable(dict(paths.info))
     info.update({
         'format': FORMAT_NAME,
         'format_version': FORMAT_VERSION,

@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
 from octoroach_model.errors import ParameterError
+from octoroach_model.jsonio import fields_jsonable
 from octoroach_model.model import ModelParameters, RandomStreams, check_effects, model_poses
 from octoroach_model.paths import Paths
 from octoroach_model.validation.multisample import chernoff_sample_size, disjoint_multisamples
@@ -176,10 +177,60 @@ def guarantee_text(violation: float, settings: ValidationSettings) -> str:
             f'level rho = {settings.rho} when the estimate is at most rho.')
 
 
+@dataclass(frozen=True)
+class ValidationResult:
+    """The paper's validation of one model against measured runs (JSON: `to_json`).
+
+    `mode` is 'search' (problem 15 over the grid; `grid` holds E^_k at every point) or
+    'fixed' (E^_k at the given spreads only). Spreads in radians.
+    """
+
+    n: int
+    k: int
+    rho: float
+    epsilon: float
+    delta: float
+    gamma: float
+    seed: int
+    paths_available: int
+    paths_used: int
+    duration_s: float
+    samples_per_run: int
+    region: str
+    mode: str
+    sigma1: float
+    sigma2: float
+    violation: float
+    accepted: bool
+    guarantee: str
+    settings: ValidationSettings
+    grid: SearchGrid | None = None
+    nominal: dict | None = None        # the nominal model's table (fit or Table II)
+    draws: str = 'stance'
+    sources: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()        # what was skipped or repaired in the input
+
+    def to_json(self) -> dict:
+        """The result as a JSON object (fields in order; `grid` only after a search)."""
+        plain = fields_jsonable(self)
+        if self.grid is None:
+            del plain['grid']
+        return plain
+
+
+@dataclass(frozen=True)
+class SearchGrid:
+    """E^_k over the search grid: violation[i][j] at (sigma1[i], sigma2[j])."""
+
+    sigma1: tuple[float, ...]
+    sigma2: tuple[float, ...]
+    violation: tuple[tuple[float, ...], ...]
+
+
 def validate(measured: Paths, settings: ValidationSettings | None = None,
              model: ModelPlugin | None = None, sigmas: tuple[float, float] | None = None,
-             progress: Progress | None = None) -> dict:
-    """The paper's validation of `model` against measured runs, as a JSON-ready dict.
+             progress: Progress | None = None) -> ValidationResult:
+    """The paper's validation of `model` against measured runs.
 
     With `sigmas`, only E^_k at those spreads; otherwise the search (15) for the widest
     admissible spreads. `model` defaults to the paper's model at Table II.
@@ -187,26 +238,56 @@ def validate(measured: Paths, settings: ValidationSettings | None = None,
     settings = settings or ValidationSettings()
     model = model or FourBarModel()
     validation = Validation(measured, settings)
-    result = {
-        'n': settings.n, 'k': settings.k, 'rho': settings.rho, 'epsilon': settings.epsilon,
-        'delta': settings.delta, 'gamma': settings.gamma, 'seed': settings.seed,
-        'paths_available': measured.n_paths, 'paths_used': settings.runs_needed,
-        'duration_s': float(measured.t[-1]), 'samples_per_run': len(measured.t),
-        'region': f'per sample and coordinate (x, y): mean +- t(k-1) s sqrt(1 + 1/k), '
-                  f'multiplier {t_multiplier(settings.k, settings.gamma):.3f}, half-width at '
-                  f'least {settings.resolution_m} m',
-    }
     if sigmas is not None:
         violation = validation.violation(model, sigmas)
-        result.update(sigma1=float(sigmas[0]), sigma2=float(sigmas[1]), violation=violation,
-                      accepted=violation <= settings.rho)
+        chosen = (float(sigmas[0]), float(sigmas[1]), violation, violation <= settings.rho)
+        grid = None
     else:
         search = search_sigmas(validation, model, progress)
-        result.update(sigma1=search.sigma1, sigma2=search.sigma2, violation=search.violation,
-                      accepted=search.feasible, grid={
-                          'sigma1': search.sigma1_grid.tolist(),
-                          'sigma2': search.sigma2_grid.tolist(),
-                          'violation': search.violation_grid.tolist()})
-    result['guarantee'] = guarantee_text(result['violation'], settings)
-    result['settings'] = asdict(settings)
-    return result
+        chosen = (search.sigma1, search.sigma2, search.violation, search.feasible)
+        grid = SearchGrid(tuple(search.sigma1_grid.tolist()), tuple(search.sigma2_grid.tolist()),
+                          tuple(tuple(row) for row in search.violation_grid.tolist()))
+    return ValidationResult(
+        n=settings.n, k=settings.k, rho=settings.rho, epsilon=settings.epsilon,
+        delta=settings.delta, gamma=settings.gamma, seed=settings.seed,
+        paths_available=measured.n_paths, paths_used=settings.runs_needed,
+        duration_s=float(measured.t[-1]), samples_per_run=len(measured.t),
+        region=(f'per sample and coordinate (x, y): mean +- t(k-1) s sqrt(1 + 1/k), '
+                f'multiplier {t_multiplier(settings.k, settings.gamma):.3f}, half-width at '
+                f'least {settings.resolution_m} m'),
+        mode='fixed' if sigmas is not None else 'search',
+        sigma1=chosen[0], sigma2=chosen[1], violation=float(chosen[2]),
+        accepted=bool(chosen[3]), guarantee=guarantee_text(float(chosen[2]), settings),
+        settings=settings, grid=grid)
+
+
+def validate_measured(measured: Paths, settings: ValidationSettings | None = None, *,
+                      nominal: str = 'fit', draws: str = 'stance',
+                      sigmas: tuple[float, float] | None = None,
+                      sources: Sequence[str] = (), progress: Progress | None = None
+                      ) -> ValidationResult:
+    """The whole chain a user asks for (CLI `validate`, the validator's ~/validate):
+    check the run count, build the nominal model (eq. 9 fit, or Table II at the measured
+    mean start pose), validate, and say where the runs came from and what was repaired."""
+    from dataclasses import replace
+
+    from octoroach_model.errors import DataError
+    from octoroach_model.validation.fit import fit_nominal, mean_start_pose
+
+    settings = settings or ValidationSettings()
+    if nominal not in ('fit', 'table2'):
+        raise ParameterError(f"nominal must be 'fit' or 'table2', got {nominal!r}")
+    if measured.n_paths < settings.runs_needed:
+        raise DataError(f'{measured.n_paths} runs are too few: n x k = {settings.n} x '
+                        f'{settings.k} needs {settings.runs_needed} runs (lower k, or raise '
+                        f'epsilon/delta to lower n)')
+    if nominal == 'fit':
+        fit = fit_nominal(measured)
+        model = FourBarModel(fit.parameters, fit.start_pose, draws)
+        table = fit.report()
+    else:
+        model = FourBarModel(ModelParameters.nominal(), mean_start_pose(measured), draws)
+        table = {**ModelParameters.nominal().table(), 'source': 'Table II'}
+    result = validate(measured, settings, model, sigmas, progress)
+    return replace(result, nominal=table, draws=draws, sources=tuple(map(str, sources)),
+                   notes=tuple(measured.info.get('notes', ())))

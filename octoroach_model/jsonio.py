@@ -1,0 +1,60 @@
+"""The one conversion of results to JSON: numbers, lists and objects only.
+
+Policy for values JSON has no word for: NaN and +-infinity become null (a missing or
+unbounded value: the field's description says which); numpy scalars and arrays become numbers
+and lists; dataclasses (the typed results) become objects of their fields, in field order,
+except fields marked ``metadata={'json': False}``; paths become strings. Anything else is a
+programming error and raises TypeError, so a live object never slips into a report.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from collections.abc import Mapping
+from enum import Enum
+from typing import Any
+
+import numpy as np
+
+__all__ = ['dumps', 'jsonable']
+
+
+def jsonable(value: Any) -> Any:
+    """`value` as plain JSON data (dict, list, str, int, float, bool, None)."""
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, (int, np.integer)) and not isinstance(value, np.bool_):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        number = float(value)
+        return number if math.isfinite(number) else None
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        if hasattr(value, 'to_json'):
+            return value.to_json()
+        return fields_jsonable(value)
+    if isinstance(value, Mapping):
+        return {str(key): jsonable(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple, set, frozenset)):
+        return [jsonable(item) for item in value]
+    if isinstance(value, Enum):
+        return jsonable(value.value)
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    raise TypeError(f'cannot write {type(value).__name__} as JSON')
+
+
+def fields_jsonable(record: Any) -> dict[str, Any]:
+    """A dataclass's fields as a JSON object (the default `to_json` of a typed result)."""
+    return {field.name: jsonable(getattr(record, field.name))
+            for field in dataclasses.fields(record) if field.metadata.get('json', True)}
+
+
+def dumps(value: Any, *, indent: int | None = None) -> str:
+    """Strict JSON text of `value` (never NaN or Infinity tokens)."""
+    return json.dumps(jsonable(value), indent=indent, allow_nan=False)
