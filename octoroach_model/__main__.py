@@ -3,4 +3,5 @@ import sys
 
 from octoroach_model.cli import dispatch
 
-sys.exit(dispatch(sys.argv[1:]))
+if __name__ == '__main__':   # worker processes re-import this module: they must not run X
+    sys.exit(dispatch(sys.argv[1:]))

@@ -3,6 +3,10 @@
 Model output, measured runs after splitting and resampling, and everything the validation and
 the diagnosis consume are `Paths`. Poses are planar: x [m], y [m], heading [rad], with heading
 pi/2 meaning motion along +y (the robot's forward axis maps to (cos heading, sin heading)).
+
+Runs may differ in length (a robot that leaves the capture volume early): a run that ends
+before the grid does is NaN after its last sample. NaN appears only in such tails; every run
+has at least its first sample. `lengths` says how many samples each run has.
 """
 from __future__ import annotations
 
@@ -15,13 +19,14 @@ X, Y, HEADING = 0, 1, 2
 
 @dataclass(frozen=True)
 class Paths:
-    """n runs sampled at the same times.
+    """n runs sampled at the same times (each from its own start, some ending early).
 
     Attributes
     ----------
     t : (T,) seconds from each run's first sample, increasing.
-    poses : (n, T, 3) x [m], y [m], heading [rad] (unwrapped along time).
-    info : free-form provenance (seed, parameters, source bags, notes on skipped data).
+    poses : (n, T, 3) x [m], y [m], heading [rad] (unwrapped along time); NaN after the end
+        of a run shorter than the grid.
+    info : provenance (seed, parameters, source bags, notes on skipped data); JSON-ready.
     """
 
     t: np.ndarray
@@ -47,6 +52,23 @@ class Paths:
         """(n, T, 2) x, y in metres."""
         return self.poses[..., :2]
 
+    @property
+    def lengths(self) -> np.ndarray:
+        """(n,) number of samples of each run (the grid's length for a complete run)."""
+        return np.isfinite(self.poses[..., 0]).sum(axis=1)
+
+    @property
+    def ragged(self) -> bool:
+        """Whether some run ends before the grid does."""
+        return bool(np.isnan(self.poses[:, -1, 0]).any()) if self.n_paths else False
+
+    @property
+    def well_formed(self) -> bool:
+        """Every run has its first sample and is NaN only after its end (no holes)."""
+        finite = np.isfinite(self.poses).all(axis=2)
+        return bool(finite[:, 0].all() and (finite[:, :-1] >= finite[:, 1:]).all()
+                    and (np.isfinite(self.poses).any(axis=2) == finite).all())
+
     def subset(self, index) -> Paths:
         """The runs selected by `index` (an index array, slice or boolean mask)."""
         return Paths(self.t, self.poses[index], dict(self.info))
@@ -55,3 +77,11 @@ class Paths:
         """The runs cut to their first `duration_s` seconds (inclusive)."""
         keep = self.t <= duration_s + 1e-9
         return Paths(self.t[keep], self.poses[:, keep], dict(self.info))
+
+    def cut_to(self, lengths: np.ndarray) -> Paths:
+        """The runs with run i ending after lengths[i] samples (NaN after), as measured runs
+        that left the capture volume early would; lengths beyond the grid change nothing."""
+        index = np.arange(len(self.t))
+        cut = index[None, :] >= np.asarray(lengths)[:, None]
+        poses = np.where(cut[..., None], np.nan, self.poses)
+        return Paths(self.t, poses, dict(self.info))

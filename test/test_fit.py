@@ -142,5 +142,5 @@ def test_the_fit_refuses_a_non_finite_average_path():
     runs = om.simulate(3, seed=1, cycles=1)
     poses = runs.poses.copy()
     poses[1, 5, 0] = np.nan
-    with pytest.raises(DataError, match='not finite'):
+    with pytest.raises(DataError, match='not finite inside a run'):
         fit_nominal(om.Paths(runs.t, poses))

@@ -1,387 +1,384 @@
-"""The main job: from measured runs, what the model gets wrong, why, and what fixing it gains.
+"""The main job: from measured runs, what the model gets wrong, which causes, and the gain.
 
-Method (README, "How the diagnosis decides"):
-1. Split the runs at random into a calibration half and a held-out half.
-2. Calibrate the baseline on the calibration half: the nominal fit (eq. 9, with the average
-   heading in the residuals and the runs on a common gait clock) and one spread scale s,
-   (sigma1, sigma2) = s (0.12, 0.15), matched to the within-run variance of the per-cycle
-   heading change (simulated moments, common random numbers).
-3. Discrepancies: every statistic of `statistics.STATISTICS` on all runs against the
-   baseline, with bootstrap errors, as z-scores.
-4. Every candidate of `candidates.CANDIDATES` gets its parameter on the calibration half: by
-   simulated moments, or, for causes that move the average path, jointly with the geometry;
-   then its own spread scale.
-5. Each fitted candidate and the baseline are scored on the held-out runs with the log score
-   of a Gaussian synthetic likelihood of the run features; the per-run gain over the baseline
-   is tested with a one-sided paired t-test at level alpha / (number of candidates).
-6. The cause is the significant candidate with the largest gain (at least `min_gain` nats per
-   run), or `none`.
-7. Detection limits: for each cause, the size at which that test reaches 80 % power on data
-   sets of the held-out size simulated with the effect.
-8. The paper's validation (search 15) runs for the baseline and for the extended model.
+Method (docs/diagnosis.md has it in full):
+1. The runs are split at random (seeded) into a calibration half and a held-out half.
+2. The baseline (the paper's model) is fitted on the calibration half: geometry on the
+   gait-aligned average path (mean of simulated runs), one spread scale along Table III.
+3. Forward selection: every cause not yet in the model is added in turn and all included
+   sizes refit together (modelfit.fit_causes); each extended model is scored on the held-out
+   runs (scoring.py). A cause enters when (a) its size's lower confidence bound clears its
+   floor (decide.py), (b) it improves the held-out score significantly (one-sided paired
+   t-test at level alpha / m) and (c) by at least `min_gain`; of those, the largest gain
+   enters. The search stops when no remaining cause qualifies.
+4. The final model is refit on all runs: sizes with 95 % intervals.
+5. Discrepancies: every statistic of all runs against the baseline; adequacy: the same
+   against the final model, a statistic being unexplained when |z| passes the Bonferroni
+   bound at `adequacy_alpha` and the difference is material (statistics.py).
+6. The paper's validation (search 15) of the baseline and of the extended model.
 """
 from __future__ import annotations
 
 import math
 import time
 from collections.abc import Callable
+from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from octoroach_model.diagnosis.candidates import (
-    CANDIDATES, Candidate, direct_extra_parameters, read_off_curve)
-from octoroach_model.diagnosis.features import INDEX, run_features
-from octoroach_model.diagnosis.statistics import (
-    STATISTICS, energy_scores, gaussian_log_score, paired_improvement, statistics_with_errors)
+from octoroach_model.diagnosis.causes import BY_NAME, CAUSES, RunScale
+from octoroach_model.diagnosis.decide import SizeVerdict, decision_z, judge
+from octoroach_model.diagnosis.executors import executor_for
+from octoroach_model.diagnosis.modelfit import (
+    FitSettings, FittedModel, RunData, SizeEstimate, Simulator, fit_causes)
+from octoroach_model.diagnosis.report import (
+    CandidateResult, DiagnosisReport, NamedCause, RunLengths, ScoreSummary, StepResult)
+from octoroach_model.diagnosis.scoring import (
+    PairedGain, Scores, energy_score, feature_scales, log_scores, position_points_cm,
+    score_model)
+from octoroach_model.diagnosis.statistics import STATISTICS, critical_z, discrepancies
 from octoroach_model.errors import DataError
 from octoroach_model.model import ModelParameters
 from octoroach_model.paths import Paths
-from octoroach_model.validation import (
-    FourBarModel, ValidationSettings, chernoff_sample_size, fit_nominal, validate)
-from octoroach_model.validation.fit import mean_start_pose
+from octoroach_model.validation import ValidationSettings, chernoff_sample_size
+from octoroach_model.validation.fit import fit_nominal, mean_start_pose
+from octoroach_model.validation.gait import stride_frequency_estimate
 
 Progress = Callable[[float, str], None]
-SIGMA_DIRECTION = (0.12, 0.15)          # Table III: the spread scale moves along this ray
-SCALE_GRID = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0)
-ENERGY_TIMES = (0.2, 0.4, 0.6, 0.8, 1.0)   # fractions of the run where positions are scored
 MIN_RUNS = 40
+MIN_SAMPLES_PER_CYCLE = 8
+MIN_CYCLES = 3
+SCORE_PURPOSE = 31
+DISCREPANCY_PURPOSE = 32
 
 
 @dataclass(frozen=True)
 class DiagnosisSettings:
     """Knobs of the diagnosis; the defaults are what README's figures use.
 
-    calibration_runs / score_runs: simulated runs per calibration point / per scored model;
-    heading_weight_m, baseline_heading_weight_m: weight (m per rad) of the average heading in
-    the nominal fits; min_gain: nats per held-out run a cause must gain to be named;
-    align_gait: fit the nominal model on the gait-aligned average path.
+    alpha: family level of the held-out tests (divided among the candidates of a step);
+    decision_alpha: family level of the size bounds (likewise); min_gain: smallest held-out
+    gain (feature energy score, data spreads per run) a cause must bring; adequacy_alpha:
+    family level over the discrepancy statistics; moment_runs / mean_path_runs / score_runs:
+    simulated runs per moment point / per mean path / per scored model; workers: processes
+    (1: in this process), ignored when an executor is passed to `diagnose`.
     """
 
     seed: int = 0
     alpha: float = 0.01
-    calibration_runs: int = 400
-    score_runs: int = 1500
+    decision_alpha: float = 0.05
+    min_gain: float = 0.0
+    adequacy_alpha: float = 0.01
+    moment_runs: int = 400
+    mean_path_runs: int = 300
+    score_runs: int = 1200
     bootstrap: int = 100
     heading_weight_m: float = 0.13
-    min_gain: float = 0.1
-    align_gait: bool = True
-    baseline_heading_weight_m: float = 0.13
+    rounds: int = 2
     validation: ValidationSettings = field(default_factory=ValidationSettings)
     validate_models: bool = True
+    workers: int = 2
+
+    def fit(self, seed_offset: int = 0) -> FitSettings:
+        return FitSettings(self.moment_runs, self.mean_path_runs, self.heading_weight_m,
+                           self.rounds, self.seed + seed_offset)
 
 
 @dataclass
-class _Context:
-    """What every step needs: the data halves, the baseline model and its features."""
+class _Halves:
+    """The measured runs, their calibration and held-out halves, ready for scoring."""
 
-    measured: Paths
-    train: Paths
-    test: Paths
-    model: FourBarModel
-    sigmas: tuple[float, float]
-    reference_heading: float
-    stride_frequency: float
-    seed: np.random.SeedSequence
-    nominal_report: dict = field(default_factory=dict)
-    train_features: np.ndarray | None = None
-
-    def simulate(self, effects: dict | None, n_runs: int, sigmas=None,
-                 model: FourBarModel | None = None,
-                 seed: np.random.SeedSequence | None = None) -> Paths:
-        t = self.measured.t
-        model = replace(model or self.model, effects=effects or {})
-        poses = model(sigmas or self.sigmas, seed or self.seed, n_runs, t)
-        return Paths(t, poses)
-
-    def features(self, paths: Paths) -> np.ndarray:
-        return run_features(paths, self.stride_frequency, self.reference_heading)
+    all: RunData
+    train: RunData
+    test: RunData
+    scales: np.ndarray
+    test_points_cm: np.ndarray
+    ideal: Scores
+    run_scale: RunScale
 
 
 def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
-             progress: Progress | None = None) -> dict:
-    """Diagnose `measured` runs; returns the report (CONTRACT.md fields and more)."""
+             progress: Progress | None = None, executor: Executor | None = None
+             ) -> DiagnosisReport:
+    """Diagnose `measured` runs (module docstring); the report's JSON is `report.to_json()`.
+
+    `executor` (concurrent.futures-compatible, e.g. a Dask client's `get_executor()`) runs
+    the candidates of each step, the refits and the validations side by side; without one, a
+    local process pool of `settings.workers`.
+    """
     settings = settings or DiagnosisSettings()
     say = progress or (lambda fraction, message: None)
     started = time.monotonic()
-    if measured.n_paths < MIN_RUNS:
-        raise DataError(f'the diagnosis needs at least {MIN_RUNS} runs, got {measured.n_paths}')
-    if not np.isfinite(measured.poses).all():
-        raise DataError('the measured runs contain non-finite poses')
-
-    say(0.02, 'calibrating the baseline (nominal fit, eq. 9)')
-    context = _calibrate_baseline(measured, settings)
-    baseline_train = context.features(context.simulate(None, settings.calibration_runs))
-    say(0.10, f'baseline spread scale: sigma1 = {context.sigmas[0]:.3f}, '
-              f'sigma2 = {context.sigmas[1]:.3f} rad')
-
-    rng = np.random.default_rng(settings.seed)
-    data_features = context.features(measured)
-    discrepancies = _discrepancies(context, data_features, rng, settings)
-    say(0.20, 'discrepancies measured')
-
-    train_features = context.train_features
-    test_features = context.features(context.test)
-    baseline_scores = _scores(context, None, test_features, settings)
-    candidates = []
-    for number, candidate in enumerate(CANDIDATES):
-        candidates.append(_evaluate(candidate, context, train_features, baseline_train,
-                                    test_features, baseline_scores, settings))
-        say(0.20 + 0.45 * (number + 1) / len(CANDIDATES),
-            f'candidate {candidate.cause}: gain {candidates[-1]["gain"]:.2f} nats/run, '
-            f'p = {candidates[-1]["p_value"]:.2g}')
-
-    threshold = settings.alpha / len(CANDIDATES)
-    significant = [c for c in candidates
-                   if c['p_value'] < threshold and c['gain'] >= settings.min_gain]
-    chosen = max(significant, key=lambda c: c['gain']) if significant else None
-    cause = chosen['cause'] if chosen else 'none'
-    parameters = chosen['parameters'] if chosen else {}
-    extended_effects = {cause: parameters} if chosen else {}
-    extended_model = chosen['_model'] if chosen else context.model
-    extended_sigmas = (chosen['sigma1'], chosen['sigma2']) if chosen else context.sigmas
-    extended_scores = _scores(context, extended_effects, test_features, settings,
-                              extended_model, extended_sigmas)
-    for candidate in candidates:
-        del candidate['_model']
-
-    report = {
-        'paths': measured.n_paths,
-        'duration_s': float(measured.t[-1]),
-        'seed': settings.seed,
-        'split': {'calibration': context.train.n_paths, 'held_out': context.test.n_paths},
-        'nominal': context.nominal_report,
-        'baseline': {'sigma_scale_sigma1': context.sigmas[0],
-                     'sigma_scale_sigma2': context.sigmas[1]},
-        'extended_sigma_scale': {'sigma1': extended_sigmas[0], 'sigma2': extended_sigmas[1]},
-        'discrepancies': discrepancies,
-        'candidates': candidates,
-        'cause': cause,
-        'parameters': parameters,
-        'extended': {},
-        'gain': {
-            'metric': 'held-out log score of the run features under each model '
-                      '(Gaussian synthetic likelihood), nats per run, higher is better',
-            'baseline': float(baseline_scores['log'].mean()),
-            'extended': float(extended_scores['log'].mean()),
-            'relative': _relative(baseline_scores['log'].mean(), extended_scores['log'].mean()),
-            'energy_score_cm': {
-                'metric': 'energy score of positions at 20/40/60/80/100 % of the run on '
-                          'held-out runs, cm, lower is better',
-                'baseline': float(baseline_scores['energy'].mean()),
-                'extended': float(extended_scores['energy'].mean()),
-                'relative': _relative(baseline_scores['energy'].mean(),
-                                      extended_scores['energy'].mean(), lower_is_better=True)},
-        },
-        'decision': {'alpha': settings.alpha, 'per_candidate_level': threshold,
-                     'min_gain': settings.min_gain,
-                     'test': 'one-sided paired t-test of per-run log-score gains, and a gain '
-                             'of at least min_gain nats per run'},
-    }
-    if settings.validate_models:
-        say(0.70, "paper's validation of the baseline (search 15)")
-        report['baseline'].update(_paper_validation(context, {}, settings))
-        say(0.85, "paper's validation of the extended model (search 15)")
-        report['extended'] = _paper_validation(context, extended_effects, settings,
-                                               extended_model)
-        report['extended']['effects'] = extended_effects
-    report['_models'] = {'baseline': (context.model, context.sigmas),
-                         'extended': (replace(extended_model, effects=extended_effects),
-                                      extended_sigmas)}
-    report['elapsed_s'] = round(time.monotonic() - started, 2)
-    say(1.0, f'cause: {cause}')
+    check_runs(measured)
+    with executor_for(executor, settings.workers) as pool:
+        say(0.02, 'preparing the runs (features, gait clock)')
+        halves = _prepare(measured, settings)
+        say(0.08, 'fitting the baseline (geometry on the mean path, spread scale)')
+        baseline = _baseline(halves, settings)
+        simulator = Simulator(halves.test, settings.seed)
+        current_scores = _score(simulator, baseline, halves, settings)
+        baseline_scores = current_scores
+        say(0.15, f'baseline: sigma1 = {baseline.sigmas[0]:.3f}, '
+                  f'sigma2 = {baseline.sigmas[1]:.3f} rad')
+        model, steps, last_seen = baseline, [], {}
+        remaining = [cause.name for cause in CAUSES]
+        while remaining:
+            step = len(steps) + 1
+            futures = [pool.submit(evaluate_candidate, halves, model, current_scores, cause,
+                                   settings) for cause in remaining]
+            evaluated = [future.result() for future in futures]
+            result, chosen = _step_result(step, evaluated, halves, settings)
+            for candidate in result.candidates:
+                last_seen[candidate.cause] = candidate
+            steps.append(result)
+            say(min(0.15 + 0.13 * step, 0.7), _step_message(result))
+            if chosen is None:
+                break
+            model = chosen.model
+            if settings.rounds > 1:
+                model, _ = fit_causes(halves.train, model, model.causes, settings.fit(),
+                                      rounds=settings.rounds - 1)
+            current_scores = _score(simulator, model, halves, settings)
+            remaining.remove(chosen.cause)
+        say(0.75, 'refitting the extended model on all runs')
+        final_future = pool.submit(_final_fit, halves, model, settings)
+        validations = {}
+        if settings.validate_models:
+            validations = {name: pool.submit(paper_validation, measured, fitted,
+                                             settings.validation)
+                           for name, fitted in (('baseline', baseline), ('extended', model))}
+        final, final_estimates = final_future.result()
+        say(0.85, 'discrepancies and adequacy')
+        rng = np.random.default_rng([settings.seed, 41])
+        everything = Simulator(halves.all, settings.seed)
+        n_model = max(halves.all.n, 1000)
+        baseline_rows = discrepancies(
+            halves.all.features, everything.features(baseline, n_model, DISCREPANCY_PURPOSE),
+            rng, settings.bootstrap)
+        final_rows = discrepancies(
+            halves.all.features, everything.features(final, n_model, DISCREPANCY_PURPOSE),
+            rng, settings.bootstrap) if final.causes else baseline_rows
+        bound = critical_z(settings.adequacy_alpha, len(STATISTICS))
+        unexplained = [row for row in final_rows if abs(row.z) > bound and row.material]
+        validation_results = {name: future.result() for name, future in validations.items()}
+    named = _named_causes(steps, final, final_estimates, halves, settings)
+    report = DiagnosisReport(
+        paths=measured.n_paths, duration_s=float(measured.t[-1]), seed=settings.seed,
+        split={'calibration': halves.train.n, 'held_out': halves.test.n},
+        runs=RunLengths.of(measured),
+        nominal=baseline.table(), baseline_model=baseline, extended_model=final,
+        baseline=_model_summary(baseline, validation_results.get('baseline')),
+        extended=_model_summary(final, validation_results.get('extended')),
+        discrepancies=tuple(baseline_rows), candidates=tuple(
+            last_seen[cause.name] for cause in CAUSES if cause.name in last_seen),
+        causes=tuple(named), steps=tuple(steps),
+        gain=_gain_summary(baseline_scores, current_scores, halves),
+        extended_discrepancies=tuple(final_rows), adequate=not unexplained, unexplained=tuple(unexplained),
+        adequacy_bound_z=bound, settings=settings,
+        notes=tuple(measured.info.get('notes', ())),
+        elapsed_s=round(time.monotonic() - started, 2))
+    say(1.0, 'causes: ' + (', '.join(c.cause for c in named) or 'none')
+        + ('' if report.adequate else '; the extended model still misses '
+           + ', '.join(row.statistic for row in unexplained)))
     return report
 
 
-def _calibrate_baseline(measured: Paths, settings: DiagnosisSettings) -> _Context:
+def check_runs(measured: Paths) -> None:
+    """Refuse data the diagnosis cannot support, with the limit they miss, before work."""
+    if measured.n_paths < MIN_RUNS:
+        raise DataError(f'the diagnosis needs at least {MIN_RUNS} runs, got {measured.n_paths}')
+    if len(measured.t) < 2 * MIN_SAMPLES_PER_CYCLE:
+        raise DataError(f'runs of {len(measured.t)} samples are too short for the diagnosis '
+                        f'(at least {2 * MIN_SAMPLES_PER_CYCLE})')
+    if not measured.well_formed:
+        raise DataError('the measured runs have non-finite poses inside a run (only the tail '
+                        'of a run that ends early may be missing)')
+    frequency = stride_frequency_estimate(measured.poses[..., 2], measured.t)
+    if not math.isfinite(frequency):
+        raise DataError('no stride frequency can be seen in the heading of these runs')
+    rate = measured.rate_hz
+    if rate / frequency < MIN_SAMPLES_PER_CYCLE:
+        raise DataError(f'{rate:.0f} Hz sampling gives {rate / frequency:.1f} samples per gait '
+                        f'cycle at {frequency:.2f} Hz strides; the diagnosis needs at least '
+                        f'{MIN_SAMPLES_PER_CYCLE}')
+    cycles = float(np.median(measured.lengths - 1)) / rate * frequency
+    if cycles < MIN_CYCLES:
+        raise DataError(f'the runs last {cycles:.1f} gait cycles (median); the diagnosis '
+                        f'needs at least {MIN_CYCLES}')
+
+
+def _prepare(measured: Paths, settings: DiagnosisSettings) -> _Halves:
+    frequency = stride_frequency_estimate(measured.poses[..., 2], measured.t)
+    start = mean_start_pose(measured)
     order = np.random.default_rng(settings.seed).permutation(measured.n_paths)
     half = measured.n_paths // 2
-    train, test = measured.subset(order[:half]), measured.subset(order[half:])
-    nominal = fit_nominal(train, heading_weight_m=settings.baseline_heading_weight_m,
-                          align_gait=settings.align_gait)
-    start = mean_start_pose(train)
-    model = FourBarModel(nominal.parameters, start)
-    seed = np.random.SeedSequence([settings.seed, 1])
-    context = _Context(measured, train, test, model, SIGMA_DIRECTION, start[2],
-                       nominal.parameters.stride_frequency, seed)
-    context.nominal_report = nominal.report()
-    context.train_features = context.features(train)
-    context.sigmas = _calibrate_sigmas(context, model, settings)
-    return context
+    everything = RunData(measured, frequency, start[2])
+    train = RunData(measured.subset(order[:half]), frequency, start[2])
+    test = RunData(measured.subset(order[half:]), frequency, start[2])
+    scales = feature_scales(train.features)
+    test_points = position_points_cm(test.paths.positions, test.lengths)
+    train_points = position_points_cm(train.paths.positions, train.lengths)
+    ideal = score_model(train.features, train_points, test.features, test_points, scales)
+    duration = float(np.median(measured.lengths - 1)) / measured.rate_hz
+    path_length = float(np.nanmedian(np.abs(everything.features[:, 10]))) or 0.01
+    return _Halves(everything, train, test, scales, test_points, ideal,
+                   RunScale(duration, path_length))
 
 
-def _calibrate_sigmas(context: _Context, model: FourBarModel,
-                      settings: DiagnosisSettings) -> tuple[float, float]:
-    """Spread scale s, (sigma1, sigma2) = s (0.12, 0.15), matched to the within-run variance
-    of the per-cycle heading change (unmoved by start errors and by a constant turn rate)."""
-    target = float(context.train_features[:, INDEX['increment_var']].mean())
-    curve = []
-    for scale in SCALE_GRID:
-        sigmas = (scale * SIGMA_DIRECTION[0], scale * SIGMA_DIRECTION[1])
-        simulated = context.features(context.simulate(
-            model.effects, settings.calibration_runs // 2, sigmas, model))
-        curve.append(simulated[:, INDEX['increment_var']].mean())
-    scale = read_off_curve(np.array(SCALE_GRID), np.array(curve), target, signed=False)
-    return scale * SIGMA_DIRECTION[0], scale * SIGMA_DIRECTION[1]
+def _baseline(halves: _Halves, settings: DiagnosisSettings) -> FittedModel:
+    """The paper's model on the calibration half: a quick deterministic fit (eq. 9) as the
+    start, then geometry on the mean path and the spread scale, refit together."""
+    train = halves.train
+    start_pose = mean_start_pose(train.paths)
+    initial = ModelParameters.nominal()
+    initial = replace(initial, stride_frequency=train.stride_frequency)
+    quick = fit_nominal(train.paths, initial, heading_weight_m=settings.heading_weight_m,
+                        align_gait=True, start_pose=start_pose, target=train.target,
+                        tolerance=1e-6)
+    start = FittedModel(quick.parameters, start_pose, 1.0, {})
+    model, _ = fit_causes(train, start, (), settings.fit())
+    return model
 
 
-def _discrepancies(context: _Context, data_features: np.ndarray, rng: np.random.Generator,
-                   settings: DiagnosisSettings) -> list[dict]:
-    simulated = context.simulate(None, context.measured.n_paths)
-    model_stats = statistics_with_errors(context.features(simulated), simulated,
-                                         context.reference_heading, context.stride_frequency,
-                                         rng, settings.bootstrap)
-    data_stats = statistics_with_errors(data_features, context.measured,
-                                        context.reference_heading, context.stride_frequency,
-                                        rng, settings.bootstrap)
-    rows = []
-    for name, (_, unit) in STATISTICS.items():
-        data_value, data_error = data_stats[name]
-        model_value, model_error = model_stats[name]
-        error = math.hypot(data_error, model_error)
-        z = (data_value - model_value) / error if error > 0 else 0.0
-        rows.append({'statistic': name, 'unit': unit, 'data': data_value, 'model': model_value,
-                     'data_se': data_error, 'model_se': model_error, 'z': float(z)})
-    rows.sort(key=lambda row: -abs(row['z']))
-    return rows
+@dataclass(frozen=True)
+class Evaluation:
+    """One candidate at one step: the extended model, its sizes, its held-out scores."""
+
+    cause: str
+    model: FittedModel
+    estimates: dict
+    scores: Scores
+    gain: PairedGain
+    gain_cm: float
+    log_gain: float
 
 
-def _scores(context: _Context, effects: dict | None, test_features: np.ndarray,
-            settings: DiagnosisSettings, model: FourBarModel | None = None,
-            sigmas: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
-    simulated = context.simulate(effects, settings.score_runs, sigmas, model)
-    features = context.features(simulated)
-    log = gaussian_log_score(features, test_features)
-    picks = [int(round(f * (len(context.measured.t) - 1))) for f in ENERGY_TIMES]
-    model_points = simulated.poses[:, picks, :2].reshape(simulated.n_paths, -1) * 100
-    observed = context.test.poses[:, picks, :2].reshape(context.test.n_paths, -1) * 100
-    return {'log': log, 'energy': energy_scores(model_points[:500], observed),
-            'features': features}
+def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Scores,
+                       cause: str, settings: DiagnosisSettings) -> Evaluation:
+    """`current` extended by `cause`, every included size refit (one round), scored on the
+    held-out runs against `current` (a top-level function: it runs in worker processes)."""
+    causes = (*current.causes, cause)
+    geometry = BY_NAME[cause].kind == 'path'
+    model, estimates = fit_causes(halves.train, current, causes, settings.fit(),
+                                  geometry=geometry, rounds=1)
+    simulator = Simulator(halves.test, settings.seed)
+    scores, features = _score(simulator, model, halves, settings, with_features=True)
+    current_features = simulator.features(current, settings.score_runs, SCORE_PURPOSE)
+    first, second, _ = log_scores(current_features, features, halves.test.features,
+                                  halves.scales)
+    return Evaluation(cause, model, estimates, scores,
+                      PairedGain.of(current_scores.energy - scores.energy),
+                      float(np.mean(current_scores.energy_cm - scores.energy_cm)),
+                      float(np.mean(second - first)))
 
 
-def _evaluate(candidate: Candidate, context: _Context, train_features: np.ndarray,
-              baseline_train: np.ndarray, test_features: np.ndarray,
-              baseline_scores: dict, settings: DiagnosisSettings) -> dict:
-    if candidate.refit_nominal:
-        estimate, model, evidence = _estimate_jointly(candidate, context, settings)
-    else:
-        estimate, evidence = _estimate_by_moments(candidate, context, train_features, settings)
-        model = context.model
-    extra = direct_extra_parameters(candidate.cause, train_features, baseline_train)
-    parameters = {candidate.parameter: round(estimate, 6), **extra}
-    effects = {candidate.cause: parameters}
-    model = replace(model, effects=effects)
-    sigmas = _calibrate_sigmas(context, model, settings)
-    scores = _scores(context, effects, test_features, settings, model, sigmas)
-    gain, p_value = paired_improvement(scores['log'], baseline_scores['log'])
-    limit, power_curve = _detection_limit(candidate, context, settings, baseline_scores)
-    evidence['power'] = power_curve
-    return {'cause': candidate.cause, 'parameters': parameters, 'gain': gain,
-            'p_value': p_value,
-            'energy_gain_cm': float(baseline_scores['energy'].mean() - scores['energy'].mean()),
-            'statistic': candidate.statistic_name,
-            'detectable': {candidate.parameter: limit},
-            'nominal': model.parameters.table(),
-            'sigma1': sigmas[0], 'sigma2': sigmas[1],
-            'estimation': evidence,
-            '_model': model}
+def _score(simulator: Simulator, model: FittedModel, halves: _Halves,
+           settings: DiagnosisSettings, with_features: bool = False):
+    paths = simulator.paths(model, settings.score_runs, SCORE_PURPOSE)
+    from octoroach_model.diagnosis.features import run_features
+    features = run_features(paths, halves.all.stride_frequency, halves.all.reference_heading)
+    points = position_points_cm(paths.positions, paths.lengths)
+    scores = score_model(features, points, halves.test.features, halves.test_points_cm,
+                         halves.scales)
+    return (scores, features) if with_features else scores
 
 
-def _estimate_by_moments(candidate: Candidate, context: _Context, train_features: np.ndarray,
-                         settings: DiagnosisSettings) -> tuple[float, dict]:
-    """Simulated moments: the statistic over the parameter grid, read off at the data's."""
-    grid = np.array(candidate.grid, dtype=float)
-    curve = [candidate.statistic(context.features(context.simulate(
-        candidate.effects(float(value)), settings.calibration_runs))) for value in grid]
-    estimate = read_off_curve(grid, np.array(curve), candidate.statistic(train_features),
-                              candidate.signed)
-    return estimate, {'method': 'simulated moments', 'grid': grid.tolist(),
-                      'statistic_curve': [float(c) for c in curve]}
+def _step_result(step: int, evaluated: list[Evaluation], halves: _Halves,
+                 settings: DiagnosisSettings) -> tuple[StepResult, Evaluation | None]:
+    m = len(evaluated)
+    z = decision_z(settings.decision_alpha, m)
+    level = settings.alpha / m
+    results, eligible = [], []
+    for evaluation in evaluated:
+        cause = BY_NAME[evaluation.cause]
+        verdict = judge(evaluation.estimates[evaluation.cause], cause.floor(halves.run_scale), z)
+        significant = evaluation.gain.p_value < level
+        material = evaluation.gain.mean >= settings.min_gain
+        named_here = verdict.clears_floor and significant and material
+        results.append(CandidateResult.of(evaluation, verdict, step, significant, named_here,
+                                          _excess_share(evaluation, halves)))
+        if named_here:
+            eligible.append(evaluation)
+    chosen = max(eligible, key=lambda e: e.gain.mean) if eligible else None
+    return StepResult(step, tuple(results), chosen.cause if chosen else None, z, level), chosen
 
 
-def _estimate_jointly(candidate: Candidate, context: _Context, settings: DiagnosisSettings
-                      ) -> tuple[float, FourBarModel, dict]:
-    """Least squares of the geometry and the effect's parameter together (eq. 9 extended):
-    the effect moves the average path, which the geometry alone would bend to mimic."""
-    bounds = (min(candidate.grid), max(candidate.grid))
-    # restarts: from the baseline geometry (which may have bent to mimic the effect) and from
-    # Table II, with the effect at zero and at half its range either way; the best fit wins
-    starts = [(context.model.parameters, 0.0)] + [
-        (replace(ModelParameters.nominal(),
-                 stride_frequency=context.model.parameters.stride_frequency), value)
-        for value in (0.0, 0.5 * bounds[0], 0.5 * bounds[1]) if bounds[0] <= value <= bounds[1]]
-    fits = [fit_nominal(context.train, initial=initial,
-                        free_effect=(candidate.cause, candidate.parameter),
-                        free_effect_bounds=bounds, free_effect_start=value,
-                        heading_weight_m=settings.heading_weight_m, multistart=False,
-                        align_gait=settings.align_gait)
-            for initial, value in starts]
-    fit = min(fits, key=lambda f: f.cost)
-    estimate = float(fit.effects[candidate.cause][candidate.parameter])
-    model = replace(context.model, parameters=fit.parameters)
-    return estimate, model, {'method': 'joint least squares with the geometry (eq. 9)',
-                             'rms_error_cm': fit.rms_error_m * 100}
+def _excess_share(evaluation: Evaluation, halves: _Halves) -> float:
+    """Share of the current model's excess score (over data predicting data) removed."""
+    before = float(np.mean(evaluation.scores.energy)) + evaluation.gain.mean
+    excess = before - float(np.mean(halves.ideal.energy))
+    return evaluation.gain.mean / excess if excess > 1e-12 else 0.0
 
 
-def _detection_limit(candidate: Candidate, context: _Context, settings: DiagnosisSettings,
-                     baseline_scores: dict) -> tuple[float | None, dict]:
-    """Smallest effect the decision would catch with 80 % power at this data's size.
-
-    For each positive grid value, data sets of the held-out size are simulated with the effect
-    and scored exactly as the real held-out runs are; the expected t statistic of the paired
-    test is read off against the one-sided quantile at the per-candidate level."""
-    from scipy import stats
-
-    n_test = context.test.n_paths
-    level = settings.alpha / len(CANDIDATES)
-    needed = float(stats.norm.isf(level) + stats.norm.isf(0.2))
-    baseline_features = baseline_scores['features']
-    values, t_values = [0.0], [0.0]
-    for value in sorted(v for v in candidate.grid if v > 0):
-        effects = candidate.effects(float(value))
-        model_features = context.features(context.simulate(effects, settings.calibration_runs))
-        pseudo = context.features(context.simulate(
-            effects, n_test, seed=np.random.SeedSequence([settings.seed, 3])))
-        gain = gaussian_log_score(model_features, pseudo) \
-            - gaussian_log_score(baseline_features, pseudo)
-        spread = float(np.std(gain, ddof=1))
-        t = float(gain.mean() / spread * math.sqrt(n_test)) if spread > 0 else (
-            math.inf if gain.mean() > 0 else 0.0)
-        values.append(float(value))
-        # a gain below min_gain would not be named however significant: count it as unseen
-        t_values.append(t if gain.mean() >= settings.min_gain else min(t, 0.0))
-        if t_values[-1] >= needed:
-            break
-    curve = {'values': values, 't': t_values, 't_needed': needed}
-    envelope = np.maximum.accumulate(np.nan_to_num(t_values, posinf=1e9))
-    if envelope[-1] < needed:
-        return None, curve
-    keep = np.concatenate([[True], np.diff(envelope) > 0])
-    return float(np.interp(needed, envelope[keep], np.array(values)[keep])), curve
+def _step_message(result: StepResult) -> str:
+    best = max(result.candidates, key=lambda c: c.gain)
+    head = f'step {result.step}: ' + (f'{result.chosen} enters' if result.chosen else
+                                     'no cause qualifies')
+    return f'{head} (best gain {best.cause} {best.gain:.3g}, p = {best.p_value:.2g})'
 
 
-def _paper_validation(context: _Context, effects: dict, settings: DiagnosisSettings,
-                      model: FourBarModel | None = None) -> dict:
-    validation_settings = settings.validation
-    n = chernoff_sample_size(validation_settings.epsilon, validation_settings.delta)
-    note = None
-    if context.measured.n_paths < validation_settings.runs_needed:
-        k = context.measured.n_paths // n
-        if k < 2:
-            return {'note': f'{context.measured.n_paths} runs: too few for n = {n} '
-                            f'multisamples of 2 runs'}
-        validation_settings = replace(validation_settings, k=k)
-        note = f'k lowered to {k}: {context.measured.n_paths} runs < n x k'
-    model = replace(model or context.model, effects=effects)
-    result = validate(context.measured, validation_settings, model)
-    plain = result.to_json()
-    summary = {key: plain[key] for key in ('sigma1', 'sigma2', 'violation', 'n', 'k',
-                                           'rho', 'accepted', 'grid')}
-    if note:
-        summary['note'] = note
+def _final_fit(halves: _Halves, model: FittedModel, settings: DiagnosisSettings
+               ) -> tuple[FittedModel, dict[str, SizeEstimate]]:
+    """The final model refit on all runs (the sizes a report states)."""
+    if not model.causes:
+        return model, {}
+    return fit_causes(halves.all, model, model.causes, settings.fit(1))
+
+
+def _named_causes(steps, final: FittedModel, estimates: dict, halves: _Halves,
+                  settings: DiagnosisSettings) -> list[NamedCause]:
+    named = []
+    for step in steps:
+        if step.chosen is None:
+            continue
+        entry = next(c for c in step.candidates if c.cause == step.chosen)
+        cause = BY_NAME[step.chosen]
+        verdict = judge(estimates[step.chosen], cause.floor(halves.run_scale),
+                        decision_z(settings.decision_alpha, 1)) \
+            if step.chosen in estimates else None
+        named.append(NamedCause.of(step.chosen, final.effects[step.chosen], verdict, entry))
+    return named
+
+
+def _gain_summary(baseline: Scores, extended: Scores, halves: _Halves) -> ScoreSummary:
+    return ScoreSummary.of(baseline, extended, halves.ideal)
+
+
+def _model_summary(model: FittedModel, validation: dict | None) -> dict:
+    summary = {'sigma1': model.sigmas[0], 'sigma2': model.sigmas[1],
+               'sigma_scale': model.sigma_scale, 'effects': model.effects}
+    if validation:
+        summary['validation'] = validation
+        for key in ('violation', 'accepted', 'n', 'k', 'rho'):
+            if key in validation:
+                summary[key] = validation[key]
+        summary['sigma1_max'] = validation.get('sigma1')
+        summary['sigma2_max'] = validation.get('sigma2')
     return summary
 
 
-def _relative(baseline: float, extended: float, lower_is_better: bool = False) -> float:
-    change = (baseline - extended) if lower_is_better else (extended - baseline)
-    return float(change / abs(baseline)) if baseline else 0.0
+def paper_validation(measured: Paths, model: FittedModel, settings: ValidationSettings
+                     ) -> dict:
+    """The paper's search (15) for `model` (geometry, start and causes) on the measured runs,
+    on the common duration most of the runs reach (runs that end far earlier are left out
+    and said so); k is lowered when the runs are too few for n x k."""
+    from octoroach_model.validation import FourBarModel, validate
+    from octoroach_model.validation.validate import common_duration
+
+    kept, note = common_duration(measured)
+    n = chernoff_sample_size(settings.epsilon, settings.delta)
+    notes = [note] if note else []
+    if kept.n_paths < settings.runs_needed:
+        k = kept.n_paths // n
+        if k < 2:
+            return {'note': f'{kept.n_paths} runs: too few for n = {n} multisamples of 2 runs'}
+        settings = replace(settings, k=k)
+        notes.append(f'k lowered to {k}: {kept.n_paths} runs < n x k')
+    plugin = FourBarModel(model.parameters, model.start_pose, 'stance', model.effects)
+    result = validate(kept, settings, plugin).to_json()
+    summary = {key: result[key] for key in ('sigma1', 'sigma2', 'violation', 'n', 'k', 'rho',
+                                            'accepted', 'duration_s', 'grid')}
+    summary['paths_used'] = result['paths_used']
+    if notes:
+        summary['notes'] = notes
+    return summary

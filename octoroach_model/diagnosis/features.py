@@ -1,95 +1,155 @@
-"""Per-run features: the few numbers per run in which the contract's causes show.
+"""Per-run features: the few numbers per run in which the causes show.
 
 Each feature answers one question about a run; together they are what the diagnosis compares
-between measured and simulated runs:
+between measured and simulated runs. Every set-level statistic of the diagnosis is a function
+of these rows, so a bootstrap over runs only resamples rows.
 
 | feature | what it measures | reveals |
 | --- | --- | --- |
 | start_heading | heading at t = 0, rad | initial_pose_error |
 | start_x, start_y | position at t = 0, m | initial_pose_error, noise |
-| log_jitter | log mean squared second difference of x, y (noise adds 6 s^2) | noise |
-| slip_angle | mean angle heading -> direction of travel over cycles, rad | lateral_slip |
-| stride_frequency | spectral peak of the heading's sway (once per cycle), Hz | gait frequency |
+| log_noise | log median squared 4th difference of x, y (m^2); a smooth gait has almost none, white noise of std s gives 70 s^2 x 0.455 | measurement_noise |
+| slip_angle | mean angle heading -> direction of travel over cycle-long windows, rad | lateral_slip |
+| stride_frequency | spectral peak of the heading's sway (once per cycle), Hz | gait_frequency_variation |
 | progress_ratio | log(distance in 2nd half / distance in 1st half) | speed_decay |
 | heading_rate | least-squares slope of heading over time, rad/s | persistent_turning |
 | increment_var | within-run variance of the heading change per cycle, rad^2 | sigma1, sigma2 |
-| end_lateral, end_progress | final displacement across / along the heading, m | spread |
+| end_lateral, end_progress | final displacement across / along the reference heading, m | spread, geometry |
 | sway_amplitude | amplitude of the heading's sway at the stride frequency, rad | geometry |
 | lateral_sway_1, _2 | amplitude of the sideways sway at f and 2f, m | geometry, slip |
+| quarter_lateral | displacement across the reference heading at a quarter of the run, m | spread growth |
+| increment_autocorr | lag-1 autocorrelation of the per-cycle heading changes | persistent biases |
+
+Runs that end early (NaN tails, see `Paths`) give their features over their own samples; the
+diagnosis gives simulated runs the same lengths, so the two stay comparable.
 """
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
 from octoroach_model.paths import Paths
-from octoroach_model.validation.gait import heading_sway
+from octoroach_model.validation.gait import detrended, hann_windows, heading_sway, valid_mask
 
-FEATURES = ('start_heading', 'start_x', 'start_y', 'log_jitter', 'slip_angle', 'stride_frequency',
-            'progress_ratio', 'heading_rate', 'increment_var', 'end_lateral', 'end_progress',
-            'sway_amplitude', 'lateral_sway_1', 'lateral_sway_2')
+FEATURES = ('start_heading', 'start_x', 'start_y', 'log_noise', 'slip_angle',
+            'stride_frequency', 'progress_ratio', 'heading_rate', 'increment_var',
+            'end_lateral', 'end_progress', 'sway_amplitude', 'lateral_sway_1', 'lateral_sway_2',
+            'quarter_lateral', 'increment_autocorr')
 INDEX = {name: i for i, name in enumerate(FEATURES)}
 
-# Smallest standard deviation a feature is taken to have (its resolution): keeps the Gaussian
-# score finite where a model has no spread at all (e.g. the paper's model at t = 0).
-RESOLUTION = np.array([1e-3, 1e-4, 1e-4, 0.05, 1e-3, 5e-3, 2e-3, 1e-3, 1e-6, 1e-4, 1e-4, 1e-3,
-                       1e-5, 1e-5])
+# Resolution of each feature: differences below it are not told apart, and the smallest
+# spread a feature is taken to have when scores are standardised.
+RESOLUTION = np.array([1e-4, 1e-5, 1e-5, 1e-2, 1e-4, 1e-3, 1e-4, 1e-4, 1e-8, 1e-5, 1e-5, 1e-5,
+                       1e-6, 1e-6, 1e-5, 1e-3])
+NOISE_FLOOR_M2 = 1e-14          # keeps log_noise finite for a perfectly smooth run
+MEDIAN_CHI2_1 = 0.454936        # median of a chi-square with 1 degree of freedom
+
+
+def noise_std_m(log_noise: np.ndarray | float) -> np.ndarray | float:
+    """Position noise std (m) that white noise alone would need to give `log_noise`."""
+    return np.sqrt(np.exp(log_noise) / (70.0 * MEDIAN_CHI2_1))
 
 
 def run_features(paths: Paths, stride_frequency: float, reference_heading: float) -> np.ndarray:
     """(n, len(FEATURES)) features of each run; see the module table."""
     t, poses = paths.t, paths.poses
+    n = poses.shape[0]
     dt = float(t[1] - t[0])
     xy, heading = poses[..., :2], poses[..., 2]
-    n = poses.shape[0]
+    lengths = valid_mask(heading).sum(axis=1)
+    last = np.maximum(lengths - 1, 0)
+    rows = np.arange(n)
+    complete = bool(lengths.min() == len(t))
     out = np.empty((n, len(FEATURES)))
     out[:, 0] = heading[:, 0]
     out[:, 1:3] = xy[:, 0]
-    second = np.diff(xy, n=2, axis=1)
-    out[:, 3] = np.log((second ** 2).mean(axis=(1, 2)) + 1e-14)
+    fourth = np.diff(xy, n=4, axis=1) ** 2
+    median = np.median(fourth, axis=(1, 2)) if complete else _nanmedian_rows(fourth)
+    out[:, 3] = np.log(np.nan_to_num(median, nan=0.0) + NOISE_FLOOR_M2)
     cycle = max(2, int(round(1.0 / (stride_frequency * dt))))
     out[:, 4] = _slip_angle(xy, heading, cycle)
-    out[:, 5], out[:, 11] = heading_sway(heading, dt, stride_frequency)
+    out[:, 5], out[:, 11] = heading_sway(heading, t, stride_frequency)
     out[:, 12], out[:, 13] = _lateral_sway(xy, heading, t, out[:, 5])
-    half = len(t) // 2
-    first = np.linalg.norm(xy[:, half] - xy[:, 0], axis=-1)
-    second_half = np.linalg.norm(xy[:, -1] - xy[:, half], axis=-1)
-    out[:, 6] = np.log(np.maximum(second_half, 1e-9) / np.maximum(first, 1e-9))
-    centred_t = t - t.mean()
-    out[:, 7] = (heading - heading.mean(axis=1, keepdims=True)) @ centred_t \
-        / (centred_t @ centred_t)
-    later = heading[:, cycle::cycle]
-    increments = later - heading[:, :-cycle:cycle][:, :later.shape[1]]
-    out[:, 8] = increments.var(axis=1, ddof=1) if increments.shape[1] > 1 else 0.0
-    end = xy[:, -1] - xy[:, 0]
+    half = lengths // 2
+    first_half = np.linalg.norm(xy[rows, half] - xy[:, 0], axis=-1)
+    second_half = np.linalg.norm(xy[rows, last] - xy[rows, half], axis=-1)
+    out[:, 6] = np.log(np.maximum(second_half, 1e-9) / np.maximum(first_half, 1e-9))
+    out[:, 7] = _slope(heading, t)
+    increments = heading[:, cycle::cycle] - heading[:, :-cycle:cycle][
+        :, :heading[:, cycle::cycle].shape[1]]
+    out[:, 8], out[:, 15] = _increment_moments(increments)
     forward = np.array([np.cos(reference_heading), np.sin(reference_heading)])
     right = np.array([forward[1], -forward[0]])
+    end = xy[rows, last] - xy[:, 0]
     out[:, 9] = end @ right
     out[:, 10] = end @ forward
+    quarter = np.rint(0.25 * last).astype(int)
+    out[:, 14] = (xy[rows, quarter] - xy[:, 0]) @ right
     return out
+
+
+def _nanmedian_rows(values: np.ndarray) -> np.ndarray:
+    flat = values.reshape(values.shape[0], -1)
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', RuntimeWarning)     # a run too short: NaN, then 0
+        return np.nanmedian(flat, axis=1)
+
+
+def _slope(values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Least-squares slope of each run over its own samples."""
+    mask = valid_mask(values)
+    weight = mask.astype(float)
+    count = np.maximum(weight.sum(axis=1, keepdims=True), 1)
+    filled = np.where(mask, values, 0.0)
+    centred_t = (t - (weight * t).sum(axis=1, keepdims=True) / count) * weight
+    return (centred_t * filled).sum(axis=1) / np.maximum((centred_t ** 2).sum(axis=1), 1e-300)
+
+
+def _increment_moments(increments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Within-run variance and lag-1 autocorrelation of per-cycle heading changes: fresh
+    angles at every stance give no correlation, a persistent bias a positive one."""
+    mask = np.isfinite(increments)
+    count = mask.sum(axis=1)
+    filled = np.where(mask, increments, 0.0)
+    mean = filled.sum(axis=1) / np.maximum(count, 1)
+    centred = np.where(mask, filled - mean[:, None], 0.0)
+    squares = (centred ** 2).sum(axis=1)
+    variance = np.where(count > 1, squares / np.maximum(count - 1, 1), 0.0)
+    products = (centred[:, 1:] * centred[:, :-1]).sum(axis=1)
+    autocorr = np.where(count > 2, products / np.maximum(squares, 1e-18), 0.0)
+    return variance, autocorr
 
 
 def _slip_angle(xy: np.ndarray, heading: np.ndarray, cycle: int) -> np.ndarray:
     """Mean over cycle-long windows of (direction of travel - mean heading in the window)."""
     step = xy[:, cycle:] - xy[:, :-cycle]
     travel = np.arctan2(step[..., 1], step[..., 0])
-    kernel = np.ones(cycle + 1) / (cycle + 1)
-    mean_heading = np.apply_along_axis(lambda h: np.convolve(h, kernel, mode='valid'), 1, heading)
-    offset = travel - mean_heading
-    return np.angle(np.exp(1j * offset)).mean(axis=1)
+    filled = np.nan_to_num(heading)
+    total = np.concatenate([np.zeros((heading.shape[0], 1)), np.cumsum(filled, axis=1)], axis=1)
+    mean_heading = (total[:, cycle + 1:] - total[:, :-cycle - 1]) / (cycle + 1)
+    offset = np.angle(np.exp(1j * (travel - mean_heading)))
+    usable = np.isfinite(step[..., 0])
+    count = np.maximum(usable.sum(axis=1), 1)
+    return np.where(usable, offset, 0.0).sum(axis=1) / count
 
 
 def _lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
                   frequency: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Amplitudes of the sideways sway of G (across the run's mean heading, linear trend
     removed) at the stride frequency and twice it: the shape of a stance."""
-    mean_heading = heading.mean(axis=1, keepdims=True)
+    mask = valid_mask(heading)
+    count = np.maximum(mask.sum(axis=1, keepdims=True), 1)
+    mean_heading = np.where(mask, heading, 0.0).sum(axis=1, keepdims=True) / count
     across = xy[..., 0] * np.sin(mean_heading) - xy[..., 1] * np.cos(mean_heading)
-    centred_t = t - t.mean()
-    slope = across @ centred_t / (centred_t @ centred_t)
-    residual = across - across.mean(axis=1, keepdims=True) - slope[:, None] * centred_t
-    window = np.hanning(len(t))
+    window = hann_windows(mask.sum(axis=1), len(t))
+    residual = detrended(across, t) * window
+    norm = np.maximum(window.sum(axis=1), 1e-12)
     amplitudes = []
     for harmonic in (1, 2):
         phase = np.exp(-2j * np.pi * harmonic * frequency[:, None] * t[None, :])
-        amplitudes.append(2 * np.abs((residual * window * phase).sum(axis=1)) / window.sum())
+        amplitudes.append(2 * np.abs((residual * phase).sum(axis=1)) / norm)
     return amplitudes[0], amplitudes[1]
+
+
+__all__ = ['FEATURES', 'INDEX', 'RESOLUTION', 'noise_std_m', 'run_features']

@@ -1,5 +1,11 @@
 """The diagnosis in pictures: paths against the confidence region (as the paper's Figs. 5b
-and 6), E^_k over the (sigma1, sigma2) grid, the deciding statistic, the discrepancies."""
+and 6), E^_k over the (sigma1, sigma2) grid, the statistic that decided each cause, and the
+discrepancies before and after the extension. Every axis has its unit, every line and
+threshold a legend entry, every colour bar a label.
+
+Each plot is drawn on its own: one that cannot be drawn (degenerate data) is reported with
+its reason and costs nothing else.
+"""
 from __future__ import annotations
 
 import math
@@ -11,54 +17,72 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from octoroach_model.diagnosis.candidates import BY_CAUSE  # noqa: E402
 from octoroach_model.diagnosis.features import INDEX, run_features  # noqa: E402
+from octoroach_model.diagnosis.statistics import Discrepancy  # noqa: E402
 from octoroach_model.paths import Paths  # noqa: E402
 from octoroach_model.validation.region import t_multiplier  # noqa: E402
 
 N_SHOWN = 45
+DEG = 180.0 / math.pi
+# cause -> (feature, scale to the axis unit, axis label)
+DECIDING = {
+    'initial_pose_error': ('start_heading', DEG, 'start heading [deg]'),
+    'measurement_noise': ('log_noise', 1.0,
+                          'log median squared 4th difference of x, y [log m^2]'),
+    'gait_frequency_variation': ('stride_frequency', 1.0, 'stride frequency [Hz]'),
+    'speed_decay': ('progress_ratio', 1.0,
+                    'log(distance in 2nd half / distance in 1st half) [-]'),
+    'lateral_slip': ('slip_angle', DEG, 'direction of travel - heading [deg]'),
+    'persistent_turning': ('heading_rate', DEG, 'heading rate over the run [deg/s]'),
+}
 
 
-def write_plots(report: dict, measured: Paths, out: Path) -> dict[str, Path]:
-    models = report.get('_models') or {}
-    written = {}
-    written['paths_plot'] = _paths_plot(report, measured, models, out / 'paths.png')
-    if 'grid' in report.get('baseline', {}):
-        written['violation_plot'] = _violation_plot(report, out / 'violation_grid.png')
-    written['statistic_plot'] = _statistic_plot(report, measured, models,
-                                                out / 'deciding_statistic.png')
-    written['discrepancy_plot'] = _discrepancy_plot(report, out / 'discrepancies.png')
-    return written
+def write_plots(report, measured: Paths, out: Path) -> tuple[dict[str, Path], dict[str, str]]:
+    """Draw every plot; returns the files written and, per plot not drawn, the reason."""
+    jobs = {'paths_plot': (_paths_plot, out / 'paths.png'),
+            'violation_plot': (_violation_plot, out / 'violation_grid.png'),
+            'statistic_plot': (_statistic_plot, out / 'deciding_statistic.png'),
+            'discrepancy_plot': (_discrepancy_plot, out / 'discrepancies.png')}
+    written, errors = {}, {}
+    for name, (draw, path) in jobs.items():
+        try:
+            if draw(report, measured, path):
+                written[name] = path
+        except Exception as error:  # noqa: BLE001 - a plot never costs the report
+            errors[path.name] = f'{type(error).__name__}: {" ".join(str(error).split())}'
+        finally:
+            plt.close('all')
+    return written, errors
 
 
-def _simulate(models: dict, name: str, measured: Paths, n: int) -> Paths | None:
-    entry = models.get(name)
-    if not entry:
-        return None
-    model, sigmas = entry
-    return Paths(measured.t, model(sigmas, np.random.SeedSequence(7), n, measured.t))
+def _simulate(model, measured: Paths, n: int) -> Paths:
+    poses = model.poses(n, measured.t, np.random.SeedSequence(7))
+    return Paths(measured.t, poses)
 
 
-def _paths_plot(report, measured, models, path: Path) -> Path:
-    k = report.get('baseline', {}).get('k', 11) or 11
-    centre = measured.positions.mean(axis=0) * 100
-    half = t_multiplier(k, 0.95) * measured.positions.std(axis=0, ddof=1) * 100
+def _paths_plot(report, measured: Paths, path: Path) -> bool:
+    k = report.baseline.get('k') or 11
+    with np.errstate(invalid='ignore'):
+        centre = np.nanmean(measured.positions, axis=0) * 100
+        half = t_multiplier(k, 0.95) * np.nanstd(measured.positions, axis=0, ddof=1) * 100
     shown = np.random.default_rng(0).permutation(measured.n_paths)[:30]
     fig, axes = plt.subplots(1, 3, figsize=(15, 5.5))
     ax = axes[0]
-    for i in shown:
-        ax.plot(measured.poses[i, :, 0] * 100, measured.poses[i, :, 1] * 100, color='0.6', lw=0.7)
+    for number, i in enumerate(shown):
+        ax.plot(measured.poses[i, :, 0] * 100, measured.poses[i, :, 1] * 100, color='0.6',
+                lw=0.7, label='measured run' if number == 0 else None)
     ax.plot(centre[:, 0], centre[:, 1], 'r--', lw=2, label='data average')
-    ax.set_title(f'30 of {measured.n_paths} measured runs (Fig. 5a)')
-    for ax, name in zip(axes[1:], ('baseline', 'extended')):
-        sim = _simulate(models, name, measured, N_SHOWN)
+    ax.set_title(f'{len(shown)} of {measured.n_paths} measured runs (Fig. 5a)')
+    names = ', '.join(c.cause for c in report.causes) or 'no cause'
+    for ax, (label, model) in zip(axes[1:], (('paper model (baseline)', report.baseline_model),
+                                             (f'extended: {names}', report.extended_model))):
         ax.fill_betweenx(centre[:, 1], centre[:, 0] - half[:, 0], centre[:, 0] + half[:, 0],
                          color='tab:orange', alpha=0.25, label='95 % region of x (data)')
-        if sim is not None:
-            for run in sim.poses:
-                ax.plot(run[:, 0] * 100, run[:, 1] * 100, color='tab:blue', lw=0.6, alpha=0.7)
+        simulated = _simulate(model, measured, N_SHOWN)
+        for number, run in enumerate(simulated.poses):
+            ax.plot(run[:, 0] * 100, run[:, 1] * 100, color='tab:blue', lw=0.6, alpha=0.7,
+                    label='model run' if number == 0 else None)
         ax.plot(centre[:, 0], centre[:, 1], 'k', lw=2.5, label='data average')
-        label = 'paper model' if name == 'baseline' else f'extended: {report["cause"]}'
         ax.set_title(f'{N_SHOWN} runs of the {label} (Fig. 6)')
     for ax in axes:
         ax.set_xlabel('x [cm]')
@@ -67,76 +91,103 @@ def _paths_plot(report, measured, models, path: Path) -> Path:
         ax.legend(loc='lower right', fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return True
 
 
-def _violation_plot(report, path: Path) -> Path:
-    panels = [(n, report[n]) for n in ('baseline', 'extended') if 'grid' in report.get(n, {})]
+def _violation_plot(report, measured: Paths, path: Path) -> bool:
+    panels = [(name, section['validation']) for name, section in
+              (('baseline', report.baseline), ('extended', report.extended))
+              if 'grid' in section.get('validation', {})]
+    if not panels:
+        return False
     fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 5), squeeze=False)
     for ax, (name, section) in zip(axes[0], panels):
         grid = section['grid']
-        image = ax.pcolormesh(grid['sigma2'], grid['sigma1'], np.array(grid['violation']),
-                              vmin=0, vmax=1, cmap='viridis', shading='nearest')
-        ax.contour(grid['sigma2'], grid['sigma1'], np.array(grid['violation']),
-                   levels=[section['rho']], colors='w', linewidths=1)
+        values = np.array(grid['violation'])
+        image = ax.pcolormesh(grid['sigma2'], grid['sigma1'], values, vmin=0, vmax=1,
+                              cmap='viridis', shading='nearest')
+        if values.min() < section['rho'] < values.max():
+            ax.contour(grid['sigma2'], grid['sigma1'], values, levels=[section['rho']],
+                       colors='w', linewidths=1)
+            ax.plot([], [], color='w', lw=1, label=f'E^_k = rho = {section["rho"]}')
         ax.plot(section['sigma2'], section['sigma1'], 'r*', ms=16,
-                label=f'chosen ({section["sigma1"]:.3f}, {section["sigma2"]:.3f}), '
-                      f'E = {section["violation"]:.2f}')
-        ax.set_xlabel('sigma2 [rad] (liftoff)')
-        ax.set_ylabel('sigma1 [rad] (touchdown)')
-        ax.set_title(f'E^_k, {name} model (rho = {section["rho"]})')
-        ax.legend(loc='upper right', fontsize=8)
-        fig.colorbar(image, ax=ax)
+                label=f'chosen ({section["sigma1"]:.3f}, {section["sigma2"]:.3f}) rad, '
+                      f'E^_k = {section["violation"]:.2f}')
+        ax.set_xlabel('sigma2, liftoff angle spread [rad]')
+        ax.set_ylabel('sigma1, touchdown angle spread [rad]')
+        ax.set_title(f'Estimated probability of violation, {name} model')
+        ax.legend(loc='upper right', fontsize=8, facecolor='0.85')
+        fig.colorbar(image, ax=ax, label='E^_k, estimated probability of violation [-]')
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return True
 
 
-FEATURE_OF = {'initial_pose_error': 'start_heading', 'measurement_noise': 'log_jitter',
-              'gait_frequency_variation': 'stride_frequency', 'speed_decay': 'progress_ratio',
-              'lateral_slip': 'slip_angle', 'persistent_turning': 'heading_rate'}
+def _bins(*samples: np.ndarray, count: int = 40) -> np.ndarray:
+    """Shared histogram edges that also work when every value is (almost) the same."""
+    values = np.concatenate([s[np.isfinite(s)] for s in samples])
+    low, high = (float(values.min()), float(values.max())) if values.size else (0.0, 1.0)
+    width = high - low
+    if not width > 1e-12 * max(1.0, abs(high)):
+        pad = max(abs(high) * 1e-3, 1e-9)
+        low, high = low - pad, high + pad
+    return np.linspace(low, high, count + 1)
 
 
-def _statistic_plot(report, measured, models, path: Path) -> Path:
-    best = max(report['candidates'], key=lambda c: c['gain'])
-    cause = report['cause'] if report['cause'] != 'none' else best['cause']
-    feature = FEATURE_OF[cause]
-    frequency = report['nominal']['stride_frequency_hz']
-    heading = math.radians(report['nominal']['start_pose']['heading_deg'])
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    data = run_features(measured, frequency, heading)[:, INDEX[feature]]
-    bins = np.histogram_bin_edges(data, bins=30)
-    ax.hist(data, bins=bins, density=True, alpha=0.5, color='k', label='measured')
-    for name, colour in (('baseline', 'tab:blue'), ('extended', 'tab:orange')):
-        sim = _simulate(models, name, measured, 1000)
-        if sim is not None:
-            values = run_features(sim, frequency, heading)[:, INDEX[feature]]
-            ax.hist(values, bins=np.histogram_bin_edges(np.concatenate([values, data]), 40),
-                    density=True, histtype='step', lw=2, color=colour, label=f'{name} model')
-    ax.set_xlabel(f'{feature} ({BY_CAUSE[cause].statistic_name})')
-    ax.set_ylabel('density')
-    ax.set_title(f'Deciding statistic for {cause}')
-    ax.legend()
+def _statistic_plot(report, measured: Paths, path: Path) -> bool:
+    causes = [c.cause for c in report.causes]
+    if not causes:
+        causes = [max(report.candidates, key=lambda c: c.gain).cause]
+    frequency = report.nominal['stride_frequency_hz']
+    heading = math.radians(report.nominal['start_pose']['heading_deg'])
+    data_features = run_features(measured, frequency, heading)
+    base = run_features(_simulate(report.baseline_model, measured, 1000), frequency, heading)
+    extended = run_features(_simulate(report.extended_model, measured, 1000), frequency,
+                            heading)
+    fig, axes = plt.subplots(1, len(causes), figsize=(6.5 * len(causes), 4.5), squeeze=False)
+    for ax, cause in zip(axes[0], causes):
+        feature, scale, label = DECIDING[cause]
+        column = INDEX[feature]
+        data, b, e = (f[:, column] * scale for f in (data_features, base, extended))
+        bins = _bins(data, b, e)
+        ax.hist(data, bins=bins, density=True, alpha=0.45, color='k', label='measured runs')
+        ax.hist(b, bins=bins, density=True, histtype='step', lw=2, color='tab:blue',
+                label='baseline (paper model)')
+        ax.hist(e, bins=bins, density=True, histtype='step', lw=2, color='tab:orange',
+                ls='--', label='extended model')
+        ax.set_xlabel(label)
+        ax.set_ylabel('density [1 / axis unit]')
+        named = 'named' if cause in {c.cause for c in report.causes} else 'not named'
+        ax.set_title(f'{cause} ({named})')
+        ax.legend(fontsize=8)
+    fig.suptitle('The statistic behind each cause: data, baseline and extended model')
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return True
 
 
-def _discrepancy_plot(report, path: Path) -> Path:
-    rows = report['discrepancies']
-    fig, ax = plt.subplots(figsize=(8, 0.4 * len(rows) + 1.5))
-    z = np.clip([row['z'] for row in rows], -50, 50)
-    ax.barh([row['statistic'] for row in rows], z,
-            color=['tab:red' if abs(v) >= 3 else 'tab:gray' for v in z])
-    ax.axvline(-3, color='k', ls=':')
-    ax.axvline(3, color='k', ls=':')
+def _discrepancy_plot(report, measured: Paths, path: Path) -> bool:
+    rows: list[Discrepancy] = list(report.discrepancies)
+    names = [row.statistic for row in rows]
+    after = {row.statistic: row for row in report.extended_discrepancies}
+    bound = report.adequacy_bound_z
+    fig, ax = plt.subplots(figsize=(9, 0.42 * len(rows) + 1.8))
+    positions = np.arange(len(rows))
+    before_z = np.clip([row.z for row in rows], -50, 50)
+    ax.barh(positions - 0.2, before_z, height=0.4, color='tab:blue',
+            label='data - baseline (paper model)')
+    if after:
+        after_z = np.clip([after[name].z if name in after else 0.0 for name in names], -50, 50)
+        ax.barh(positions + 0.2, after_z, height=0.4, color='tab:orange',
+                label='data - extended model')
+    for sign in (-1, 1):
+        ax.axvline(sign * bound, color='k', ls=':',
+                   label=f'adequacy bound |z| = {bound:.1f}' if sign > 0 else None)
+    ax.set_yticks(positions, names)
     ax.invert_yaxis()
-    ax.set_xlabel('z = (data - baseline model) / standard error (clipped at 50)')
-    ax.set_title('Where the paper model disagrees with the data')
+    ax.set_xlabel('z = (data - model) / standard error [-] (clipped at +-50)')
+    ax.set_title('Where the model disagrees with the data, before and after the extension')
+    ax.legend(fontsize=8, loc='lower right')
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return True

@@ -1,93 +1,338 @@
-"""Writing a diagnosis: report.json, summary.md in plain words, and the plots."""
+"""The diagnosis report: typed records, their JSON (report.json), and summary.md in words.
+
+Field names follow the report's documented form (docs/report.md): `paths`, `baseline`,
+`discrepancies`, `candidates`, `cause`, `parameters`, `extended`, `gain`, `causes`,
+`adequate`, `unexplained`, and more. Every number is plain data; the fitted models are kept
+on the record (for plots and re-use) but written as their tables only.
+"""
 from __future__ import annotations
 
-import json
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from octoroach_model.diagnosis.causes import BY_NAME
+from octoroach_model.diagnosis.statistics import Discrepancy
+from octoroach_model.jsonio import dumps, fields_jsonable, jsonable
 from octoroach_model.paths import Paths
 
+if TYPE_CHECKING:
+    from octoroach_model.diagnosis.decide import SizeVerdict
+    from octoroach_model.diagnosis.diagnose import DiagnosisSettings, Evaluation
+    from octoroach_model.diagnosis.modelfit import FittedModel
+    from octoroach_model.diagnosis.scoring import Scores
 
-def _plain(value):
-    """JSON-ready copy: numpy scalars and arrays become Python numbers and lists."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items() if not str(k).startswith('_')}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, (np.floating, float)):
-        return float(value) if math.isfinite(float(value)) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    return value
+LIMIT_METHOD = ('size at which the lower confidence bound of the main parameter (at the '
+                'step\'s level) clears its floor with 80 % power, from the measured runs\' own '
+                'bootstrap error and the simulation\'s (docs/diagnosis.md)')
 
 
-def summary_text(report: dict) -> str:
-    """A short account in plain words: what is wrong, the cause, the evidence, the gain."""
+@dataclass(frozen=True)
+class RunLengths:
+    """How many runs are complete and how many ended early (and when)."""
+
+    samples: int
+    complete: int
+    ended_early: int
+    ended_early_between_s: tuple[float, float] | None
+
+    @classmethod
+    def of(cls, paths: Paths) -> RunLengths:
+        lengths = paths.lengths
+        early = lengths[lengths < len(paths.t)]
+        dt = float(paths.t[1] - paths.t[0]) if len(paths.t) > 1 else 0.0
+        between = ((float(early.min() - 1) * dt, float(early.max() - 1) * dt)
+                   if early.size else None)
+        return cls(len(paths.t), int(np.count_nonzero(lengths == len(paths.t))),
+                   int(early.size), between)
+
+
+@dataclass(frozen=True)
+class CandidateResult:
+    """One cause at the last step it was weighed: its size, evidence and limit."""
+
+    cause: str
+    parameters: dict
+    gain: float                  # held-out feature energy score gain, data spreads per run
+    gain_se: float
+    p_value: float
+    relative: float              # share of the current model's excess score removed
+    gain_cm: float               # held-out position energy score gain, cm per run
+    log_score_gain: float        # nats per run, over the features both models spread
+    interval: dict               # main parameter: 95 % interval (calibration half)
+    standard_error: float
+    lower_bound: float           # one-sided, at the step's level
+    floor: float
+    detectable: dict             # main parameter: 80 %-power limit (None: none found)
+    detectable_method: str
+    clears_floor: bool
+    significant: bool
+    named_here: bool
+    step: int
+    statistic: str
+
+    @classmethod
+    def of(cls, evaluation: Evaluation, verdict: SizeVerdict, step: int, significant: bool,
+           named_here: bool, relative: float) -> CandidateResult:
+        cause = BY_NAME[evaluation.cause]
+        values = dict(evaluation.model.effects[evaluation.cause])
+        return cls(evaluation.cause, values, evaluation.gain.mean, evaluation.gain.standard_error,
+                   evaluation.gain.p_value, relative, evaluation.gain_cm,
+                   evaluation.log_gain, {cause.parameter: list(verdict.interval)},
+                   verdict.standard_error, verdict.lower_bound, verdict.floor,
+                   {cause.parameter: verdict.limit}, LIMIT_METHOD, verdict.clears_floor,
+                   significant, named_here, step, cause.statistic_name)
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """One step of the forward selection: every remaining cause, and which one entered."""
+
+    step: int
+    candidates: tuple[CandidateResult, ...]
+    chosen: str | None
+    decision_z: float           # one-sided normal quantile of the size bounds
+    test_level: float           # level of each held-out test
+
+
+@dataclass(frozen=True)
+class NamedCause:
+    """A cause the diagnosis names: its sizes refit on all runs, with a 95 % interval."""
+
+    cause: str
+    parameters: dict
+    interval: dict
+    standard_error: dict
+    gain: float
+    p_value: float
+    relative: float
+    gain_cm: float
+    log_score_gain: float
+    step: int
+
+    @classmethod
+    def of(cls, cause: str, values: dict, verdict: SizeVerdict | None,
+           entry: CandidateResult) -> NamedCause:
+        parameter = BY_NAME[cause].parameter
+        interval = {parameter: list(verdict.interval)} if verdict else entry.interval
+        error = {parameter: verdict.standard_error if verdict else entry.standard_error}
+        return cls(cause, dict(values), interval, error, entry.gain, entry.p_value,
+                   entry.relative, entry.gain_cm, entry.log_score_gain, entry.step)
+
+
+@dataclass(frozen=True)
+class ScoreSummary:
+    """Held-out scores of baseline and extended model, and of the data themselves."""
+
+    metric: str
+    baseline: float
+    extended: float
+    ideal: float
+    relative: float
+    energy_score_cm: dict
+
+    @classmethod
+    def of(cls, baseline: Scores, extended: Scores, ideal: Scores) -> ScoreSummary:
+        def share(before: float, after: float, best: float) -> float:
+            excess = before - best
+            return float((before - after) / excess) if excess > 1e-12 else 0.0
+
+        b, e, i = (float(np.mean(s.energy)) for s in (baseline, extended, ideal))
+        bc, ec, ic = (float(np.mean(s.energy_cm)) for s in (baseline, extended, ideal))
+        return cls('held-out energy score of the run features, each feature in units of its '
+                   'spread in the calibration half; per run, lower is better. ideal: the '
+                   'calibration runs themselves as the model. relative: share of the '
+                   "baseline's excess over the ideal that the extended model removes",
+                   b, e, i, share(b, e, i),
+                   {'metric': 'held-out energy score of positions at 20/40/60/80/100 % of '
+                              'each run, cm per run, lower is better',
+                    'baseline': bc, 'extended': ec, 'ideal': ic, 'relative': share(bc, ec, ic)})
+
+
+@dataclass(frozen=True)
+class DiagnosisReport:
+    """Everything a diagnosis found (JSON: `to_json`; words: `summary_text`)."""
+
+    paths: int
+    duration_s: float
+    seed: int
+    split: dict
+    runs: RunLengths
+    nominal: dict
+    baseline: dict
+    extended: dict
+    discrepancies: tuple[Discrepancy, ...]
+    candidates: tuple[CandidateResult, ...]
+    causes: tuple[NamedCause, ...]
+    steps: tuple[StepResult, ...]
+    gain: ScoreSummary
+    extended_discrepancies: tuple[Discrepancy, ...]
+    adequate: bool
+    unexplained: tuple[Discrepancy, ...]
+    adequacy_bound_z: float
+    settings: DiagnosisSettings = field(metadata={'json': False})
+    baseline_model: FittedModel = field(metadata={'json': False})
+    extended_model: FittedModel = field(metadata={'json': False})
+    notes: tuple[str, ...] = ()
+    elapsed_s: float = 0.0
+    sources: tuple[str, ...] = ()
+
+    @property
+    def cause(self) -> str:
+        """The leading cause, or 'none'."""
+        return self.causes[0].cause if self.causes else 'none'
+
+    @property
+    def parameters(self) -> dict:
+        """The leading cause's parameters ({} for none)."""
+        return dict(self.causes[0].parameters) if self.causes else {}
+
+    def to_json(self) -> dict[str, Any]:
+        plain = fields_jsonable(self)
+        ordered = {key: plain.pop(key) for key in ('paths', 'duration_s', 'seed', 'split',
+                                                   'runs', 'nominal', 'baseline')}
+        ordered['discrepancies'] = plain.pop('discrepancies')
+        ordered['candidates'] = plain.pop('candidates')
+        ordered['cause'] = self.cause
+        ordered['parameters'] = jsonable(self.parameters)
+        ordered['causes'] = plain.pop('causes')
+        ordered['extended'] = plain.pop('extended')
+        ordered['gain'] = plain.pop('gain')
+        ordered['adequate'] = plain.pop('adequate')
+        ordered['unexplained'] = plain.pop('unexplained')
+        ordered['decision'] = jsonable(decision_rules(self.settings, self.adequacy_bound_z))
+        ordered.update(plain)
+        return ordered
+
+
+def decision_rules(settings: DiagnosisSettings, adequacy_z: float) -> dict:
+    """The rules the report was decided by, with their levels."""
+    return {
+        'selection': 'forward: each step adds the cause that qualifies with the largest '
+                     'held-out gain, every included size refit together; stops when none '
+                     'qualifies',
+        'qualifies': 'lower confidence bound of the main parameter above the cause\'s floor '
+                     '(one-sided, level decision_alpha / m), held-out gain significant '
+                     '(one-sided paired t-test, level alpha / m) and at least min_gain; m = '
+                     'causes still in the race at that step',
+        'alpha': settings.alpha, 'decision_alpha': settings.decision_alpha,
+        'min_gain': settings.min_gain,
+        'adequacy': f'a statistic is unexplained when |z| > {adequacy_z:.2f} (Bonferroni at '
+                    f'{settings.adequacy_alpha} over the statistics) and the difference is '
+                    'material',
+        'adequacy_alpha': settings.adequacy_alpha,
+    }
+
+
+def _number(value: float | None, digits: int = 3) -> str:
+    """A number as a reader wants it: 0 where it is below resolution, else `digits`
+    significant digits."""
+    if value is None or not math.isfinite(value):
+        return 'n/a'
+    if abs(value) < 1e-9:
+        return '0'
+    return f'{value:.{digits}g}'
+
+
+def summary_text(report: DiagnosisReport) -> str:
+    """summary.md: what the model gets wrong, the causes with sizes, what each adds, what is
+    still unexplained, and how small an effect could have been seen."""
     lines = ['# What the simulation gets wrong', '']
-    top = [row for row in report['discrepancies'] if abs(row['z']) >= 3][:5]
-    lines.append(f'{report["paths"]} measured runs of {report["duration_s"]:.2f} s were '
-                 f'compared with the paper\'s model calibrated on '
-                 f'{report["split"]["calibration"]} of them.')
-    lines.append('')
-    if top:
-        lines.append('Largest disagreements (data against baseline model, z = difference in '
-                     'standard errors):')
-        for row in top:
-            lines.append(f'- {row["statistic"]}: data {row["data"]:.4g} {row["unit"]}, model '
-                         f'{row["model"]:.4g} {row["unit"]} (z = {row["z"]:+.1f})')
+    runs = report.runs
+    early = (f'; {runs.ended_early} ended early (between '
+             f'{runs.ended_early_between_s[0]:.2f} and {runs.ended_early_between_s[1]:.2f} s) '
+             f'and were used to their end' if runs.ended_early else '')
+    lines.append(f'{report.paths} measured runs of up to {report.duration_s:.2f} s{early}. '
+                 f"The paper's model was calibrated on {report.split['calibration']} of them "
+                 f"and judged on the other {report.split['held_out']}.")
+    lines += ['', '## Where the paper\'s model disagrees with the data', '']
+    off = [row for row in report.discrepancies
+           if abs(row.z) > report.adequacy_bound_z and row.material][:6]
+    if off:
+        for row in off:
+            lines.append(f'- {row.statistic}: data {_number(row.data, 4)} {row.unit}, model '
+                         f'{_number(row.model, 4)} {row.unit} (z = {row.z:+.1f})')
     else:
-        lines.append('No statistic disagrees by more than 3 standard errors.')
-    lines.append('')
-    cause = report['cause']
-    if cause == 'none':
-        lines.append('**Cause: none.** No candidate extension describes the held-out runs '
-                     'significantly better than the paper\'s model.')
+        lines.append('No statistic disagrees materially beyond the adequacy bound '
+                     f'(|z| > {report.adequacy_bound_z:.1f}).')
+    lines += ['', '## Causes', '']
+    if not report.causes:
+        lines.append('**None.** No cause of the table improves the prediction of held-out '
+                     'runs with a size that clears its floor.')
+    for number, named in enumerate(report.causes, 1):
+        parameter = BY_NAME[named.cause].parameter
+        low, high = named.interval[parameter]
+        values = ', '.join(f'{key} = {_number(value)}' for key, value in named.parameters.items())
+        lines.append(f'{number}. **{named.cause}** ({values}; 95 % interval of {parameter}: '
+                     f'{_number(low)} to {_number(high)}). Adding it improved the held-out '
+                     f'score by {_number(named.gain)} data spreads per run (p = '
+                     f'{named.p_value:.2g}), {_number(100 * named.relative, 2)} % of what '
+                     f'the model lacked then; positions {_number(named.gain_cm)} cm per run '
+                     f'closer.')
+    gain = report.gain
+    lines += ['', f'Held-out score: baseline {_number(gain.baseline)}, extended '
+                  f'{_number(gain.extended)}, the data themselves {_number(gain.ideal)} '
+                  f'(lower is better): the extended model removes '
+                  f'{_number(100 * gain.relative, 2)} % of the baseline\'s excess. Positions: '
+                  f"{_number(gain.energy_score_cm['baseline'])} -> "
+                  f"{_number(gain.energy_score_cm['extended'])} cm."]
+    lines += ['', '## What the extended model still misses', '']
+    if report.adequate:
+        lines.append('Nothing material: every statistic of the data agrees with the extended '
+                     f'model within the adequacy bound (|z| <= {report.adequacy_bound_z:.1f}).')
     else:
-        chosen = next(c for c in report['candidates'] if c['cause'] == cause)
-        params = ', '.join(f'{k} = {v:.3g}' for k, v in report['parameters'].items())
-        lines.append(f'**Cause: {cause}** ({params}).')
-        lines.append(f'Evidence: with it, the held-out runs score {chosen["gain"]:.3g} nats per '
-                     f'run better (one-sided paired t-test p = {chosen["p_value"]:.2g}, level '
-                     f'{report["decision"]["per_candidate_level"]:.2g}); it was estimated from '
-                     f'the statistic "{chosen["statistic"]}".')
-    others = [c for c in report['candidates'] if c['cause'] != cause]
-    lines.append('')
-    lines.append('Other candidates: ' + '; '.join(
-        f'{c["cause"]} gain {c["gain"]:.3g}, p = {c["p_value"]:.2g}' for c in others) + '.')
-    gain = report['gain']
-    lines.append('')
-    lines.append(f'Gain: {gain["metric"]}: baseline {gain["baseline"]:.4g}, extended '
-                 f'{gain["extended"]:.4g} (relative {gain["relative"]:+.1%}); energy score '
-                 f'{gain["energy_score_cm"]["baseline"]:.4g} -> '
-                 f'{gain["energy_score_cm"]["extended"]:.4g} cm.')
-    base, ext = report.get('baseline', {}), report.get('extended', {})
-    if 'violation' in base and 'violation' in ext:
-        lines.append('')
-        lines.append(f"Paper's validation (rho = {base['rho']}): baseline widest spread "
-                     f"sigma1 = {base['sigma1']:.3f}, sigma2 = {base['sigma2']:.3f} rad at "
-                     f"E_k = {base['violation']:.3f}; extended sigma1 = {ext['sigma1']:.3f}, "
-                     f"sigma2 = {ext['sigma2']:.3f} rad at E_k = {ext['violation']:.3f}.")
-    lines.append('')
-    lines.append('Smallest effects this data could detect (5 % level, 80 % power): ' + '; '.join(
-        f'{c["cause"]} {k} = {v:.3g}' if v is not None else f'{c["cause"]}: beyond the grid'
-        for c in report['candidates'] for k, v in c['detectable'].items()) + '.')
+        lines.append('**The extended model is not adequate**: these statistics are still off, '
+                     'so the data carry an effect that no cause of the table explains (or '
+                     'explains only in part):')
+        for row in report.unexplained:
+            lines.append(f'- {row.statistic}: data {_number(row.data, 4)} {row.unit}, model '
+                         f'{_number(row.model, 4)} {row.unit} (z = {row.z:+.1f})')
+    for name, model in (('baseline', report.baseline), ('extended', report.extended)):
+        if 'violation' in model:
+            lines.append('')
+            lines.append(f"Paper's validation of the {name} model (rho = {model['rho']}): "
+                         f"widest admissible spread sigma1 = {_number(model['sigma1_max'])}, "
+                         f"sigma2 = {_number(model['sigma2_max'])} rad at E_k = "
+                         f"{_number(model['violation'])}"
+                         + ('' if model.get('accepted') else ' (no spread admissible)') + '.')
+    lines += ['', '## What could have been seen', '']
+    for candidate in report.candidates:
+        if candidate.cause in {c.cause for c in report.causes}:
+            continue
+        parameter = BY_NAME[candidate.cause].parameter
+        limit = candidate.detectable[parameter]
+        unit = BY_NAME[candidate.cause].unit
+        text = (f'below {_number(limit)} {unit}'.rstrip() if limit is not None
+                else 'of any size on the grid')
+        lines.append(f'- a {candidate.cause.replace("_", " ")} ({parameter}) {text} would go '
+                     f'unseen in {report.paths} runs like these (80 % power; estimate here '
+                     f'{_number(candidate.parameters[parameter])}).')
+    if report.notes:
+        lines += ['', '## Notes on the input', ''] + [f'- {note}' for note in report.notes]
     return '\n'.join(lines) + '\n'
 
 
-def write_report(report: dict, out_dir: Path | str, measured: Paths | None = None,
+def write_report(report: DiagnosisReport, out_dir: Path | str, measured: Paths | None = None,
                  plots: bool = True) -> dict[str, Path]:
-    """Write report.json, summary.md and (with `measured`) the PNG plots into out_dir."""
+    """Write report.json, summary.md and (with `measured`) the PNG plots into out_dir.
+
+    The JSON and the summary are written first; a plot that cannot be drawn is said in the
+    returned `plot_errors` entry and in summary.md, never at the cost of the report.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    written = {'report': out / 'report.json', 'summary': out / 'summary.md'}
-    plain = _plain(report)
-    written['report'].write_text(json.dumps(plain, indent=2) + '\n')
-    written['summary'].write_text(summary_text(plain))
+    written: dict[str, Any] = {'report': out / 'report.json', 'summary': out / 'summary.md'}
+    written['report'].write_text(dumps(report, indent=2) + '\n')
+    summary = summary_text(report)
+    written['summary'].write_text(summary)
     if plots and measured is not None:
         from octoroach_model.diagnosis.plots import write_plots
-        written.update(write_plots({**plain, '_models': report.get('_models')}, measured, out))
+        drawn, errors = write_plots(report, measured, out)
+        written.update(drawn)
+        if errors:
+            written['summary'].write_text(summary + '\n## Plots not drawn\n\n' + ''.join(
+                f'- {name}: {reason}\n' for name, reason in errors.items()))
     return written

@@ -1,132 +1,176 @@
-"""Set-level statistics of runs, the discrepancies of data against a model, and scores.
+"""Set-level statistics of runs and the discrepancies of data against a model.
 
-A statistic summarises a whole set of runs (a spread, a mean); its uncertainty comes from a
-bootstrap over runs. Scores are per held-out run, so two models can be compared run by run.
+A statistic summarises a whole set of runs (a spread, a mean) and is a function of the
+per-run features alone, so its bootstrap over runs only resamples rows. A discrepancy compares
+the data's value with the model's (simulated runs as many as the data, with the data's run
+lengths) in standard errors: z = (data - model) / sqrt(se_data^2 + se_model^2).
+
+Two rules keep numerical noise out (docs/diagnosis.md):
+- a difference below the statistic's resolution is no difference (z = 0): e.g. the start
+  heading spread of a model and of data that both start every run at one point;
+- a discrepancy is *material* only when the difference reaches a tenth of the run-to-run
+  spread of the feature behind it (mean statistics), or a tenth of the statistic's value
+  (spread statistics), or 0.1 (exponents and correlations). With thousands of runs a
+  difference can be significant and still too small to matter.
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
 
-from octoroach_model.diagnosis.features import INDEX, RESOLUTION
-from octoroach_model.paths import Paths
+from octoroach_model.diagnosis.features import INDEX, noise_std_m
+
+DEG = 180.0 / math.pi
 
 
-def _std(column: str, scale: float = 1.0) -> Callable:
-    return lambda f, p: float(np.std(f[:, INDEX[column]], ddof=1) * scale)
+@dataclass(frozen=True)
+class Statistic:
+    """A set-level statistic: its function of the feature matrix, unit, resolution, and how
+    large a difference is material ('mean': a tenth of the feature's spread across runs,
+    'spread': a tenth of its value, 'absolute': `material` itself)."""
+
+    name: str
+    unit: str
+    function: Callable[[np.ndarray], float]
+    resolution: float
+    kind: str
+    material: float = 0.1
+    feature: str = ''
 
 
-def _mean(column: str, scale: float = 1.0) -> Callable:
-    return lambda f, p: float(np.mean(f[:, INDEX[column]]) * scale)
+def _std(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+    index = INDEX[column]
+    return lambda f: float(np.std(f[:, index], ddof=1) * scale)
 
 
-def start_position_spread_cm(f, p) -> float:
-    return float(np.sqrt(0.5 * (f[:, 1].var(ddof=1) + f[:, 2].var(ddof=1))) * 100)
+def _mean(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+    index = INDEX[column]
+    return lambda f: float(np.mean(f[:, index]) * scale)
 
 
-def jitter_rms_cm(f, p) -> float:
-    return float(np.sqrt(np.exp(f[:, INDEX['log_jitter']]).mean()) * 100)
+def _start_position_spread_cm(f: np.ndarray) -> float:
+    return float(np.sqrt(0.5 * (f[:, INDEX['start_x']].var(ddof=1)
+                                + f[:, INDEX['start_y']].var(ddof=1))) * 100)
 
 
-def lateral_spread(paths: Paths, fraction: float, reference_heading: float) -> float:
-    """Std (m) of the displacement across the reference heading at a fraction of the run."""
-    index = int(round(fraction * (len(paths.t) - 1)))
-    step = paths.poses[:, index, :2] - paths.poses[:, 0, :2]
-    right = np.array([math.sin(reference_heading), -math.cos(reference_heading)])
-    return float(np.std(step @ right, ddof=1))
+def _noise_cm(f: np.ndarray) -> float:
+    return float(noise_std_m(np.log(np.mean(np.exp(f[:, INDEX['log_noise']])))) * 100)
 
 
-def spread_growth_exponent(f, p) -> float:
-    """Slope of log(lateral spread) against log(t) from a quarter of the run to its end:
-    about 1 for a fixed heading error, 1.5 for a random-walk heading, 2 for steady turning."""
-    paths, heading, _ = p
-    early = lateral_spread(paths, 0.25, heading)
-    late = lateral_spread(paths, 1.0, heading)
+def _growth_exponent(f: np.ndarray) -> float:
+    """Slope of log(lateral spread) against log(time), a quarter of the run to its end: about
+    1 for a fixed heading error, 1.5 for a random-walk heading, 2 for steady turning."""
+    late = np.std(f[:, INDEX['end_lateral']], ddof=1)
+    early = np.std(f[:, INDEX['quarter_lateral']], ddof=1)
     return float(math.log(max(late, 1e-12) / max(early, 1e-12)) / math.log(4.0))
 
 
-def heading_increment_autocorrelation(f, p) -> float:
-    """Mean lag-1 autocorrelation of per-half-cycle heading changes within runs: near zero (or
-    negative) for fresh angles at each stance, positive for a persistent bias."""
-    paths, _, frequency = p
-    heading = paths.poses[..., 2]
-    dt = float(paths.t[1] - paths.t[0])
-    window = max(1, int(round(1.0 / (frequency * dt))))
-    increments = heading[:, window::window] - heading[:, :-window:window][
-        :, :heading[:, window::window].shape[1]]
-    if increments.shape[1] < 3:
-        return 0.0
-    centred = increments - increments.mean(axis=1, keepdims=True)
-    numerator = (centred[:, 1:] * centred[:, :-1]).sum(axis=1)
-    denominator = (centred ** 2).sum(axis=1)
-    return float(np.mean(numerator / np.maximum(denominator, 1e-18)))
+STATISTICS: tuple[Statistic, ...] = (
+    Statistic('start heading spread', 'deg', _std('start_heading', DEG), 0.01, 'spread',
+              feature='start_heading'),
+    Statistic('start position spread', 'cm', _start_position_spread_cm, 0.001, 'spread'),
+    Statistic('position noise (median 4th difference)', 'cm', _noise_cm, 0.001, 'spread'),
+    Statistic('heading to travel angle', 'deg', _mean('slip_angle', DEG), 0.01, 'mean',
+              feature='slip_angle'),
+    Statistic('mean stride frequency', 'Hz', _mean('stride_frequency'), 1e-4, 'mean',
+              feature='stride_frequency'),
+    Statistic('stride frequency spread across runs', 'Hz', _std('stride_frequency'), 1e-4,
+              'spread'),
+    Statistic('log speed ratio, 2nd half / 1st half', '', _mean('progress_ratio'), 1e-4, 'mean',
+              feature='progress_ratio'),
+    Statistic('heading rate spread across runs', 'deg/s', _std('heading_rate', DEG), 0.01,
+              'spread'),
+    Statistic('per-cycle heading change spread within runs', 'deg',
+              lambda f: float(np.sqrt(f[:, INDEX['increment_var']].mean()) * DEG), 0.01,
+              'spread'),
+    Statistic('lag-1 autocorrelation of heading changes', '', _mean('increment_autocorr'),
+              1e-3, 'absolute'),
+    Statistic('mean progress at the end', 'cm', _mean('end_progress', 100), 0.01, 'mean',
+              feature='end_progress'),
+    Statistic('mean lateral position at the end', 'cm', _mean('end_lateral', 100), 0.01,
+              'mean', feature='end_lateral'),
+    Statistic('lateral spread at the end', 'cm', _std('end_lateral', 100), 0.01, 'spread'),
+    Statistic('progress spread at the end', 'cm', _std('end_progress', 100), 0.01, 'spread'),
+    Statistic('lateral spread growth exponent', '', _growth_exponent, 1e-3, 'absolute'),
+    Statistic('heading sway amplitude', 'deg', _mean('sway_amplitude', DEG), 0.01, 'mean',
+              feature='sway_amplitude'),
+    Statistic('sideways sway at the stride frequency', 'cm', _mean('lateral_sway_1', 100),
+              1e-4, 'mean', feature='lateral_sway_1'),
+    Statistic('sideways sway at twice the stride frequency', 'cm', _mean('lateral_sway_2', 100),
+              1e-4, 'mean', feature='lateral_sway_2'),
+)
 
 
-# name -> (function of (features, (paths, reference heading, stride frequency)), unit)
-STATISTICS: dict[str, tuple[Callable, str]] = {
-    'start heading spread': (_std('start_heading', 180 / math.pi), 'deg'),
-    'start position spread': (start_position_spread_cm, 'cm'),
-    'position jitter (rms second difference)': (jitter_rms_cm, 'cm'),
-    'heading to travel angle': (_mean('slip_angle', 180 / math.pi), 'deg'),
-    'mean stride frequency': (_mean('stride_frequency'), 'Hz'),
-    'stride frequency spread across runs': (_std('stride_frequency'), 'Hz'),
-    'log speed ratio, 2nd half / 1st half': (_mean('progress_ratio'), ''),
-    'heading rate spread across runs': (_std('heading_rate', 180 / math.pi), 'deg/s'),
-    'per-cycle heading change spread within runs':
-        (lambda f, p: float(np.sqrt(f[:, INDEX['increment_var']].mean()) * 180 / math.pi),
-         'deg'),
-    'lateral spread at the end': (_std('end_lateral', 100), 'cm'),
-    'progress spread at the end': (_std('end_progress', 100), 'cm'),
-    'lateral spread growth exponent': (spread_growth_exponent, ''),
-    'lag-1 autocorrelation of heading changes': (heading_increment_autocorrelation, ''),
-}
+@dataclass(frozen=True)
+class Discrepancy:
+    """One statistic of the data against a model (units in `unit`)."""
+
+    statistic: str
+    unit: str
+    data: float
+    model: float
+    data_se: float
+    model_se: float
+    z: float
+    material: bool
+
+    @property
+    def difference(self) -> float:
+        return self.data - self.model
 
 
-def statistics_with_errors(features: np.ndarray, paths: Paths, reference_heading: float,
-                           stride_frequency: float, rng: np.random.Generator,
-                           n_boot: int = 100) -> dict[str, tuple[float, float]]:
-    """{name: (value, bootstrap standard error)} for every statistic in STATISTICS."""
-    context = (paths, reference_heading, stride_frequency)
-    values = {name: fn(features, context) for name, (fn, _) in STATISTICS.items()}
-    boot = {name: [] for name in STATISTICS}
+def values_with_errors(features: np.ndarray, rng: np.random.Generator, n_boot: int
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Every statistic's value and bootstrap standard error over runs."""
+    values = np.array([s.function(features) for s in STATISTICS])
     n = features.shape[0]
-    for _ in range(n_boot):
-        pick = rng.integers(0, n, n)
-        sub = (paths.subset(pick), reference_heading, stride_frequency)
-        for name, (fn, _) in STATISTICS.items():
-            boot[name].append(fn(features[pick], sub))
-    return {name: (values[name], float(np.std(boot[name], ddof=1))) for name in STATISTICS}
+    boot = np.array([[s.function(features[pick]) for s in STATISTICS]
+                     for pick in (rng.integers(0, n, n) for _ in range(n_boot))])
+    return values, np.std(boot, axis=0, ddof=1)
 
 
-def gaussian_log_score(model_features: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    """Log density of each observed feature vector under a Gaussian fitted to the model's
-    simulated features (a synthetic likelihood; the log score is proper for it)."""
-    mean = model_features.mean(axis=0)
-    cov = np.cov(model_features, rowvar=False) + np.diag(RESOLUTION ** 2)
-    scale = np.sqrt(np.diag(cov))
-    standardised_cov = cov / np.outer(scale, scale)
-    z = (observed - mean) / scale
-    logpdf = stats.multivariate_normal(np.zeros(len(mean)), standardised_cov,
-                                       allow_singular=True).logpdf(z)
-    return np.atleast_1d(logpdf) - np.log(scale).sum()
+def discrepancies(data_features: np.ndarray, model_features: np.ndarray,
+                  rng: np.random.Generator, n_boot: int) -> list[Discrepancy]:
+    """Every statistic of data against model, largest |z| first."""
+    data, data_se = values_with_errors(data_features, rng, n_boot)
+    model, model_se = values_with_errors(model_features, rng, n_boot)
+    rows = []
+    for index, statistic in enumerate(STATISTICS):
+        difference = data[index] - model[index]
+        error = math.hypot(data_se[index], model_se[index])
+        if abs(difference) < statistic.resolution or not math.isfinite(difference):
+            z = 0.0
+        else:
+            z = difference / error if error > 0 else math.copysign(math.inf, difference)
+        rows.append(Discrepancy(statistic.name, statistic.unit, float(data[index]),
+                                float(model[index]), float(data_se[index]),
+                                float(model_se[index]), float(z),
+                                _material(statistic, difference, data[index], data_features)))
+    rows.sort(key=lambda row: -abs(row.z))
+    return rows
 
 
-def energy_scores(model_points: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    """Energy score of each observed vector against the model sample (lower is better)."""
-    to_obs = np.linalg.norm(model_points[None, :, :] - observed[:, None, :], axis=-1).mean(1)
-    half = len(model_points) // 2
-    spread = np.linalg.norm(model_points[:half] - model_points[half:2 * half], axis=-1).mean()
-    return to_obs - 0.5 * spread
+def _material(statistic: Statistic, difference: float, value: float,
+              features: np.ndarray) -> bool:
+    if statistic.kind == 'mean':
+        spread = float(np.std(features[:, INDEX[statistic.feature]], ddof=1))
+        scale = spread * _unit_factor(statistic)
+        return abs(difference) >= statistic.material * scale
+    if statistic.kind == 'spread':
+        return abs(difference) >= statistic.material * max(abs(value), statistic.resolution)
+    return abs(difference) >= statistic.material
 
 
-def paired_improvement(candidate: np.ndarray, baseline: np.ndarray) -> tuple[float, float]:
-    """Mean per-run gain (candidate - baseline) and its one-sided t-test p-value."""
-    difference = candidate - baseline
-    gain = float(difference.mean())
-    if len(difference) < 3 or np.ptp(difference) <= 1e-12 * (1 + abs(gain)):
-        return gain, 0.0 if gain > 1e-9 else 1.0
-    result = stats.ttest_1samp(difference, 0.0, alternative='greater')
-    return gain, float(result.pvalue)
+def _unit_factor(statistic: Statistic) -> float:
+    """From the feature's SI unit to the statistic's reporting unit."""
+    return {'deg': DEG, 'cm': 100.0}.get(statistic.unit, 1.0)
+
+
+def critical_z(level: float, count: int) -> float:
+    """|z| beyond which a statistic is off at family level `level` over `count` statistics
+    (Bonferroni, two-sided)."""
+    return float(stats.norm.isf(level / (2 * max(count, 1))))

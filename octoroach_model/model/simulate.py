@@ -23,10 +23,29 @@ DRAWS = ('stance', 'run')
 DEFAULT_START_POSE = (0.0, 0.0, math.pi / 2)
 
 
-class RandomStreams:
-    """Independent generators for each random ingredient of a model run, from one seed."""
+class AntitheticNormal:
+    """Standard normals in mirrored pairs along the first axis (run i + n/2 gets -z of run i):
+    every odd moment of a mean over runs is then exactly zero, so a mean path shows no
+    random rotation or drift of its own (variance reduction by antithetic variates)."""
 
-    def __init__(self, seed: int | np.random.SeedSequence | None) -> None:
+    def __init__(self, generator: np.random.Generator) -> None:
+        self.generator = generator
+
+    def standard_normal(self, size) -> np.ndarray:
+        shape = (size,) if isinstance(size, int) else tuple(size)
+        half = self.generator.standard_normal((-(-shape[0] // 2), *shape[1:]))
+        return np.concatenate([half, -half], axis=0)[:shape[0]]
+
+
+class RandomStreams:
+    """Independent generators for each random ingredient of a model run, from one seed.
+
+    With `antithetic`, every generator gives its normals in mirrored pairs (AntitheticNormal):
+    for means over runs (the nominal fit's mean path), not for runs that stand for data.
+    """
+
+    def __init__(self, seed: int | np.random.SeedSequence | None,
+                 antithetic: bool = False) -> None:
         if isinstance(seed, np.random.SeedSequence):
             # a copy: spawn() advances the sequence it is called on, and the same seed must
             # give the same streams every time (common random numbers)
@@ -35,10 +54,11 @@ class RandomStreams:
         else:
             sequence = np.random.SeedSequence(seed)
         children = sequence.spawn(2 + len(EFFECT_NAMES))
+        wrap = AntitheticNormal if antithetic else (lambda generator: generator)
         self.seed_entropy = sequence.entropy
-        self.angles = np.random.default_rng(children[0])
-        self.extra_stances = np.random.default_rng(children[1])
-        self.effects = {name: np.random.default_rng(child)
+        self.angles = wrap(np.random.default_rng(children[0]))
+        self.extra_stances = wrap(np.random.default_rng(children[1]))
+        self.effects = {name: wrap(np.random.default_rng(child))
                         for name, child in zip(EFFECT_NAMES, children[2:])}
 
 

@@ -11,14 +11,20 @@ Two extensions, off by default (the paper's fit):
 - `heading_weight_m` adds the average heading to the residuals (radians times this length):
   without it the geometry can bend to turn the path where the data drift sideways without
   turning, e.g. under lateral slip;
-- `effects` (deterministic ones: lateral_slip, speed_decay) are applied to the model path;
-  with `free_effect` = (cause, parameter) that parameter is fitted together with the geometry
-  (the geometry alone can mimic a sideways drift with a crab-like gait; the shape of the
-  average path over a stance tells the two apart).
+- `effects` are applied to the model path; the parameters named in `free` are fitted
+  together with the geometry (the geometry alone can mimic a sideways drift with a crab-like
+  gait; the shape of the average path over a stance tells the two apart).
 
 The fit runs in two stages: first with the stride frequency held at its guess, then with it
 free. Freed from the start, the frequency can slide to one stride more or less over a long
 run before the angles settle.
+
+The paper fits the deterministic path (every angle at its nominal value) to the average
+path. For a nonlinear model with random angles the two differ: the average of the model's
+runs is not the run of the average angles, and at Table III's spreads the deterministic fit
+misplaces the touchdown angles by 1-2 deg. `mean_path` fits instead the mean of simulated runs
+at given spreads (common random numbers, so the mean is a smooth function of the geometry):
+the fit is then unbiased for the stochastic model.
 """
 from __future__ import annotations
 
@@ -32,7 +38,7 @@ from octoroach_model.errors import DataError
 from octoroach_model.model import ModelParameters, RandomStreams, check_effects, model_poses
 from octoroach_model.model.kinematics import integrate_stances
 from octoroach_model.paths import Paths
-from octoroach_model.validation.gait import gait_aligned_average
+from octoroach_model.validation.gait import aligned_runs, stride_frequency_estimate
 
 LOWER = [0.003, 0.05, 0.05, 0.05, 0.05, 0.2]
 UPPER = [0.08, 1.45, 1.45, 1.45, 1.45, 20.0]
@@ -40,21 +46,61 @@ X_SCALE = [0.005, 0.1, 0.1, 0.1, 0.1, 0.1]
 
 
 @dataclass(frozen=True)
+class FreeEffect:
+    """An effect parameter fitted together with the geometry, within [lower, upper]."""
+
+    cause: str
+    parameter: str
+    lower: float
+    upper: float
+    start: float = 0.0
+
+
+@dataclass(frozen=True)
 class NominalFit:
-    """Fitted deterministic model and how well it matches the average path."""
+    """Fitted deterministic model and how well it matches the average path.
+
+    `jacobian` is d(residual)/d(vector) at the solution, vector = [l, phi1..phi4, f, free
+    effects...] and residuals in cm (the average path, then the weighted heading): with
+    `average_runs`, a resampling of the runs moves the solution by about
+    -pinv(jacobian) @ d(residual), which gives intervals without refitting.
+    """
 
     parameters: ModelParameters
     start_pose: tuple[float, float, float]
     rms_error_m: float
     average_path: np.ndarray     # (T, 2) the measured average it was fitted to
-    effects: dict = field(default_factory=dict)   # effects in the model, incl. a fitted one
+    effects: dict = field(default_factory=dict)   # effects in the model, incl. fitted ones
     cost: float = 0.0            # least-squares cost at the solution (compares restarts)
+    jacobian: np.ndarray | None = None
+    free: tuple[FreeEffect, ...] = ()
+    heading_weight_m: float = 0.0
 
     def report(self) -> dict:
         return {**self.parameters.table(),
                 'start_pose': {'x_cm': self.start_pose[0] * 100, 'y_cm': self.start_pose[1] * 100,
                                'heading_deg': math.degrees(self.start_pose[2])},
                 'rms_error_cm': self.rms_error_m * 100}
+
+
+@dataclass(frozen=True)
+class MeanPathSettings:
+    """Fit the mean of `runs` simulated runs at `sigmas` (rad), drawn from `seed`."""
+
+    sigmas: tuple[float, float]
+    runs: int = 200
+    seed: int = 0
+
+
+def mean_path(parameters: ModelParameters, start_pose, t: np.ndarray, effects: dict | None,
+              settings: MeanPathSettings) -> np.ndarray:
+    """(T, 3) mean x, y and mean heading of simulated runs (common random numbers, drawn in
+    antithetic pairs so that the mean has no random tilt of its own)."""
+    poses = model_poses(parameters, RandomStreams(settings.seed, antithetic=True),
+                        settings.runs, t,
+                        settings.sigmas[0], settings.sigmas[1], 'stance', effects or {}, None,
+                        start_pose)
+    return poses.mean(axis=0)
 
 
 def deterministic_path(parameters: ModelParameters, start_pose, t: np.ndarray,
@@ -91,57 +137,118 @@ def mean_start_pose(measured: Paths) -> tuple[float, float, float]:
     return float(first[:, 0].mean()), float(first[:, 1].mean()), float(heading)
 
 
+@dataclass(frozen=True)
+class AverageTarget:
+    """What the fit matches: times (G,), the average path (G, 2) and average heading change
+    (G,), with the runs they average (`runs_xy` (n, G, 2), `runs_turn` (n, G); NaN where a
+    run has ended) so that a resampling of the runs gives a resampled target."""
+
+    t: np.ndarray
+    runs_xy: np.ndarray
+    runs_turn: np.ndarray
+
+    @property
+    def average(self) -> np.ndarray:
+        return _nanmean_rows(self.runs_xy)
+
+    @property
+    def turn(self) -> np.ndarray:
+        return _nanmean_rows(self.runs_turn)
+
+    def resampled(self, index: np.ndarray) -> AverageTarget:
+        """The target of the runs picked by `index` (a bootstrap resample)."""
+        return AverageTarget(self.t, self.runs_xy[index], self.runs_turn[index])
+
+
+def _nanmean_rows(values: np.ndarray) -> np.ndarray:
+    with np.errstate(invalid='ignore', divide='ignore'):
+        count = np.isfinite(values).sum(axis=0)
+        return np.nansum(values, axis=0) / np.maximum(count, 1)
+
+
+def average_target(measured: Paths, start_pose, guess_hz: float,
+                   align_gait: bool) -> AverageTarget:
+    """The average path of `measured` (on a common gait clock with `align_gait`), over the
+    times that at least a tenth of the runs reach."""
+    if align_gait:
+        t, xy, turn, _ = aligned_runs(measured, guess_hz)
+    else:
+        t, xy = measured.t, measured.positions
+        # heading change since the mean start heading (runs are unwrapped)
+        turn = np.angle(np.exp(1j * (measured.poses[..., 2] - start_pose[2])))
+    reached = np.isfinite(xy[..., 0]).sum(axis=0) >= max(1, 0.1 * measured.n_paths)
+    return AverageTarget(t[reached], xy[:, reached], turn[:, reached])
+
+
 def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
                 heading_weight_m: float = 0.0, effects: dict | None = None,
-                free_effect: tuple[str, str] | None = None, free_effect_bounds=(-50.0, 50.0),
-                free_effect_start: float = 0.0, multistart: bool = True,
-                align_gait: bool = False) -> NominalFit:
+                free: tuple[FreeEffect, ...] = (), multistart: bool = True,
+                align_gait: bool = False, mean: MeanPathSettings | None = None,
+                start_pose: tuple[float, float, float] | None = None,
+                target: AverageTarget | None = None, refine: bool = False,
+                tolerance: float = 1e-8) -> NominalFit:
     """Solve eq. (9) on the average of `measured`; see the module docstring for the options.
 
     `multistart` also starts from the spectral guess of the stride frequency; a refit from a
     good `initial` can skip it. `align_gait` fits the average taken on a common gait clock
     (`gait.gait_aligned_average`), which stride-to-stride frequency spread does not smear.
+    `mean` fits the mean of simulated runs instead of the deterministic path (module
+    docstring); with `align_gait` the model's own stride-frequency spread is left out of it,
+    as the alignment removes the data's. `free` effects are fitted with the geometry, the
+    other `effects` held. `target` (from `average_target`) skips recomputing the average.
+    `refine` starts from a good `initial` in one stage, every parameter free; `tolerance` is
+    the relative change of cost and parameters at which least squares stops.
     """
-    initial = (initial or ModelParameters.nominal()).with_paper_liftoff()
     if measured.n_paths < 1 or len(measured.t) < 3:
         raise DataError('the nominal fit needs at least one run of three samples')
-    if not np.isfinite(measured.poses).all():
-        raise DataError('the measured runs are not finite')
-    start_pose = mean_start_pose(measured)
-    if align_gait:
-        t, average, turn, _ = gait_aligned_average(measured, initial.stride_frequency)
-    else:
-        t = measured.t
-        average = measured.positions.mean(axis=0)
-        # mean heading change since the mean start heading (wrap-safe: runs are unwrapped)
-        turn = np.angle(np.exp(1j * (measured.poses[..., 2] - start_pose[2]))).mean(axis=0)
-    average_heading = turn if heading_weight_m > 0 else None
+    if not measured.well_formed:
+        raise DataError('the measured runs are not finite inside a run (only the tail of a '
+                        'run that ends early may be missing)')
+    if initial is None:
+        initial = ModelParameters.nominal()
+        estimate = stride_frequency_estimate(measured.poses[..., 2], measured.t)
+        if math.isfinite(estimate):
+            initial = replace(initial, stride_frequency=estimate)
+    initial = initial.with_paper_liftoff()
+    start_pose = start_pose or mean_start_pose(measured)
+    target = target or average_target(measured, start_pose, initial.stride_frequency,
+                                      align_gait)
+    t, average = target.t, target.average
+    if len(t) < 3:
+        raise DataError('the runs share fewer than three samples of the gait: too short for '
+                        'the nominal fit')
+    average_heading = target.turn if heading_weight_m > 0 else None
     fixed_effects = {name: dict(values) for name, values in (effects or {}).items()}
-    if free_effect:
-        fixed_effects.setdefault(free_effect[0], {})[free_effect[1]] = float(free_effect_start)
+    for item in free:
+        fixed_effects.setdefault(item.cause, {})[item.parameter] = float(item.start)
 
     def build(vector):
         parameters = replace(initial, leg_length=vector[0], touchdown_angles=tuple(vector[1:5]),
                              stride_frequency=vector[5]).with_paper_liftoff()
-        model_effects = fixed_effects
-        if free_effect:
-            model_effects = {**fixed_effects, free_effect[0]: {
-                **fixed_effects[free_effect[0]], free_effect[1]: float(vector[6])}}
+        model_effects = {name: dict(values) for name, values in fixed_effects.items()}
+        for item, value in zip(free, vector[6:]):
+            model_effects[item.cause][item.parameter] = float(value)
         return parameters, check_effects(model_effects)
+
+    def path_of(parameters, model_effects):
+        if mean is None:
+            return deterministic_path(parameters, start_pose, t, model_effects)
+        if align_gait:
+            model_effects = {name: values for name, values in model_effects.items()
+                             if name != 'gait_frequency_variation'}
+        return mean_path(parameters, start_pose, t, model_effects, mean)
 
     def residuals(vector):
         parameters, model_effects = build(vector)
-        path = deterministic_path(parameters, start_pose, t, model_effects)
+        path = path_of(parameters, model_effects)
         parts = [(path[:, :2] - average).ravel()]
         if average_heading is not None:
             parts.append((path[:, 2] - start_pose[2] - average_heading) * heading_weight_m)
         return np.concatenate(parts) * 100.0
 
-    lower, upper, x_scale = list(LOWER), list(UPPER), list(X_SCALE)
-    if free_effect:
-        lower.append(free_effect_bounds[0])
-        upper.append(free_effect_bounds[1])
-        x_scale.append(0.1)
+    lower = LOWER + [item.lower for item in free]
+    upper = UPPER + [item.upper for item in free]
+    x_scale = X_SCALE + [max(0.1, 0.05 * (item.upper - item.lower)) for item in free]
     guesses = {initial.stride_frequency}
     if multistart:
         guesses.add(stride_frequency_guess(average, t, initial.stride_frequency))
@@ -149,19 +256,24 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
     for frequency in sorted(guesses):
         start = [initial.leg_length, *initial.touchdown_angles,
                  float(np.clip(frequency, LOWER[5] * 1.5, UPPER[5] * 0.95))]
-        if free_effect:
-            start.append(float(fixed_effects[free_effect[0]][free_effect[1]]))
+        start += [item.start for item in free]
         start = np.clip(start, lower, upper)
-        solution = _two_stage_least_squares(residuals, start, lower, upper, x_scale)
+        if refine:
+            solution = optimize.least_squares(residuals, start, bounds=(lower, upper),
+                                              x_scale=x_scale, ftol=tolerance, xtol=tolerance)
+        else:
+            solution = _two_stage_least_squares(residuals, start, lower, upper, x_scale,
+                                                tolerance)
         if best is None or solution.cost < best.cost:
             best = solution
     parameters, model_effects = build(best.x)
-    path = deterministic_path(parameters, start_pose, t, model_effects)
+    path = path_of(parameters, model_effects)
     rms = float(np.sqrt(np.mean(np.sum((path[:, :2] - average) ** 2, axis=1))))
-    return NominalFit(parameters, start_pose, rms, average, model_effects, float(best.cost))
+    return NominalFit(parameters, start_pose, rms, average, model_effects, float(best.cost),
+                      np.asarray(best.jac), tuple(free), heading_weight_m)
 
 
-def _two_stage_least_squares(residuals, start, lower, upper, x_scale):
+def _two_stage_least_squares(residuals, start, lower, upper, x_scale, tolerance=1e-8):
     """Least squares with the stride frequency (index 5) held first, then released."""
     frequency = start[5]
     free = [i for i in range(len(start)) if i != 5]
@@ -171,6 +283,8 @@ def _two_stage_least_squares(residuals, start, lower, upper, x_scale):
         return residuals(full)
 
     first = optimize.least_squares(held, start[free], bounds=(
-        [lower[i] for i in free], [upper[i] for i in free]), x_scale=[x_scale[i] for i in free])
+        [lower[i] for i in free], [upper[i] for i in free]), x_scale=[x_scale[i] for i in free],
+        ftol=tolerance, xtol=tolerance)
     return optimize.least_squares(residuals, np.insert(first.x, 5, frequency),
-                                  bounds=(lower, upper), x_scale=x_scale)
+                                  bounds=(lower, upper), x_scale=x_scale, ftol=tolerance,
+                                  xtol=tolerance)

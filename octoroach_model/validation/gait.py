@@ -1,59 +1,153 @@
 """The gait seen in measured poses: per-run stride frequency from the heading's sway, and the
-average path on a common gait clock."""
+average path on a common gait clock.
+
+Runs may end early (NaN tails, see `Paths`): every per-run quantity here uses each run's own
+samples, and averages over time use the runs still present at that time.
+"""
 from __future__ import annotations
 
 import numpy as np
 
 from octoroach_model.paths import Paths
 
+BAND = (0.6, 1.4)         # the stride frequency is sought within this factor of the guess
+BAND_POINTS = 33          # DFT frequencies across the band (then a parabolic refinement)
 
-def heading_sway(heading: np.ndarray, dt: float, nominal: float
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-run stride frequency and sway amplitude: the body sways once per cycle (right
-    stance turns one way, left stance the other); how far depends on the leg geometry.
-    Heading, unlike a speed from differenced positions, is not drowned by position noise."""
-    centred_t = np.arange(heading.shape[1]) - 0.5 * (heading.shape[1] - 1)
-    slope = (heading @ centred_t) / (centred_t @ centred_t)
-    sway = heading - heading.mean(axis=1, keepdims=True) - slope[:, None] * centred_t
-    window = np.hanning(sway.shape[1])
-    sway *= window
-    n_fft = 8192
-    spectrum = np.abs(np.fft.rfft(sway, n=n_fft, axis=1))
-    freqs = np.fft.rfftfreq(n_fft, dt)
-    band_index = np.flatnonzero((freqs > nominal * 0.6) & (freqs < nominal * 1.4))
+
+def valid_mask(values: np.ndarray) -> np.ndarray:
+    """(n, T) True where a run has a sample (runs are NaN after their end)."""
+    return np.isfinite(values)
+
+
+def hann_windows(lengths: np.ndarray, n_samples: int) -> np.ndarray:
+    """(n, T) a Hann window over each run's own samples, zero after its end."""
+    index = np.arange(n_samples)[None, :]
+    span = np.maximum(lengths[:, None] - 1, 1)
+    window = 0.5 - 0.5 * np.cos(2 * np.pi * index / span)
+    return np.where(index < lengths[:, None], window, 0.0)
+
+
+def detrended(values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Each run minus its own least-squares line over its samples; 0 after its end."""
+    mask = valid_mask(values)
+    weight = mask.astype(float)
+    count = np.maximum(weight.sum(axis=1, keepdims=True), 1)
+    filled = np.where(mask, values, 0.0)
+    t_mean = (weight * t).sum(axis=1, keepdims=True) / count
+    v_mean = filled.sum(axis=1, keepdims=True) / count
+    centred_t = (t - t_mean) * weight
+    slope = (centred_t * (filled - v_mean)).sum(axis=1, keepdims=True) \
+        / np.maximum((centred_t ** 2).sum(axis=1, keepdims=True), 1e-300)
+    return np.where(mask, filled - v_mean - slope * (t - t_mean), 0.0)
+
+
+def band_spectrum(signal: np.ndarray, t: np.ndarray, frequencies: np.ndarray) -> np.ndarray:
+    """|DFT| of each (windowed, zero-filled) run at `frequencies` (Hz): (n, K).
+
+    A DFT on a few frequencies in a band costs n T K, far less than a finely zero-padded FFT
+    of every run, and its frequency grid is the same whatever the sample rate."""
+    phase = np.exp(-2j * np.pi * np.outer(t, frequencies))
+    return np.abs(signal @ phase)
+
+
+def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Per-run stride frequency (Hz) and sway amplitude (rad) of the heading.
+
+    The body sways once per cycle (the right stance turns it one way, the left the other);
+    how far depends on the leg geometry. Heading, unlike a speed from differenced positions,
+    is not drowned by position noise. The peak of the windowed spectrum within BAND of
+    `nominal_hz` is refined by a parabola through its neighbours.
+    """
+    lengths = valid_mask(heading).sum(axis=1)
+    window = hann_windows(lengths, heading.shape[1])
+    sway = detrended(heading, t) * window
+    frequencies = np.linspace(BAND[0] * nominal_hz, BAND[1] * nominal_hz, BAND_POINTS)
+    spectrum = band_spectrum(sway, t, frequencies)
     rows = np.arange(heading.shape[0])
-    peak = band_index[np.argmax(spectrum[:, band_index], axis=1)]
-    left, centre = spectrum[rows, peak - 1], spectrum[rows, peak]
-    right = spectrum[rows, np.minimum(peak + 1, len(freqs) - 1)]
+    peak = np.clip(np.argmax(spectrum, axis=1), 1, BAND_POINTS - 2)
+    left, centre, right = (spectrum[rows, peak - 1], spectrum[rows, peak],
+                           spectrum[rows, peak + 1])
     curvature = left - 2 * centre + right
     shift = np.where(curvature < 0, 0.5 * (left - right) / np.where(curvature < 0, curvature, -1),
                      0.0)
-    amplitude = 2.0 * (centre - 0.25 * (left - right) * shift) / window.sum()
-    return freqs[peak] + shift * (freqs[1] - freqs[0]), amplitude
+    shift = np.clip(shift, -1.0, 1.0)
+    step = frequencies[1] - frequencies[0]
+    amplitude = 2.0 * (centre - 0.25 * (left - right) * shift) / np.maximum(
+        window.sum(axis=1), 1e-12)
+    return frequencies[peak] + shift * step, amplitude
 
 
-def gait_aligned_average(measured: Paths, guess_hz: float
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Average path with every run put on a common gait clock.
+def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
+    """The stride frequency (Hz) of a set of runs, with no prior guess: the peak of the mean
+    power spectrum of the heading's sway, whitened by f^2 so that the slow wander of a
+    random-walk heading (power falling as 1/f^2) cannot outweigh the once-per-cycle sway.
+
+    Searched from 1.5 cycles per run up to a third of the sample rate.
+    """
+    lengths = valid_mask(heading).sum(axis=1)
+    usable = lengths >= 8
+    if not usable.any():
+        return float('nan')
+    heading, lengths = heading[usable], lengths[usable]
+    sway = detrended(heading, t) * hann_windows(lengths, heading.shape[1])
+    n_fft = 1 << int(np.ceil(np.log2(heading.shape[1] * 8)))
+    dt = float(t[1] - t[0])
+    power = (np.abs(np.fft.rfft(sway, n=n_fft, axis=1)) ** 2).mean(axis=0)
+    frequencies = np.fft.rfftfreq(n_fft, dt)
+    duration = float(np.median(lengths - 1)) * dt
+    band = (frequencies >= 1.5 / duration) & (frequencies <= 1.0 / (3 * dt))
+    if not band.any():
+        return float('nan')
+    return float(frequencies[band][np.argmax((power * frequencies ** 2)[band])])
+
+
+def aligned_runs(measured: Paths, guess_hz: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Every run on a common gait clock: the grid (G,), the runs' (x, y) on it (n, G, 2), their
+    heading change since their start (n, G) and the mean stride frequency.
 
     Runs whose strides are faster or slower than the mean would smear the plain average over
     the stance pattern; resampling run i at t * f_mean / f_i puts every run at the same gait
-    phase at each time. Returns the times, the average (x, y), the average heading change
-    since the start and the mean stride frequency. The grid ends where the slowest run
-    (2nd percentile of the frequencies, so one bad estimate does not shorten it) ends.
+    phase at each time. The grid ends where the slowest run (2nd percentile of the
+    frequencies, so one bad estimate does not shorten it) ends; a run that ends early is NaN
+    after its end.
     """
     t = measured.t
     heading = measured.poses[..., 2]
-    frequencies, _ = heading_sway(heading, float(t[1] - t[0]), guess_hz)
+    frequencies, _ = heading_sway(heading, t, guess_hz)
     low, high = np.percentile(frequencies, [2, 98])
     frequencies = np.clip(frequencies, low, high)
     mean_frequency = float(frequencies.mean())
     grid = t[t <= t[-1] * low / mean_frequency + 1e-12]
-    aligned = np.empty((measured.n_paths, len(grid), 3))
-    for run, frequency in enumerate(frequencies):
-        warped = grid * mean_frequency / frequency
-        for column in range(3):
-            aligned[run, :, column] = np.interp(warped, t, measured.poses[run, :, column])
-    start_heading = measured.poses[:, :1, 2]
-    turn = np.angle(np.exp(1j * (aligned[..., 2] - start_heading))).mean(axis=0)
-    return grid, aligned[..., :2].mean(axis=0), turn, mean_frequency
+    warped = grid[None, :] * (mean_frequency / frequencies)[:, None]      # (n, G)
+    aligned = np.stack([_interp_rows(warped, t, measured.poses[..., column])
+                        for column in range(3)], axis=-1)
+    turn = np.angle(np.exp(1j * (aligned[..., 2] - measured.poses[:, :1, 2])))
+    return grid, aligned[..., :2], turn, mean_frequency
+
+
+def gait_aligned_average(measured: Paths, guess_hz: float
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Average path on a common gait clock (`aligned_runs`): the times, the average (x, y),
+    the average heading change since the start and the mean stride frequency. At each time
+    only the runs still present are averaged; times no run reaches are left out."""
+    grid, xy, turn, mean_frequency = aligned_runs(measured, guess_hz)
+    with np.errstate(invalid='ignore'):
+        average = np.nanmean(xy, axis=0)
+        mean_turn = np.nanmean(turn, axis=0)
+    present = np.isfinite(average[:, 0])
+    return grid[present], average[present], mean_turn[present], mean_frequency
+
+
+def _interp_rows(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Row-wise linear interpolation of values (n, T) sampled at t, at times at (n, G); NaN
+    beyond a run's end (no extrapolation)."""
+    dt = float(t[1] - t[0])
+    position = at / dt
+    left = np.clip(np.floor(position).astype(int), 0, len(t) - 2)
+    fraction = position - left
+    rows = np.arange(values.shape[0])[:, None]
+    low, high = values[rows, left], values[rows, left + 1]
+    result = low + fraction * (high - low)
+    return np.where(position <= len(t) - 1 + 1e-9, result, np.nan)

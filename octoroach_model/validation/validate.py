@@ -261,6 +261,29 @@ def validate(measured: Paths, settings: ValidationSettings | None = None,
         settings=settings, grid=grid)
 
 
+def common_duration(measured: Paths) -> tuple[Paths, str | None]:
+    """The runs on the common duration that keeps the most samples (the paper compares runs
+    sample by sample, so they need one duration): the duration D maximising D x (runs that
+    reach D). Runs ending before D are left out rather than every run cut to the shortest;
+    the note says how many and where they ended."""
+    lengths = measured.lengths
+    if lengths.min() == len(measured.t):
+        return measured, None
+    candidates = np.unique(lengths)
+    kept = np.array([length * np.count_nonzero(lengths >= length) for length in candidates])
+    best = int(candidates[np.flatnonzero(kept == kept.max())[-1]])
+    keep = lengths >= best
+    short = np.sort(lengths[~keep])
+    chosen = Paths(measured.t[:best], measured.poses[keep, :best], dict(measured.info))
+    if not short.size:
+        return chosen, None
+    dt = float(measured.t[1] - measured.t[0])
+    return chosen, (f'{short.size} of {measured.n_paths} runs end before '
+                    f'{(best - 1) * dt:.2f} s (between {(short[0] - 1) * dt:.2f} and '
+                    f'{(short[-1] - 1) * dt:.2f} s) and were left out of the paper\'s '
+                    f'validation, which compares runs on one duration')
+
+
 def validate_measured(measured: Paths, settings: ValidationSettings | None = None, *,
                       nominal: str = 'fit', draws: str = 'stance',
                       sigmas: tuple[float, float] | None = None,
@@ -275,6 +298,7 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
     from octoroach_model.validation.fit import fit_nominal, mean_start_pose
 
     settings = settings or ValidationSettings()
+    measured, duration_note = common_duration(measured)
     if nominal not in ('fit', 'table2'):
         raise ParameterError(f"nominal must be 'fit' or 'table2', got {nominal!r}")
     if measured.n_paths < settings.runs_needed:
@@ -289,5 +313,6 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
         model = FourBarModel(ModelParameters.nominal(), mean_start_pose(measured), draws)
         table = {**ModelParameters.nominal().table(), 'source': 'Table II'}
     result = validate(measured, settings, model, sigmas, progress)
+    notes = tuple(measured.info.get('notes', ())) + ((duration_note,) if duration_note else ())
     return replace(result, nominal=table, draws=draws, sources=tuple(map(str, sources)),
-                   notes=tuple(measured.info.get('notes', ())))
+                   notes=notes)

@@ -1,0 +1,99 @@
+"""The causes as the diagnosis sees them: what each one moves, how its size is estimated, and
+the smallest size it may claim.
+
+Two kinds of estimate (docs/diagnosis.md):
+- **moments** (initial_pose_error, measurement_noise, gait_frequency_variation,
+  persistent_turning): a statistic of the runs whose *variance-like* value grows linearly in
+  the squared size, S(u) = S(0) + kappa u with u = size^2. S(0) and kappa come from runs of the
+  current model simulated without and with the cause (common random numbers); the size is
+  read off the line at the data's value of S.
+- **path** (lateral_slip, speed_decay): the cause bends the average path, which the geometry
+  alone could mimic, so its size is fitted jointly with the geometry (eq. 9 extended).
+
+The **floor** of a cause is the smallest size the diagnosis claims: the size whose largest
+effect on a run's positions stays below the motion capture's resolution (0.1 mm) is not a
+finding, whatever its p-value. For measurement noise the floor is that resolution itself.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from octoroach_model.diagnosis.features import INDEX, MEDIAN_CHI2_1
+from octoroach_model.model import EFFECT_NAMES, EFFECT_PARAMETERS
+
+POSITION_RESOLUTION_M = 1e-4     # what motion capture resolves; no size below it is claimed
+
+
+@dataclass(frozen=True)
+class RunScale:
+    """What the floors depend on: how long a run lasts and how far it goes."""
+
+    duration_s: float
+    path_length_m: float
+
+
+@dataclass(frozen=True)
+class Cause:
+    """One cause of the table of causes, as a diagnosis candidate.
+
+    `statistic` (moments causes) maps a feature matrix to the variance-like statistic S;
+    `reference` is the size simulated to measure the slope kappa (the contract's unit);
+    `floor` maps a RunScale to the smallest size claimed.
+    """
+
+    name: str
+    unit: str
+    kind: str                                   # 'moments' or 'path'
+    statistic_name: str
+    statistic: Callable[[np.ndarray], float] | None
+    reference: float
+    floor: Callable[[RunScale], float]
+    signed: bool = False
+    bounds: tuple[float, float] = (0.0, 1.0)    # sizes a fit may take (path causes)
+
+    @property
+    def parameter(self) -> str:
+        """The main parameter (the first of the cause in the table of causes)."""
+        return EFFECT_PARAMETERS[self.name][0]
+
+    def effects(self, size: float) -> dict[str, dict[str, float]]:
+        """{cause: {main parameter: size}} (other parameters 0)."""
+        return {self.name: {self.parameter: float(size)}}
+
+
+def _variance_of(column: str) -> Callable[[np.ndarray], float]:
+    index = INDEX[column]
+    return lambda features: float(np.var(features[:, index], ddof=1))
+
+
+def _noise_variance(features: np.ndarray) -> float:
+    """Position noise variance (m^2) read from the median 4th differences (module features)."""
+    return float(np.mean(np.exp(features[:, INDEX['log_noise']])) / (70.0 * MEDIAN_CHI2_1))
+
+
+CAUSES: tuple[Cause, ...] = (
+    Cause('initial_pose_error', 'deg', 'moments', 'start heading variance',
+          _variance_of('start_heading'), 4.0,
+          lambda scale: math.degrees(POSITION_RESOLUTION_M / max(scale.path_length_m, 1e-3))),
+    Cause('measurement_noise', 'cm', 'moments', 'position noise variance (median 4th '
+          'difference)', _noise_variance, 0.05, lambda scale: POSITION_RESOLUTION_M * 100),
+    Cause('gait_frequency_variation', '', 'moments', 'stride frequency variance across runs',
+          _variance_of('stride_frequency'), 0.05,
+          lambda scale: POSITION_RESOLUTION_M / max(scale.path_length_m, 1e-3)),
+    Cause('speed_decay', '', 'path', 'average path (joint fit with the geometry)', None, 0.2,
+          lambda scale: 2 * POSITION_RESOLUTION_M / max(scale.path_length_m, 1e-3),
+          signed=True, bounds=(-0.9, 0.9)),
+    Cause('lateral_slip', 'cm/s', 'path', 'average path (joint fit with the geometry)', None,
+          2.0, lambda scale: POSITION_RESOLUTION_M * 100 / max(scale.duration_s, 1e-3),
+          signed=True, bounds=(-50.0, 50.0)),
+    Cause('persistent_turning', 'deg/s', 'moments', 'heading rate variance across runs',
+          _variance_of('heading_rate'), 5.0,
+          lambda scale: math.degrees(2 * POSITION_RESOLUTION_M
+                                     / max(scale.path_length_m * scale.duration_s, 1e-6))),
+)
+BY_NAME = {cause.name: cause for cause in CAUSES}
+assert tuple(sorted(BY_NAME)) == tuple(sorted(EFFECT_NAMES))

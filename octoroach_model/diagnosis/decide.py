@@ -1,0 +1,95 @@
+"""When a size counts as found, its interval, and the smallest size this data could find.
+
+A cause's size is *found* when the one-sided lower confidence bound of its main parameter,
+at level 1 - decision_alpha / m (m candidates still in the race, Bonferroni), lies above the
+cause's floor (causes.py): we are that sure that the size matters. Moments causes are read
+as u = size^2 on a line, so the bound is taken on u (normal there) and square-rooted; path
+causes are bounded on |size|.
+
+The detection limit is the smallest size at which that bound clears the floor with 80 %
+power on runs like the data at hand: the standard error is the data's own (bootstrap over
+the measured runs, so a misfit that makes the data noisier than the model widens it), grown
+with the size as a variance statistic's error grows with its level, plus the simulation's.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from scipy import stats
+
+from octoroach_model.diagnosis.causes import BY_NAME
+from octoroach_model.diagnosis.modelfit import SizeEstimate
+
+POWER = 0.8
+INTERVAL_LEVEL = 0.95
+
+
+@dataclass(frozen=True)
+class SizeVerdict:
+    """What a size estimate supports: interval, lower bound, floor and detection limit."""
+
+    cause: str
+    estimate: float
+    standard_error: float
+    interval: tuple[float, float]      # INTERVAL_LEVEL, two-sided
+    lower_bound: float                 # one-sided, at the decision's level (of |size|)
+    floor: float
+    clears_floor: bool
+    limit: float | None                # smallest size found with POWER (None: unbounded)
+
+
+def judge(estimate: SizeEstimate, floor: float, z_decision: float) -> SizeVerdict:
+    """The verdict on one size estimate (module docstring)."""
+    cause = BY_NAME[estimate.cause]
+    z_interval = float(stats.norm.isf((1 - INTERVAL_LEVEL) / 2))
+    if cause.kind == 'moments':
+        u, se_u = estimate.u, estimate.se_u
+        interval = (_root(u - z_interval * se_u), _root(u + z_interval * se_u))
+        lower = _root(u - z_decision * se_u)
+        limit = _moments_limit(estimate, floor, z_decision)
+    else:
+        size, se = estimate.size, estimate.se
+        interval = (size - z_interval * se, size + z_interval * se)
+        lower = max(abs(size) - z_decision * se, 0.0)
+        limit = floor + (z_decision + stats.norm.isf(1 - POWER)) * se \
+            if math.isfinite(se) else None
+    return SizeVerdict(estimate.cause, estimate.size, estimate.se, interval, lower, floor,
+                       bool(lower > floor), limit)
+
+
+def _root(u: float) -> float:
+    return math.sqrt(u) if u > 0 else 0.0
+
+
+def _moments_limit(estimate: SizeEstimate, floor: float, z_decision: float) -> float | None:
+    """Smallest size s with P(u_hat - z se_u(s) > floor^2) = POWER, u_hat ~ N(s^2, se_u(s))."""
+    if not (estimate.slope > 0 and math.isfinite(estimate.se_u)):
+        return None
+    z_power = float(stats.norm.isf(1 - POWER))
+    level_now = max(estimate.data_statistic, estimate.intercept, 1e-300)
+
+    def se_u(u: float) -> float:
+        level = max(estimate.intercept + estimate.slope * u, 1e-300)
+        data_se = estimate.data_se * level / level_now
+        return math.hypot(data_se, estimate.intercept_se) / estimate.slope
+
+    def margin(u: float) -> float:
+        return u - floor ** 2 - (z_decision + z_power) * se_u(u)
+
+    low, high = floor ** 2, max(floor ** 2, estimate.u, estimate.se_u, 1e-300)
+    for _ in range(200):
+        if margin(high) > 0:
+            break
+        high *= 2
+    else:
+        return None
+    for _ in range(100):
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if margin(middle) <= 0 else (low, middle)
+    return math.sqrt(high)
+
+
+def decision_z(alpha: float, candidates: int) -> float:
+    """One-sided normal quantile at level alpha / candidates."""
+    return float(stats.norm.isf(alpha / max(candidates, 1)))

@@ -1,0 +1,49 @@
+"""Where the diagnosis runs its side-by-side work: any concurrent.futures executor.
+
+By default a local pool of worker processes: forked from this process when it runs a single
+thread (quick, and a user's script needs no `if __name__ == '__main__'` guard), else started
+by a fork server (safe inside a ROS node, whose threads a plain fork would copy mid-flight);
+`workers=1` runs everything in this process; a caller may pass its own executor (a Dask client's
+`get_executor()` sends the work to a cluster).
+"""
+from __future__ import annotations
+
+import multiprocessing
+import threading
+from collections.abc import Iterator
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from contextlib import contextmanager
+
+
+class InlineExecutor(Executor):
+    """Runs each submitted call at once, in this process (for workers=1 and for work that
+    is already one task of a larger pool)."""
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        future: Future = Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as error:  # noqa: BLE001 - handed to the caller via result()
+            future.set_exception(error)
+        return future
+
+
+@contextmanager
+def executor_for(executor: Executor | None, workers: int) -> Iterator[Executor]:
+    """`executor` itself (left running), or a pool of `workers` processes for the block."""
+    if executor is not None:
+        yield executor
+        return
+    if workers <= 1:
+        yield InlineExecutor()
+        return
+    if threading.active_count() == 1:
+        context = multiprocessing.get_context('fork')
+    else:
+        context = multiprocessing.get_context('forkserver')
+        context.set_forkserver_preload(['octoroach_model.diagnosis.diagnose'])
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)

@@ -1,0 +1,343 @@
+"""Fitting the paper's model, extended by a set of causes, to one half of the measured runs.
+
+A `FittedModel` is the geometry, the start pose, one spread scale along Table III's direction
+and the sizes of the causes it includes. `fit_causes` estimates all of them together by
+rounds (block coordinate descent), each round:
+1. the geometry, with the sizes of path causes (lateral_slip, speed_decay) free, on the
+   average path on a common gait clock: the mean of simulated runs against the data's
+   (unbiased for the stochastic model; validation/fit.py);
+2. the spread scale s, (sigma1, sigma2) = s x Table III, from the within-run variance of the
+   per-cycle heading change (start errors and steady turning leave it alone);
+3. each moments cause from its variance-like statistic (causes.py), the others held.
+Every simulation uses common random numbers and gives simulated runs the data's run lengths,
+so statistics of data and model are comparable run for run.
+
+Each size comes with its standard error (data and simulation), from which the decision,
+the intervals and the detection limits follow (decide.py).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from octoroach_model.diagnosis.causes import BY_NAME, Cause
+from octoroach_model.diagnosis.features import INDEX, run_features
+from octoroach_model.model import ModelParameters, RandomStreams, model_poses, nominal_sigmas
+from octoroach_model.paths import Paths
+from octoroach_model.validation.fit import (
+    AverageTarget, FreeEffect, MeanPathSettings, average_target, fit_nominal)
+
+Effects = Mapping[str, Mapping[str, float]]
+
+
+@dataclass(frozen=True)
+class FittedModel:
+    """The model a diagnosis compares with data: geometry, start, spread scale, causes."""
+
+    parameters: ModelParameters
+    start_pose: tuple[float, float, float]
+    sigma_scale: float
+    effects: dict = field(default_factory=dict)     # {cause: {parameter: value}}
+
+    @property
+    def sigmas(self) -> tuple[float, float]:
+        """(sigma1, sigma2) in rad: the spread scale times Table III."""
+        direction = nominal_sigmas()
+        return self.sigma_scale * direction[0], self.sigma_scale * direction[1]
+
+    @property
+    def causes(self) -> tuple[str, ...]:
+        return tuple(self.effects)
+
+    def with_effect(self, cause: str, values: Mapping[str, float]) -> FittedModel:
+        return replace(self, effects={**self.effects, cause: dict(values)})
+
+    def poses(self, n_runs: int, t: np.ndarray, seed: np.random.SeedSequence,
+              effects: Effects | None = None) -> np.ndarray:
+        """(n, T, 3) runs of the model (with `effects` instead of its own, if given)."""
+        return model_poses(self.parameters, RandomStreams(seed), n_runs, t, *self.sigmas,
+                           'stance', dict(self.effects if effects is None else effects), None,
+                           self.start_pose)
+
+    def table(self) -> dict:
+        """Geometry, start pose and spreads as the report prints them (cm, deg, rad)."""
+        return {**self.parameters.table(),
+                'start_pose': {'x_cm': self.start_pose[0] * 100,
+                               'y_cm': self.start_pose[1] * 100,
+                               'heading_deg': math.degrees(self.start_pose[2])},
+                'sigma_scale': self.sigma_scale, 'sigma1': self.sigmas[0],
+                'sigma2': self.sigmas[1]}
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """Simulation sizes and weights of the fits (DiagnosisSettings carries them)."""
+
+    moment_runs: int = 400
+    mean_path_runs: int = 300
+    heading_weight_m: float = 0.13
+    rounds: int = 2
+    seed: int = 0
+    tolerance: float = 1e-5     # least squares stops at this relative change (MC noise: 1e-4)
+
+
+@dataclass
+class RunData:
+    """One set of measured runs, prepared once: features, lengths, the average path target.
+
+    `stride_frequency` and `reference_heading` fix the features' cycle window and axes for
+    the whole diagnosis (data and every model are measured with the same ruler).
+    """
+
+    paths: Paths
+    stride_frequency: float
+    reference_heading: float
+    features: np.ndarray = field(init=False)
+    target: AverageTarget = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.features = run_features(self.paths, self.stride_frequency, self.reference_heading)
+        start = (0.0, 0.0, self.reference_heading)
+        self.target = average_target(self.paths, start, self.stride_frequency, align_gait=True)
+
+    @property
+    def n(self) -> int:
+        return self.paths.n_paths
+
+    @property
+    def lengths(self) -> np.ndarray:
+        return self.paths.lengths
+
+
+@dataclass(frozen=True)
+class SizeEstimate:
+    """A size and what it rests on: standard error, and the statistic's line (moments).
+
+    For moments causes, u = size^2 is read off S(u) = intercept + slope u at the data's S;
+    `se_u` is the standard error of u from the data's bootstrap and the simulation. For path
+    causes, `se` is the standard error of the size itself and `se_u` is unused.
+    """
+
+    cause: str
+    size: float
+    se: float
+    u: float = 0.0
+    se_u: float = 0.0
+    intercept: float = 0.0
+    slope: float = 0.0
+    data_statistic: float = 0.0
+    data_se: float = 0.0
+    intercept_se: float = 0.0
+
+
+@dataclass
+class Simulator:
+    """Simulated runs of models, with the data's run lengths, on common random numbers."""
+
+    data: RunData
+    seed: int
+    cache: dict = field(default_factory=dict)
+
+    def features(self, model: FittedModel, n_runs: int, purpose: int,
+                 effects: Effects | None = None, lengths: np.ndarray | None = None
+                 ) -> np.ndarray:
+        """Features of `n_runs` runs of `model` for a purpose (its own random numbers)."""
+        paths = self.paths(model, n_runs, purpose, effects, lengths)
+        return run_features(paths, self.data.stride_frequency, self.data.reference_heading)
+
+    def paths(self, model: FittedModel, n_runs: int, purpose: int,
+              effects: Effects | None = None, lengths: np.ndarray | None = None) -> Paths:
+        t = self.data.paths.t
+        seed = np.random.SeedSequence([self.seed, purpose])
+        poses = model.poses(n_runs, t, seed, effects)
+        source = self.data.lengths if lengths is None else lengths
+        if source.min() < len(t):
+            picks = np.random.default_rng([self.seed, purpose, 7]).integers(0, len(source),
+                                                                             n_runs)
+            return Paths(t, poses).cut_to(source[picks])
+        return Paths(t, poses)
+
+
+MOMENTS = 11     # purpose codes of the simulations (each its own random numbers)
+SPREAD = 12
+
+
+def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
+               settings: FitSettings, *, geometry: bool = True, rounds: int | None = None
+               ) -> tuple[FittedModel, dict[str, SizeEstimate]]:
+    """The model with `causes`, every size refit together (module docstring)."""
+    simulator = Simulator(data, settings.seed)
+    model = replace(start, effects={cause: dict(start.effects.get(cause) or _zero(cause))
+                                    for cause in causes})
+    estimates: dict[str, SizeEstimate] = {}
+    path_causes = tuple(c for c in causes if BY_NAME[c].kind == 'path')
+    moment_causes = tuple(c for c in causes if BY_NAME[c].kind == 'moments')
+    for _ in range(rounds or settings.rounds):
+        if geometry or path_causes:
+            model, path_estimates = fit_geometry(data, model, path_causes, settings)
+            estimates.update(path_estimates)
+        model = replace(model, sigma_scale=fit_spread(simulator, model, settings))
+        for cause in moment_causes:
+            estimate = fit_moment(simulator, model, BY_NAME[cause], settings)
+            estimates[cause] = estimate
+            model = model.with_effect(cause, _values(model, BY_NAME[cause], estimate, data,
+                                                     simulator, settings))
+    return model, estimates
+
+
+def _zero(cause: str) -> dict[str, float]:
+    from octoroach_model.model import EFFECT_PARAMETERS
+    return {name: 0.0 for name in EFFECT_PARAMETERS[cause]}
+
+
+def _values(model: FittedModel, cause: Cause, estimate: SizeEstimate, data: RunData,
+            simulator: Simulator, settings: FitSettings) -> dict[str, float]:
+    """All parameters of a cause: the main one from its estimate, initial_pose_error's
+    position spread from the excess start-position variance over the model without it."""
+    values = {cause.parameter: estimate.size}
+    if cause.name == 'initial_pose_error':
+        without = {name: v for name, v in model.effects.items() if name != cause.name}
+        simulated = simulator.features(model, settings.moment_runs, MOMENTS, without)
+        excess = _start_variance(data.features) - _start_variance(simulated)
+        values['position_std_cm'] = math.sqrt(max(excess, 0.0)) * 100
+    return values
+
+
+def _start_variance(features: np.ndarray) -> float:
+    return 0.5 * float(features[:, INDEX['start_x']].var(ddof=1)
+                       + features[:, INDEX['start_y']].var(ddof=1))
+
+
+def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...],
+                 settings: FitSettings) -> tuple[FittedModel, dict[str, SizeEstimate]]:
+    """Geometry and path-cause sizes on the gait-aligned average path (mean of simulated
+    runs); standard errors from resampling the runs through the fit's Jacobian."""
+    free = tuple(FreeEffect(cause, BY_NAME[cause].parameter, *BY_NAME[cause].bounds,
+                            start=float(model.effects[cause][BY_NAME[cause].parameter]))
+                 for cause in path_causes)
+    held = {name: values for name, values in model.effects.items() if name not in path_causes}
+    mean = MeanPathSettings(model.sigmas, settings.mean_path_runs,
+                            int(np.random.SeedSequence([settings.seed, 5]).generate_state(1)[0]))
+    fit = fit_nominal(data.paths, initial=model.parameters, heading_weight_m=(
+        settings.heading_weight_m), effects=held, free=free, multistart=False,
+        align_gait=True, mean=mean, start_pose=model.start_pose, target=data.target,
+        refine=True, tolerance=settings.tolerance)
+    fitted = replace(model, parameters=fit.parameters, effects={
+        name: dict(fit.effects.get(name, values)) for name, values in model.effects.items()})
+    estimates = {}
+    if free:
+        errors = path_standard_errors(fit, data, settings)
+        for offset, item in enumerate(free):
+            size = float(fit.effects[item.cause][item.parameter])
+            estimates[item.cause] = SizeEstimate(item.cause, size, errors[6 + offset])
+    return fitted, estimates
+
+
+def path_standard_errors(fit, data: RunData, settings: FitSettings,
+                         n_boot: int = 60) -> np.ndarray:
+    """Standard errors of the fit's vector: bootstrap of the runs, each resample's solution
+    by one Gauss-Newton step from the fit; the mean-path simulation adds its own error
+    (its runs are as many as `mean_path_runs`, so the variance grows by n / runs)."""
+    jacobian = fit.jacobian
+    pseudo_inverse = np.linalg.pinv(jacobian)
+    target = data.target
+    rng = np.random.default_rng([settings.seed, 17])
+    base = _stack(target, fit.heading_weight_m)
+    steps = []
+    for _ in range(n_boot):
+        resampled = target.resampled(rng.integers(0, data.n, data.n))
+        change = (_stack(resampled, fit.heading_weight_m) - base) * 100.0
+        steps.append(pseudo_inverse @ change)      # residual = model - target: d r = -change
+    spread = np.std(steps, axis=0, ddof=1)
+    return spread * math.sqrt(1.0 + data.n / max(settings.mean_path_runs, 1))
+
+
+def _stack(target: AverageTarget, heading_weight_m: float) -> np.ndarray:
+    parts = [target.average.ravel()]
+    if heading_weight_m > 0:
+        parts.append(target.turn * heading_weight_m)
+    return np.concatenate(parts)
+
+
+def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings) -> float:
+    """Spread scale whose within-run variance of the per-cycle heading change matches the
+    data's (u = scale^2 read off a line through simulated points, refined once)."""
+    target = float(simulator.data.features[:, INDEX['increment_var']].mean())
+
+    def statistic(scale: float) -> float:
+        trial = replace(model, sigma_scale=scale)
+        simulated = simulator.features(trial, settings.moment_runs // 2, SPREAD)
+        return float(simulated[:, INDEX['increment_var']].mean())
+
+    points = {0.0: statistic(0.0), 1.0: statistic(1.0)}
+    for _ in range(2):
+        scale = math.sqrt(max(_read_line(points, target), 0.0))
+        scale = min(scale, 4.0)
+        if not points or min(abs(scale ** 2 - u) for u in points) < 0.02 * max(scale ** 2, 1e-3):
+            break
+        points[scale ** 2] = statistic(scale)
+    return min(math.sqrt(max(_read_line(points, target), 0.0)), 4.0)
+
+
+def _read_line(points: dict[float, float], target: float) -> float:
+    """u at which the piecewise-linear line through (u, S) points reaches `target`
+    (extrapolated beyond the ends; points made monotone by a running maximum)."""
+    us = np.array(sorted(points))
+    values = np.maximum.accumulate(np.array([points[u] for u in us]))
+    if len(us) == 1 or values[-1] <= values[0]:
+        return float(us[0])
+    index = int(np.clip(np.searchsorted(values, target) - 1, 0, len(us) - 2))
+    while index < len(us) - 2 and values[index + 1] <= values[index]:
+        index += 1
+    u0, u1, s0, s1 = us[index], us[index + 1], values[index], values[index + 1]
+    if s1 <= s0:
+        return float(u0)
+    return float(u0 + (target - s0) * (u1 - u0) / (s1 - s0))
+
+
+def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
+               settings: FitSettings, n_boot: int = 100) -> SizeEstimate:
+    """Size of a moments cause: u = size^2 on the line S(u) = S(0) + slope u through the
+    model without the cause and with it at the reference size (or nearer the estimate)."""
+    data = simulator.data
+    rng = np.random.default_rng([settings.seed, 23])
+    data_value = cause.statistic(data.features)
+    data_se = _bootstrap_se(cause.statistic, data.features, rng, n_boot)
+    without = {name: values for name, values in model.effects.items() if name != cause.name}
+    zero_features = simulator.features(model, settings.moment_runs, MOMENTS, without)
+    intercept = cause.statistic(zero_features)
+    intercept_se = _bootstrap_se(cause.statistic, zero_features, rng, n_boot)
+    reference = cause.reference
+
+    def slope_at(size: float) -> float:
+        effects = {**without, cause.name: {**_zero(cause.name), cause.parameter: size}}
+        value = cause.statistic(simulator.features(model, settings.moment_runs, MOMENTS,
+                                                   effects))
+        return (value - intercept) / size ** 2
+
+    slope = slope_at(reference)
+    u = (data_value - intercept) / slope if slope > 0 else 0.0
+    if slope > 0 and u > 0 and not (0.25 * reference ** 2 <= u <= 4 * reference ** 2):
+        nearer = float(np.clip(math.sqrt(u), 0.1 * reference, 20 * reference))
+        slope_near = slope_at(nearer)
+        if slope_near > 0:
+            slope = slope_near
+            u = (data_value - intercept) / slope
+    if slope <= 0:
+        return SizeEstimate(cause.name, 0.0, math.inf, 0.0, math.inf, intercept, 0.0,
+                            data_value, data_se, intercept_se)
+    se_u = math.hypot(data_se, intercept_se) / slope
+    size = math.sqrt(max(u, 0.0))
+    se = se_u / (2 * max(size, math.sqrt(se_u))) if se_u > 0 else 0.0
+    return SizeEstimate(cause.name, size, se, u, se_u, intercept, slope, data_value, data_se,
+                        intercept_se)
+
+
+def _bootstrap_se(statistic, features: np.ndarray, rng: np.random.Generator,
+                  n_boot: int) -> float:
+    n = features.shape[0]
+    values = [statistic(features[rng.integers(0, n, n)]) for _ in range(n_boot)]
+    return float(np.std(values, ddof=1))
