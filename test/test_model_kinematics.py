@@ -17,7 +17,7 @@ import octoroach_model as om
 from octoroach_model.model import kinematics
 from octoroach_model.model.parameters import ModelParameters
 
-PARAMETERS = ModelParameters()
+PARAMETERS = ModelParameters.nominal()
 L = PARAMETERS.leg_length
 D = PARAMETERS.hip_distance
 NOMINAL = PARAMETERS.nominal_angles
