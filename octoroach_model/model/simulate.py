@@ -1,9 +1,10 @@
-"""Runs of the stochastic model (eq. 11), optionally with contract effects.
+"""Runs of the stochastic model (eq. 11, docs/model.md), optionally with effects.
 
 Random numbers come in independent streams spawned from one seed: the angle normals of the
 first 2 * cycles stances, the normals of any extra stances a faster gait needs, and one stream
 per effect. The same seed therefore gives the same angles whatever sigmas or effects are
-asked for: common random numbers for every comparison between settings.
+asked for: common random numbers for every comparison between settings (docs/model.md,
+"Random numbers").
 """
 from __future__ import annotations
 
@@ -60,7 +61,7 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
     parameters : geometry, nominal angles and timing (default Table II from
         config/table2.yaml, `ModelParameters.nominal`).
     draws : 'stance' draws new angles at every stance, 'run' once per run.
-    effects : {cause: {parameter: value}} from the contract's table, applied as defined there.
+    effects : {cause: {parameter: value}} from the table of causes (docs/causes.md).
     start_pose : x [m], y [m], heading [rad] at t = 0 (before any initial_pose_error).
     t : (T,) sample times in seconds starting at 0; default `parameters.time_grid(cycles)`.
 
