@@ -76,13 +76,15 @@ def test_nothing_points_to_files_outside_the_repository():
             assert outside not in text, f'{path.relative_to(REPO)} mentions {outside}'
 
 
-def test_the_figures_of_the_validation_caveat_come_from_the_block_beside_them():
-    checked = CHECKED_BLOCK.search(read('validation.md'))
-    assert checked, 'validation.md has lost its checked code block'
-    ran = subprocess.run([sys.executable, '-c', checked['code']], cwd=REPO,
-                         capture_output=True, text=True, timeout=300)
-    assert ran.returncode == 0, ran.stderr
-    assert ran.stdout.strip() == checked['output'].strip()
+@pytest.mark.parametrize('page', ['model.md', 'validation.md'])
+def test_the_figures_of_a_page_come_from_the_code_block_beside_them(page):
+    checked = list(CHECKED_BLOCK.finditer(read(page)))
+    assert checked, f'{page} has lost its checked code block'
+    for block in checked:
+        ran = subprocess.run([sys.executable, '-c', block['code']], cwd=REPO,
+                             capture_output=True, text=True, timeout=300)
+        assert ran.returncode == 0, ran.stderr
+        assert ran.stdout.strip() == block['output'].strip()
 
 
 def table_rows(page: str, first_column: str) -> list[list[str]]:

@@ -31,8 +31,8 @@ def solve_front_angle(rear_angle, span, leg_length, hip_distance, branch):
     `branch` (+1 or -1) picks the root of a cos(phi) + b sin(phi) = c; it is fixed at
     touchdown so the angle is continuous through the stance. Where the stance leaves the
     reachable set (|c| > hypot(a, b)) the leg is held at the closest reachable angle and the
-    front foot slides: at the Table III spreads this happens in 0.28 % of right stances
-    (about 3 % of 10-cycle runs touch it), more at larger spreads.
+    front foot slides: at the Table III spreads this happens in about 0.3 % of right stances
+    (about 3 % of 10-cycle runs touch it; docs/model.md, section 11), more at larger spreads.
     """
     # P = B - rear foot, seen in the pair's own (mirrored) frame: one equation for both.
     px = leg_length * np.cos(rear_angle)
