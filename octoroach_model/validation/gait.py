@@ -1,5 +1,8 @@
-"""The gait seen in measured poses: per-run stride frequency from the heading's sway, and the
-average path on a common gait clock."""
+"""The gait seen in measured poses.
+
+Per-run stride frequency from the heading's sway, and the average path on a common gait clock
+(docs/validation.md, "The nominal fit").
+"""
 from __future__ import annotations
 
 import numpy as np
@@ -9,9 +12,12 @@ from octoroach_model.paths import Paths
 
 def heading_sway(heading: np.ndarray, dt: float, nominal: float
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-run stride frequency and sway amplitude: the body sways once per cycle (right
-    stance turns one way, left stance the other); how far depends on the leg geometry.
-    Heading, unlike a speed from differenced positions, is not drowned by position noise."""
+    """Estimate each run's stride frequency and sway amplitude from its heading.
+
+    The body sways once per cycle (right stance turns one way, left stance the other); how
+    far depends on the leg geometry. Heading, unlike a speed from differenced positions, is
+    not drowned by position noise.
+    """
     centred_t = np.arange(heading.shape[1]) - 0.5 * (heading.shape[1] - 1)
     slope = (heading @ centred_t) / (centred_t @ centred_t)
     sway = heading - heading.mean(axis=1, keepdims=True) - slope[:, None] * centred_t
