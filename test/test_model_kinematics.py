@@ -1,4 +1,4 @@
-"""The switching four-bar (NOTES.md section 2): geometry, closure, stances and their chaining.
+"""The switching four-bar (docs/model.md): geometry, closure, stances and their chaining.
 
 Independent checks of `octoroach_model.model.kinematics`: feet held in the world through a
 stance, the closed-form closure against numeric solutions of eq. (2)/(3), continuity at the
@@ -17,7 +17,7 @@ import octoroach_model as om
 from octoroach_model.model import kinematics
 from octoroach_model.model.parameters import ModelParameters
 
-PARAMETERS = ModelParameters()
+PARAMETERS = ModelParameters.nominal()
 L = PARAMETERS.leg_length
 D = PARAMETERS.hip_distance
 NOMINAL = PARAMETERS.nominal_angles

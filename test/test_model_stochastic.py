@@ -1,4 +1,4 @@
-"""The stochastic model (NOTES.md section 3, eq. 11) through the Python API `om.simulate`."""
+"""The stochastic model (docs/model.md, eq. 11) through the Python API `om.simulate`."""
 from __future__ import annotations
 
 import math
@@ -73,7 +73,7 @@ def test_spread_at_the_end_grows_with_sigma(draws):
     assert np.all(np.diff(spreads) > 0)
 
 
-def test_simulate_returns_time_and_poses_as_the_contract_says():
+def test_simulate_returns_time_and_poses_as_documented():
     runs = om.simulate(200, seed=8)
     assert isinstance(runs, om.Paths)
     assert runs.t.shape == (251,)

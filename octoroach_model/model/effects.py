@@ -1,16 +1,16 @@
-"""The contract's model extensions (CONTRACT.md, table of causes), exactly as defined there.
+"""The model extensions of the table of causes (docs/causes.md), exactly as defined there.
 
 Two kinds: time warps act on the gait phase before the kinematics are evaluated
 (`gait_frequency_variation`, `speed_decay`); the others transform finished runs
 (`persistent_turning`, `lateral_slip`, `initial_pose_error`, `measurement_noise`). Parameter
-names and units are the contract's (cm, deg where the key says so). Each effect draws its own
+names and units are the table's (cm, deg where the key says so). Each effect draws its own
 random numbers from its own generator, so adding one leaves every other draw unchanged
 (common random numbers across models).
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
+import math
 
 import numpy as np
 
@@ -42,7 +42,7 @@ Effects = Mapping[str, Mapping[str, float]]
 
 
 def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
-    """Validated copy of an effects mapping {name: {parameter: value}}; missing ones are 0."""
+    """Check an effects mapping {name: {parameter: value}}; return a copy, missing ones 0."""
     checked: dict[str, dict[str, float]] = {}
     for name, params in (effects or {}).items():
         if name not in EFFECT_PARAMETERS:
@@ -64,7 +64,11 @@ def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
 
 def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
                 rngs: Mapping[str, np.random.Generator]) -> np.ndarray:
-    """(n, T) gait clock: the time at which the unwarped model is evaluated."""
+    """Give the (n, T) gait clock: the times at which the unwarped model is evaluated.
+
+    speed_decay warps first, then each run's gait_frequency_variation stretches the result:
+    clock = (1 + e) (t - fraction t^2 / (2 T)).
+    """
     clock = np.broadcast_to(t, (n_runs, len(t))).astype(float)
     duration = float(t[-1]) if len(t) else 0.0
     if 'speed_decay' in effects and duration > 0:
@@ -79,7 +83,7 @@ def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
 
 def apply_pose_effects(poses: np.ndarray, t: np.ndarray, effects: Effects,
                        rngs: Mapping[str, np.random.Generator]) -> np.ndarray:
-    """Runs with the non-warp effects applied, in canonical order. poses: (n, T, 3), SI."""
+    """Apply the non-warp effects to runs, in canonical order. poses: (n, T, 3), SI."""
     poses = poses.copy()
     n_runs = poses.shape[0]
     if 'persistent_turning' in effects:
@@ -103,7 +107,7 @@ def apply_pose_effects(poses: np.ndarray, t: np.ndarray, effects: Effects,
 
 
 def rotate_about_start(poses: np.ndarray, dheading: np.ndarray) -> np.ndarray:
-    """Each run rotated by its own angle about its first position."""
+    """Rotate each run by its own angle about its first position."""
     start = poses[:, :1, :2]
     rel = poses[..., :2] - start
     cos_d, sin_d = np.cos(dheading)[:, None], np.sin(dheading)[:, None]
@@ -115,7 +119,10 @@ def rotate_about_start(poses: np.ndarray, dheading: np.ndarray) -> np.ndarray:
 
 
 def turn_persistently(poses: np.ndarray, t: np.ndarray, yaw_rate: np.ndarray) -> np.ndarray:
-    """theta + w t and p(0) + integral of R(w s) p_dot(s) ds (midpoint rule per sample step)."""
+    """Turn each run at its rate w: theta + w t, p(0) + integral of R(w s) p_dot(s) ds.
+
+    The integral is a sum over sample steps, each step rotated by w at its midpoint time.
+    """
     steps = np.diff(poses[..., :2], axis=1)
     mid_angle = yaw_rate[:, None] * 0.5 * (t[1:] + t[:-1])[None, :]
     cos_a, sin_a = np.cos(mid_angle), np.sin(mid_angle)
@@ -128,7 +135,10 @@ def turn_persistently(poses: np.ndarray, t: np.ndarray, yaw_rate: np.ndarray) ->
 
 
 def slip_sideways(poses: np.ndarray, t: np.ndarray, velocity: float) -> np.ndarray:
-    """p + integral of v r(theta) ds with r = (sin theta, -cos theta) (trapezoid rule)."""
+    """Add a sideways drift: p + integral of v r(theta) ds, r = (sin theta, -cos theta).
+
+    The integral follows the trapezoid rule on the sample times.
+    """
     heading = poses[..., 2]
     right = np.stack([np.sin(heading), -np.cos(heading)], axis=-1)
     dt = np.diff(t)[None, :, None]

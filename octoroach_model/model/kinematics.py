@@ -1,4 +1,4 @@
-"""The switching four-bar (NOTES.md section 2, eqs. 1-5), closed form and vectorised.
+"""The switching four-bar (eqs. 1-5; derived in docs/model.md), closed form and vectorised.
 
 Body frame: x to the right, y forward, origin at G, hips A = (0, -d/2) and B = (0, d/2).
 A stance pair has a rear foot and a front foot; `mirror` = +1 for the right pair (rear leg to
@@ -31,8 +31,8 @@ def solve_front_angle(rear_angle, span, leg_length, hip_distance, branch):
     `branch` (+1 or -1) picks the root of a cos(phi) + b sin(phi) = c; it is fixed at
     touchdown so the angle is continuous through the stance. Where the stance leaves the
     reachable set (|c| > hypot(a, b)) the leg is held at the closest reachable angle and the
-    front foot slides: at the Table III spreads this happens in 0.28 % of right stances
-    (about 3 % of 10-cycle runs touch it), more at larger spreads.
+    front foot slides: at the Table III spreads this happens in about 0.3 % of right stances
+    (about 3 % of 10-cycle runs touch it; docs/model.md, section 11), more at larger spreads.
     """
     # P = B - rear foot, seen in the pair's own (mirrored) frame: one equation for both.
     px = leg_length * np.cos(rear_angle)
@@ -178,7 +178,7 @@ _BLOCK = 1 << 13
 
 
 def _cos_sin(angle, scale=1.0):
-    """scale * cos and scale * sin through the half-angle tangent: one SIMD tan, no sin/cos.
+    """Give scale * cos and scale * sin by the half-angle tangent: one SIMD tan, no sin/cos.
 
     Accurate to a few units in the last place, like np.cos and np.sin (numpy's float64 tan
     is vectorised on x86-64, its sin and cos are several times slower).
@@ -193,8 +193,8 @@ class _Geometry:
     """The closure and the pose of G for given leg and hip geometry, on arrays of samples."""
 
     def __init__(self, leg_length: float, hip_distance: float) -> None:
-        self.l = leg_length
-        self.d = hip_distance
+        self.leg_length = leg_length
+        self.hip_distance = hip_distance
         # |B - rear foot|^2 = l^2 + d^2 - 2 d l sin(rear) (P of solve_front_angle, squared).
         self.reach_sq = leg_length ** 2 + hip_distance ** 2
         # Heading changes within a stance stay inside (-pi, pi) when the foot-to-foot segment
@@ -208,7 +208,7 @@ class _Geometry:
         ratio c / hypot(a, b) of `solve_front_angle` is (offset + d sin(rear)) / |P|.
         Returns rear_x, rear_y, segment_x, segment_y (segment = front foot - rear foot).
         """
-        l, d = self.l, self.d
+        l, d = self.leg_length, self.hip_distance
         l_cos_r, l_sin_r = _cos_sin(rear_angle, l)
         # P = B - rear foot in the pair's frame is (l cos r, d - l sin r)
         p_y = d - l_sin_r
@@ -264,7 +264,7 @@ def _stances(angles, start, geometry: _Geometry):
     for all runs are contiguous.
     """
     n_runs, n_stances = angles.shape[:2]
-    l, d = geometry.l, geometry.d
+    l, d = geometry.leg_length, geometry.hip_distance
     # (S, n) touchdown and liftoff angles: right stances (even) use phi1, phi2, phi_R^lo,
     # left ones phi3, phi4, phi_L^lo.
     by_stance = angles.transpose(2, 1, 0)
@@ -335,7 +335,7 @@ def _rows_equal(phase) -> bool:
 
 
 def _columns(mask):
-    """The columns where `mask` holds: a slice when they are contiguous, else an index array."""
+    """Find the columns where `mask` holds: a slice if they are contiguous, else an index array."""
     where = np.flatnonzero(mask)
     if where.size and where[-1] - where[0] + 1 == where.size:
         return slice(int(where[0]), int(where[-1]) + 1)

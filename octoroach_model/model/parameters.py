@@ -1,13 +1,23 @@
-"""Parameters of the switching four-bar model (NOTES.md section 2), SI units throughout.
+"""Parameters of the switching four-bar model (docs/model.md), SI units throughout.
 
-The nominal values (Table II) live in config/table2.yaml; `ModelParameters.nominal()` reads
-them from the installed share directory or, in a source checkout, from the repository.
+The paper's values are read from one file, in one place (`load_nominal`): Table II (geometry
+and nominal angles), Table III (the angle spreads sigma1, sigma2) and the timing (the stride
+frequency, which the paper leaves open, and the 50 Hz sample rate). The model's defaults come
+from there: `ModelParameters.nominal()`, `nominal_sigmas()`, and through them `simulate()`,
+the simulator node and the `simulate` program. No module of model/ repeats the numbers.
+
+The file is config/table2.yaml: the installed share directory's, or in a source checkout the
+repository's. The environment variable OCTOROACH_MODEL_TABLE2 names another file of the same
+form instead (an edited copy, for a robot other than the paper's); `load_nominal`,
+`ModelParameters.nominal` and `nominal_sigmas` also take that path as an argument. The file is
+read again whenever it changes.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
+import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -15,38 +25,61 @@ import numpy as np
 from octoroach_model.errors import ParameterError
 
 CONFIG_NAME = 'table2.yaml'
+CONFIG_ENVIRONMENT = 'OCTOROACH_MODEL_TABLE2'
+CONFIG_SECTION = 'octoroach_model'
+SIGMA_LIMIT = 1.5   # rad; spreads at or beyond it make the stances meaningless
 
 
 def config_path(name: str = CONFIG_NAME) -> Path:
     """Where a config file is: the ament share directory when installed, else the checkout."""
+    shared = _share_directory()
+    if shared is not None and (shared / name).is_file():
+        return shared / name
+    return Path(__file__).resolve().parents[2] / 'config' / name
+
+
+@lru_cache(maxsize=1)
+def _share_directory() -> Path | None:
     try:
         from ament_index_python.packages import get_package_share_directory
 
-        shared = Path(get_package_share_directory('octoroach_model')) / 'config' / name
-        if shared.is_file():
-            return shared
+        return Path(get_package_share_directory('octoroach_model')) / 'config'
     except Exception:  # noqa: BLE001 - not installed through ament: fall back to the checkout
-        pass
-    return Path(__file__).resolve().parents[2] / 'config' / name
+        return None
+
+
+def table2_path(path: str | os.PathLike | None = None) -> Path:
+    """Name the file the nominal values come from.
+
+    That is `path` if given, else the file named by $OCTOROACH_MODEL_TABLE2, else the shipped
+    config/table2.yaml (`config_path`).
+    """
+    if path is not None:
+        return Path(path)
+    named = os.environ.get(CONFIG_ENVIRONMENT, '').strip()
+    if named:
+        return Path(named)
+    return config_path()
 
 
 @dataclass(frozen=True)
 class ModelParameters:
-    """Geometry, nominal angles and timing of the model.
+    """Geometry, nominal angles and timing of the model (every field required).
 
     Angles are in radians; touchdown_angles = (phi1, phi2, phi3, phi4), liftoff_angles =
     (phi_R, phi_L). stride_frequency counts full gait cycles (right + left stance) per second.
+    `ModelParameters.nominal()` gives the paper's values.
     """
 
-    hip_distance: float = 0.13
-    leg_length: float = 0.021
-    touchdown_angles: tuple[float, float, float, float] = (
-        0.790634, 0.691150, 0.696386, 0.820305)
-    liftoff_angles: tuple[float, float] = (-0.691150, -0.696386)
-    stride_frequency: float = 2.0
-    sample_rate: float = 50.0
+    hip_distance: float
+    leg_length: float
+    touchdown_angles: tuple[float, float, float, float]
+    liftoff_angles: tuple[float, float]
+    stride_frequency: float
+    sample_rate: float
 
     def __post_init__(self) -> None:
+        """Reject values no model run can use."""
         if not (self.hip_distance > 0 and self.leg_length > 0):
             raise ParameterError('hip_distance and leg_length must be positive metres')
         if not (self.stride_frequency > 0 and self.sample_rate > 0):
@@ -55,9 +88,9 @@ class ModelParameters:
             raise ParameterError('need 4 touchdown angles and 2 liftoff angles (rad)')
 
     @classmethod
-    def nominal(cls) -> ModelParameters:
-        """Table II of the paper (from config/table2.yaml)."""
-        return _load_nominal()
+    def nominal(cls, path: str | os.PathLike | None = None) -> ModelParameters:
+        """Table II of the paper, from config/table2.yaml (or `path`, see `table2_path`)."""
+        return load_nominal(path).parameters
 
     @property
     def nominal_angles(self) -> np.ndarray:
@@ -79,7 +112,7 @@ class ModelParameters:
         return np.arange(n_samples) / self.sample_rate
 
     def table(self) -> dict:
-        """The parameters as the paper prints them (cm, deg), for reports."""
+        """Give the parameters as the paper prints them (cm, deg), for reports."""
         return {
             'hip_distance_cm': float(self.hip_distance * 100),
             'leg_length_cm': float(self.leg_length * 100),
@@ -89,28 +122,81 @@ class ModelParameters:
         }
 
 
-@lru_cache(maxsize=1)
-def _load_nominal() -> ModelParameters:
-    import yaml
+@dataclass(frozen=True)
+class NominalValues:
+    """Everything config/table2.yaml holds: the nominal model and the spreads of Table III."""
 
-    path = config_path()
+    parameters: ModelParameters
+    sigma1: float      # rad, spread of the touchdown angles (eq. 11)
+    sigma2: float      # rad, spread of the liftoff angles (eq. 11)
+    source: Path       # the file they were read from
+
+
+def load_nominal(path: str | os.PathLike | None = None) -> NominalValues:
+    """Read the nominal values from `table2_path(path)`; a ParameterError says what is wrong."""
+    where = table2_path(path)
     try:
-        values = yaml.safe_load(path.read_text())['octoroach_model']
-    except (OSError, KeyError, TypeError, yaml.YAMLError) as error:
-        raise ParameterError(f'cannot read nominal parameters from {path}: {error}') from None
-    return ModelParameters(
-        hip_distance=float(values['hip_distance']),
-        leg_length=float(values['leg_length']),
-        touchdown_angles=tuple(float(a) for a in values['touchdown_angles']),
-        liftoff_angles=tuple(float(a) for a in values['liftoff_angles']),
-        stride_frequency=float(values['stride_frequency']),
-        sample_rate=float(values['sample_rate']),
-    )
+        status = where.stat()
+    except OSError as error:
+        origin = f' (from {CONFIG_ENVIRONMENT})' if path is None and \
+            os.environ.get(CONFIG_ENVIRONMENT, '').strip() else ''
+        raise ParameterError(f'cannot read nominal parameters from {where}{origin}: '
+                             f'{error.strerror or error}') from None
+    return _read_nominal(str(where), status.st_mtime_ns, status.st_size)
 
 
-def nominal_sigmas() -> tuple[float, float]:
-    """(sigma1, sigma2) of Table III, radians, from config/table2.yaml."""
+def nominal_sigmas(path: str | os.PathLike | None = None) -> tuple[float, float]:
+    """(sigma1, sigma2) of Table III, radians, from config/table2.yaml (or `path`)."""
+    values = load_nominal(path)
+    return values.sigma1, values.sigma2
+
+
+@lru_cache(maxsize=8)
+def _read_nominal(path: str, mtime_ns: int, size: int) -> NominalValues:
+    """Parse and check one version of the file (the cache key changes when the file does)."""
     import yaml
 
-    values = yaml.safe_load(config_path().read_text())['octoroach_model']
-    return float(values['sigma1']), float(values['sigma2'])
+    try:
+        document = yaml.safe_load(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
+        reason = ' '.join(str(error).split())
+        raise ParameterError(f'cannot read nominal parameters from {path}: {reason}') from None
+    section = document.get(CONFIG_SECTION) if isinstance(document, dict) else None
+    if not isinstance(section, dict):
+        raise ParameterError(f'{path}: no {CONFIG_SECTION!r} section with the nominal values')
+
+    def number(key: str, count: int | None = None):
+        """section[key] as a float, or as a tuple of `count` floats."""
+        if key not in section:
+            raise ParameterError(f'{path}: {CONFIG_SECTION}.{key} is missing')
+        value = section[key]
+        items = value if count is not None and isinstance(value, list) else [value]
+        if (count is not None and (not isinstance(value, list) or len(value) != count)) or \
+                not all(_is_finite_number(item) for item in items):
+            kind = f'a list of {count} finite numbers' if count else 'a finite number'
+            raise ParameterError(f'{path}: {CONFIG_SECTION}.{key} must be {kind}, '
+                                 f'got {value!r}')
+        numbers = tuple(float(item) for item in items)
+        return numbers if count is not None else numbers[0]
+
+    fields = {'hip_distance': number('hip_distance'), 'leg_length': number('leg_length'),
+              'touchdown_angles': number('touchdown_angles', 4),
+              'liftoff_angles': number('liftoff_angles', 2),
+              'stride_frequency': number('stride_frequency'),
+              'sample_rate': number('sample_rate')}
+    try:
+        parameters = ModelParameters(**fields)
+    except ParameterError as error:
+        raise ParameterError(f'{path}: {error}') from None
+    sigma1, sigma2 = number('sigma1'), number('sigma2')
+    for key, sigma in (('sigma1', sigma1), ('sigma2', sigma2)):
+        if not 0.0 <= sigma < SIGMA_LIMIT:
+            raise ParameterError(f'{path}: {CONFIG_SECTION}.{key} = {sigma} is outside '
+                                 f'[0, {SIGMA_LIMIT}) rad')
+    return NominalValues(parameters, sigma1, sigma2, Path(path))
+
+
+def _is_finite_number(value) -> bool:
+    """Tell a finite YAML int or float (YAML's true and false are not numbers here)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) \
+        and math.isfinite(value)

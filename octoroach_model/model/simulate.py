@@ -1,22 +1,23 @@
-"""Runs of the stochastic model (eq. 11), optionally with contract effects.
+"""Runs of the stochastic model (eq. 11, docs/model.md), optionally with effects.
 
 Random numbers come in independent streams spawned from one seed: the angle normals of the
 first 2 * cycles stances, the normals of any extra stances a faster gait needs, and one stream
 per effect. The same seed therefore gives the same angles whatever sigmas or effects are
-asked for: common random numbers for every comparison between settings.
+asked for: common random numbers for every comparison between settings (docs/model.md,
+"Random numbers").
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
+import math
 
 import numpy as np
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.model.effects import (
-    EFFECT_NAMES, TIME_WARPS, Effects, apply_pose_effects, check_effects, warped_time)
+    apply_pose_effects, check_effects, EFFECT_NAMES, Effects, TIME_WARPS, warped_time)
 from octoroach_model.model.kinematics import integrate_stances, stance_angles
-from octoroach_model.model.parameters import ModelParameters
+from octoroach_model.model.parameters import ModelParameters, nominal_sigmas, SIGMA_LIMIT
 from octoroach_model.paths import Paths
 
 DRAWS = ('stance', 'run')
@@ -62,8 +63,9 @@ class RandomStreams:
                         for name, child in zip(EFFECT_NAMES, children[2:])}
 
 
-def simulate(n_paths: int, *, seed: int | None = None, sigma1: float = 0.12,
-             sigma2: float = 0.15, cycles: float = 10, parameters: ModelParameters | None = None,
+def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = None,
+             sigma2: float | None = None, cycles: float = 10,
+             parameters: ModelParameters | None = None,
              draws: str = 'stance', effects: Effects | None = None,
              start_pose: Sequence[float] = DEFAULT_START_POSE,
              t: np.ndarray | None = None) -> Paths:
@@ -73,11 +75,13 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float = 0.12,
     ----------
     n_paths : number of runs.
     seed : seed of all random draws (None: fresh entropy, recorded in the result's info).
-    sigma1, sigma2 : spread (rad) of the touchdown and of the liftoff angles (eq. 11).
+    sigma1, sigma2 : spread (rad) of the touchdown and of the liftoff angles (eq. 11); None
+        means Table III as config/table2.yaml gives it (`nominal_sigmas`).
     cycles : gait cycles per run; sets the time grid unless `t` is given.
-    parameters : geometry and nominal angles (default Table II).
+    parameters : geometry, nominal angles and timing (default Table II from
+        config/table2.yaml, `ModelParameters.nominal`).
     draws : 'stance' draws new angles at every stance, 'run' once per run.
-    effects : {cause: {parameter: value}} from the contract's table, applied as defined there.
+    effects : {cause: {parameter: value}} from the table of causes (docs/causes.md).
     start_pose : x [m], y [m], heading [rad] at t = 0 (before any initial_pose_error).
     t : (T,) sample times in seconds starting at 0; default `parameters.time_grid(cycles)`.
 
@@ -92,10 +96,14 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float = 0.12,
     (3, 251, 3)
     """
     parameters = parameters or ModelParameters.nominal()
+    default_sigma1, default_sigma2 = nominal_sigmas()
+    sigma1 = default_sigma1 if sigma1 is None else float(sigma1)
+    sigma2 = default_sigma2 if sigma2 is None else float(sigma2)
     if n_paths < 1 or int(n_paths) != n_paths:
         raise ParameterError(f'n_paths must be a positive whole number, got {n_paths}')
-    if not (0 <= sigma1 < 1.5 and 0 <= sigma2 < 1.5):
-        raise ParameterError(f'sigma1, sigma2 must lie in [0, 1.5) rad, got {sigma1}, {sigma2}')
+    if not (0 <= sigma1 < SIGMA_LIMIT and 0 <= sigma2 < SIGMA_LIMIT):
+        raise ParameterError(f'sigma1, sigma2 must lie in [0, {SIGMA_LIMIT}) rad, '
+                             f'got {sigma1}, {sigma2}')
     if draws not in DRAWS:
         raise ParameterError(f'draws must be one of {DRAWS}, got {draws!r}')
     if not cycles > 0:

@@ -1,5 +1,7 @@
 """The nominal fit (eq. 9): the deterministic model closest to the average measured path.
 
+docs/validation.md ("The nominal fit") describes it for users.
+
 Least squares over zeta = [l, phi1..phi4] (the paper's) plus the stride frequency. The model
 starts at the measured mean start pose (Table I's means: x, y and the circular mean heading):
 fitting it instead would trade a start offset for a better middle, and the confidence region

@@ -1,5 +1,7 @@
-"""The gait seen in measured poses: per-run stride frequency from the heading's sway, and the
-average path on a common gait clock.
+"""The gait seen in measured poses.
+
+Per-run stride frequency from the heading's sway, and the average path on a common gait clock
+(docs/validation.md, "The nominal fit").
 
 Runs may end early (NaN tails, see `Paths`): every per-run quantity here uses each run's own
 samples, and averages over time use the runs still present at that time.

@@ -1,4 +1,4 @@
-"""Multisamples (NOTES.md section 4): n mutually disjoint groups of k measured runs."""
+"""Multisamples (docs/validation.md): n mutually disjoint groups of k measured runs."""
 from __future__ import annotations
 
 import math

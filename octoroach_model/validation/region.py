@@ -1,8 +1,10 @@
 """The confidence region a multisample defines and the decision g (eq. 13).
 
-Choice (NOTES.md section 4): per time sample and per coordinate, the Student-t prediction
-interval for one new run, mean +- t_{(1+gamma)/2, k-1} * s * sqrt(1 + 1/k). A model run
-violates (g = 1) when any coordinate at any sample leaves its interval.
+Choice (docs/validation.md, "The confidence region"): per time sample and per coordinate,
+the Student-t prediction interval for one new run, mean +- t_{(1+gamma)/2, k-1} * s *
+sqrt(1 + 1/k). A model run violates (g = 1) when any coordinate at any sample leaves its
+interval. The floor on the half-width (the instrument's resolution) is applied by
+`validate.Validation`.
 """
 from __future__ import annotations
 
@@ -28,6 +30,9 @@ def prediction_region(samples: np.ndarray, gamma: float) -> tuple[np.ndarray, np
 
 
 def violations(model_runs: np.ndarray, centre: np.ndarray, half_width: np.ndarray) -> np.ndarray:
-    """g for each model run: 1 if it leaves its region anywhere. model_runs: (..., T, C)."""
+    """Decide g for each model run: 1 if it leaves its region anywhere.
+
+    model_runs: (..., T, C), centre and half_width broadcastable to it.
+    """
     outside = np.abs(model_runs - centre) > half_width
     return outside.any(axis=(-2, -1)).astype(float)

@@ -1,5 +1,7 @@
 """Probabilistic validation (eqs. 13-16) and the search (15) for the widest admissible spread.
 
+The method, its choices and what its guarantee says are in docs/validation.md.
+
 The method does not depend on the model: anything that turns two spreads, a seed and a time
 grid into runs (`ModelPlugin`) can be validated. Every evaluation of the search uses the same
 seed for the model and the same multisamples, so settings are compared on common random
@@ -168,7 +170,7 @@ def search_sigmas(validation: Validation, model: ModelPlugin,
 
 
 def guarantee_text(violation: float, settings: ValidationSettings) -> str:
-    """What eq. (16) promises about the estimate, in words."""
+    """Say in words what eq. (16) promises about the estimate."""
     low, high = max(0.0, violation - settings.epsilon), min(1.0, violation + settings.epsilon)
     return (f'With probability at least 1 - delta = {1 - settings.delta:.2f} over the draw of '
             f'the n = {settings.n} model runs and multisamples, the true probability of '
@@ -211,7 +213,7 @@ class ValidationResult:
     notes: tuple[str, ...] = ()        # what was skipped or repaired in the input
 
     def to_json(self) -> dict:
-        """The result as a JSON object (fields in order; `grid` only after a search)."""
+        """Give the result as a JSON object (fields in order; `grid` only after a search)."""
         plain = fields_jsonable(self)
         if self.grid is None:
             del plain['grid']
@@ -230,7 +232,7 @@ class SearchGrid:
 def validate(measured: Paths, settings: ValidationSettings | None = None,
              model: ModelPlugin | None = None, sigmas: tuple[float, float] | None = None,
              progress: Progress | None = None) -> ValidationResult:
-    """The paper's validation of `model` against measured runs.
+    """Validate `model` against measured runs by the paper's method.
 
     With `sigmas`, only E^_k at those spreads; otherwise the search (15) for the widest
     admissible spreads. `model` defaults to the paper's model at Table II.
@@ -289,9 +291,11 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
                       sigmas: tuple[float, float] | None = None,
                       sources: Sequence[str] = (), progress: Progress | None = None
                       ) -> ValidationResult:
-    """The whole chain a user asks for (CLI `validate`, the validator's ~/validate):
-    check the run count, build the nominal model (eq. 9 fit, or Table II at the measured
-    mean start pose), validate, and say where the runs came from and what was repaired."""
+    """Run the whole chain a user asks for (CLI `validate`, the validator's ~/validate).
+
+    Check the run count, build the nominal model (eq. 9 fit, or Table II at the measured
+    mean start pose), validate, and say where the runs came from and what was repaired.
+    """
     from dataclasses import replace
 
     from octoroach_model.errors import DataError
