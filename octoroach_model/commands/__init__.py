@@ -23,8 +23,8 @@ OFFLINE: dict[str, str] = {
 def run_command(name: str, argv: list[str] | None) -> int:
     """Parse argv for command `name` and run it; one-line errors, exit codes 0/1/2/130."""
     module = importlib.import_module(f'octoroach_model.commands.{name}')
-    args = module.parser().parse_args(argv)
     try:
+        args = module.parser().parse_args(argv)   # defaults come from config files: may fail
         return int(module.run(args) or 0)
     except OctoroachError as error:
         sys.stderr.write(f'error: {name}: {error}\n')

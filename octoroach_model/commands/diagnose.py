@@ -3,10 +3,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from octoroach_model.commands.common import (
-    OneLineParser, add_input_arguments, new_output, nonnegative_int, progress_printer)
+    OneLineParser, add_input_arguments, new_output, nonnegative_int, positive_int,
+    progress_printer)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -22,6 +24,8 @@ def parser() -> argparse.ArgumentParser:
     result.add_argument('--seed', type=nonnegative_int, default=0,
                         help='seed of the split, the simulations and the bootstrap')
     result.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
+    result.add_argument('--workers', type=positive_int, default=2,
+                        help='processes for the side-by-side work (1: this process only)')
     return result
 
 
@@ -36,11 +40,12 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f'--out {args.out} is a directory that is not empty; '
                              f'choose a new or empty one')
     measured = load_measured(args.bags, topic=args.topic, gap_s=args.gap_s)
-    report = diagnose(measured, DiagnosisSettings(seed=args.seed),
+    report = diagnose(measured, DiagnosisSettings(seed=args.seed, workers=args.workers),
                       progress=progress_printer('diagnose'))
-    report['sources'] = [str(path) for path in args.bags]
+    report = replace(report, sources=tuple(str(path) for path in args.bags))
     written = write_report(report, args.out, measured=measured, plots=not args.no_plots)
-    sys.stderr.write(f'cause: {report["cause"]}\n')
+    named = ', '.join(cause.cause for cause in report.causes) or 'none'
+    sys.stderr.write(f'causes: {named}; adequate: {str(report.adequate).lower()}\n')
     print(f'report: {written["report"]}')
     print(f'summary: {written["summary"]}')
     return 0

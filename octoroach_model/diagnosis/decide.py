@@ -9,7 +9,8 @@ causes are bounded on |size|.
 The detection limit is the smallest size at which that bound clears the floor with 80 %
 power on runs like the data at hand: the standard error is the data's own (bootstrap over
 the measured runs, so a misfit that makes the data noisier than the model widens it), grown
-with the size as a variance statistic's error grows with its level, plus the simulation's.
+with the size as a variance statistic's error grows with its level (never below the relative
+error simulated runs with the cause show), plus the simulation's.
 """
 from __future__ import annotations
 
@@ -67,12 +68,13 @@ def _moments_limit(estimate: SizeEstimate, floor: float, z_decision: float) -> f
     if not (estimate.slope > 0 and math.isfinite(estimate.se_u)):
         return None
     z_power = float(stats.norm.isf(1 - POWER))
-    level_now = max(estimate.data_statistic, estimate.intercept, 1e-300)
+    level_now = max(estimate.data_statistic, estimate.intercept)
+    relative_now = estimate.data_se / level_now if level_now > 0 else 0.0
+    relative = max(relative_now, estimate.relative_se)
 
     def se_u(u: float) -> float:
-        level = max(estimate.intercept + estimate.slope * u, 1e-300)
-        data_se = estimate.data_se * level / level_now
-        return math.hypot(data_se, estimate.intercept_se) / estimate.slope
+        level = max(estimate.intercept + estimate.slope * u, 0.0)
+        return math.hypot(relative * level, estimate.intercept_se) / estimate.slope
 
     def margin(u: float) -> float:
         return u - floor ** 2 - (z_decision + z_power) * se_u(u)

@@ -157,7 +157,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             rng, settings.bootstrap)
         final_rows = discrepancies(
             halves.all.features, everything.features(final, n_model, DISCREPANCY_PURPOSE),
-            rng, settings.bootstrap) if final.causes else baseline_rows
+            rng, settings.bootstrap)
         bound = critical_z(settings.adequacy_alpha, len(STATISTICS))
         unexplained = [row for row in final_rows if abs(row.z) > bound and row.material]
         validation_results = {name: future.result() for name, future in validations.items()}
@@ -319,9 +319,9 @@ def _step_message(result: StepResult) -> str:
 
 def _final_fit(halves: _Halves, model: FittedModel, settings: DiagnosisSettings
                ) -> tuple[FittedModel, dict[str, SizeEstimate]]:
-    """The final model refit on all runs (the sizes a report states)."""
-    if not model.causes:
-        return model, {}
+    """The final model refit on all runs: the sizes a report states, and the model whose
+    adequacy is judged on all runs (a model fitted on half of them would show that half's
+    sampling error as discrepancies)."""
     return fit_causes(halves.all, model, model.causes, settings.fit(1))
 
 

@@ -30,7 +30,7 @@ import warnings
 import numpy as np
 
 from octoroach_model.paths import Paths
-from octoroach_model.validation.gait import detrended, hann_windows, heading_sway, valid_mask
+from octoroach_model.validation.gait import heading_sway, lateral_sway, valid_mask
 
 FEATURES = ('start_heading', 'start_x', 'start_y', 'log_noise', 'slip_angle',
             'stride_frequency', 'progress_ratio', 'heading_rate', 'increment_var',
@@ -70,7 +70,7 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     cycle = max(2, int(round(1.0 / (stride_frequency * dt))))
     out[:, 4] = _slip_angle(xy, heading, cycle)
     out[:, 5], out[:, 11] = heading_sway(heading, t, stride_frequency)
-    out[:, 12], out[:, 13] = _lateral_sway(xy, heading, t, out[:, 5])
+    out[:, 12], out[:, 13] = lateral_sway(xy, heading, t, out[:, 5])
     half = lengths // 2
     first_half = np.linalg.norm(xy[rows, half] - xy[:, 0], axis=-1)
     second_half = np.linalg.norm(xy[rows, last] - xy[rows, half], axis=-1)
@@ -132,24 +132,6 @@ def _slip_angle(xy: np.ndarray, heading: np.ndarray, cycle: int) -> np.ndarray:
     usable = np.isfinite(step[..., 0])
     count = np.maximum(usable.sum(axis=1), 1)
     return np.where(usable, offset, 0.0).sum(axis=1) / count
-
-
-def _lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
-                  frequency: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Amplitudes of the sideways sway of G (across the run's mean heading, linear trend
-    removed) at the stride frequency and twice it: the shape of a stance."""
-    mask = valid_mask(heading)
-    count = np.maximum(mask.sum(axis=1, keepdims=True), 1)
-    mean_heading = np.where(mask, heading, 0.0).sum(axis=1, keepdims=True) / count
-    across = xy[..., 0] * np.sin(mean_heading) - xy[..., 1] * np.cos(mean_heading)
-    window = hann_windows(mask.sum(axis=1), len(t))
-    residual = detrended(across, t) * window
-    norm = np.maximum(window.sum(axis=1), 1e-12)
-    amplitudes = []
-    for harmonic in (1, 2):
-        phase = np.exp(-2j * np.pi * harmonic * frequency[:, None] * t[None, :])
-        amplitudes.append(2 * np.abs((residual * phase).sum(axis=1)) / norm)
-    return amplitudes[0], amplitudes[1]
 
 
 __all__ = ['FEATURES', 'INDEX', 'RESOLUTION', 'noise_std_m', 'run_features']

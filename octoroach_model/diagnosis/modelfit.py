@@ -28,7 +28,8 @@ from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.model import ModelParameters, RandomStreams, model_poses, nominal_sigmas
 from octoroach_model.paths import Paths
 from octoroach_model.validation.fit import (
-    AverageTarget, FreeEffect, MeanPathSettings, average_target, fit_nominal)
+    AverageTarget, FreeEffect, MeanPathSettings, SwayTarget, average_target, fit_nominal,
+    simulated_runs, sway_weights)
 
 Effects = Mapping[str, Mapping[str, float]]
 
@@ -108,6 +109,12 @@ class RunData:
         return self.paths.n_paths
 
     @property
+    def sway(self) -> SwayTarget:
+        """The runs' mean sway as recorded, for the geometry fit to match."""
+        values = self.features[:, SWAY_COLUMNS].mean(axis=0)
+        return SwayTarget(tuple(float(v) for v in values), self.paths.t, self.lengths)
+
+    @property
     def lengths(self) -> np.ndarray:
         return self.paths.lengths
 
@@ -131,6 +138,8 @@ class SizeEstimate:
     data_statistic: float = 0.0
     data_se: float = 0.0
     intercept_se: float = 0.0
+    relative_se: float = 0.0     # the statistic's relative error for the data's run count,
+    #                              from simulated runs with the cause (a floor for data_se)
 
 
 @dataclass
@@ -161,6 +170,7 @@ class Simulator:
         return Paths(t, poses)
 
 
+SWAY_COLUMNS = [INDEX['sway_amplitude'], INDEX['lateral_sway_1'], INDEX['lateral_sway_2']]
 MOMENTS = 11     # purpose codes of the simulations (each its own random numbers)
 SPREAD = 12
 
@@ -220,7 +230,8 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
                  for cause in path_causes)
     held = {name: values for name, values in model.effects.items() if name not in path_causes}
     mean = MeanPathSettings(model.sigmas, settings.mean_path_runs,
-                            int(np.random.SeedSequence([settings.seed, 5]).generate_state(1)[0]))
+                            int(np.random.SeedSequence([settings.seed, 5]).generate_state(1)[0]),
+                            sway=data.sway)
     fit = fit_nominal(data.paths, initial=model.parameters, heading_weight_m=(
         settings.heading_weight_m), effects=held, free=free, multistart=False,
         align_gait=True, mean=mean, start_pose=model.start_pose, target=data.target,
@@ -229,36 +240,59 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
         name: dict(fit.effects.get(name, values)) for name, values in model.effects.items()})
     estimates = {}
     if free:
-        errors = path_standard_errors(fit, data, settings)
+        errors = path_standard_errors(fit, data, mean, settings)
         for offset, item in enumerate(free):
             size = float(fit.effects[item.cause][item.parameter])
             estimates[item.cause] = SizeEstimate(item.cause, size, errors[6 + offset])
     return fitted, estimates
 
 
-def path_standard_errors(fit, data: RunData, settings: FitSettings,
+def path_standard_errors(fit, data: RunData, mean: MeanPathSettings, settings: FitSettings,
                          n_boot: int = 60) -> np.ndarray:
-    """Standard errors of the fit's vector: bootstrap of the runs, each resample's solution
-    by one Gauss-Newton step from the fit; the mean-path simulation adds its own error
-    (its runs are as many as `mean_path_runs`, so the variance grows by n / runs)."""
-    jacobian = fit.jacobian
-    pseudo_inverse = np.linalg.pinv(jacobian)
+    """Standard errors of the fit's vector, from two sources of error added in quadrature:
+    the measured runs (bootstrap) and the simulated runs (bootstrap of their antithetic
+    pairs); each resample's solution is one Gauss-Newton step from the fit."""
+    pseudo_inverse = np.linalg.pinv(fit.jacobian)
     target = data.target
+    weights = sway_weights(fit.heading_weight_m, len(target.t))
+    data_sway = data.features[:, SWAY_COLUMNS]
+    full = simulated_runs(fit.parameters, fit.start_pose, mean.sway.t, {
+        name: values for name, values in fit.effects.items()
+        if name != 'gait_frequency_variation'}, mean)
+    model_sway = mean.sway.of_runs(full, fit.parameters.stride_frequency)
+    runs = full[:, :len(target.t)]
+
+    def vector(xy, turn, sway):
+        return np.concatenate([_stack(xy, turn, fit.heading_weight_m), sway * weights]) * 100.0
+
     rng = np.random.default_rng([settings.seed, 17])
-    base = _stack(target, fit.heading_weight_m)
-    steps = []
+    base = vector(target.average, target.turn, np.nanmean(data_sway, axis=0))
+    data_steps = []
     for _ in range(n_boot):
-        resampled = target.resampled(rng.integers(0, data.n, data.n))
-        change = (_stack(resampled, fit.heading_weight_m) - base) * 100.0
-        steps.append(pseudo_inverse @ change)      # residual = model - target: d r = -change
-    spread = np.std(steps, axis=0, ddof=1)
-    return spread * math.sqrt(1.0 + data.n / max(settings.mean_path_runs, 1))
+        pick = rng.integers(0, data.n, data.n)
+        resampled = target.resampled(pick)
+        change = vector(resampled.average, resampled.turn,
+                        np.nanmean(data_sway[pick], axis=0)) - base
+        data_steps.append(pseudo_inverse @ change)
+    half = mean.runs // 2
+    pairs = 0.5 * (runs[:half] + runs[half:2 * half])          # antithetic pair means
+    pair_sway = 0.5 * (model_sway[:half] + model_sway[half:2 * half])
+    centre = vector(pairs[..., :2].mean(axis=0), pairs[..., 2].mean(axis=0),
+                    pair_sway.mean(axis=0))
+    model_steps = []
+    for _ in range(n_boot):
+        pick = rng.integers(0, half, half)
+        change = vector(pairs[pick, :, :2].mean(axis=0), pairs[pick, :, 2].mean(axis=0),
+                        pair_sway[pick].mean(axis=0)) - centre
+        model_steps.append(pseudo_inverse @ change)
+    return np.hypot(np.std(data_steps, axis=0, ddof=1), np.std(model_steps, axis=0, ddof=1))
 
 
-def _stack(target: AverageTarget, heading_weight_m: float) -> np.ndarray:
-    parts = [target.average.ravel()]
+def _stack(xy: np.ndarray, turn: np.ndarray, heading_weight_m: float) -> np.ndarray:
+    """The residual vector's layout: positions, then the weighted heading (validation/fit)."""
+    parts = [xy.ravel()]
     if heading_weight_m > 0:
-        parts.append(target.turn * heading_weight_m)
+        parts.append(turn * heading_weight_m)
     return np.concatenate(parts)
 
 
@@ -269,7 +303,7 @@ def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings) 
 
     def statistic(scale: float) -> float:
         trial = replace(model, sigma_scale=scale)
-        simulated = simulator.features(trial, settings.moment_runs // 2, SPREAD)
+        simulated = simulator.features(trial, settings.moment_runs, SPREAD)
         return float(simulated[:, INDEX['increment_var']].mean())
 
     points = {0.0: statistic(0.0), 1.0: statistic(1.0)}
@@ -312,10 +346,14 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
     intercept_se = _bootstrap_se(cause.statistic, zero_features, rng, n_boot)
     reference = cause.reference
 
+    relative = []
+
     def slope_at(size: float) -> float:
         effects = {**without, cause.name: {**_zero(cause.name), cause.parameter: size}}
-        value = cause.statistic(simulator.features(model, settings.moment_runs, MOMENTS,
-                                                   effects))
+        features = simulator.features(model, settings.moment_runs, MOMENTS, effects)
+        value = cause.statistic(features)
+        spread = _bootstrap_se(cause.statistic, features, rng, n_boot // 2)
+        relative.append(spread * math.sqrt(features.shape[0] / data.n) / max(value, 1e-300))
         return (value - intercept) / size ** 2
 
     slope = slope_at(reference)
@@ -328,12 +366,12 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
             u = (data_value - intercept) / slope
     if slope <= 0:
         return SizeEstimate(cause.name, 0.0, math.inf, 0.0, math.inf, intercept, 0.0,
-                            data_value, data_se, intercept_se)
+                            data_value, data_se, intercept_se, relative[-1])
     se_u = math.hypot(data_se, intercept_se) / slope
     size = math.sqrt(max(u, 0.0))
     se = se_u / (2 * max(size, math.sqrt(se_u))) if se_u > 0 else 0.0
     return SizeEstimate(cause.name, size, se, u, se_u, intercept, slope, data_value, data_se,
-                        intercept_se)
+                        intercept_se, relative[-1])
 
 
 def _bootstrap_se(statistic, features: np.ndarray, rng: np.random.Generator,

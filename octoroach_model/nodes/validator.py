@@ -234,25 +234,27 @@ def run_validation(job: Job, bench: Workbench, progress: Progress) -> dict:
 
 def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict:
     """`diagnose` on the measured runs; report files too when `report_dir` is set."""
+    from dataclasses import replace
+
     from octoroach_model.diagnosis import diagnose
 
     progress(0.0, 'loading the measured runs')
     measured = bench.measured(job)
     report = diagnose(measured, diagnosis_settings(job), progress=progress)
-    report['sources'] = list(job.sources)
+    report = replace(report, sources=tuple(job.sources))
+    result = report.to_json()
     if job.report_dir:
         try:
             from octoroach_model.diagnosis import write_report
 
             written = write_report(report, Path(job.report_dir), measured=measured,
                                    plots=True)
-            report['report_files'] = {str(k): str(v) for k, v in dict(written or {}).items()}
+            result['report_files'] = {str(k): str(v) for k, v in dict(written or {}).items()}
         except Cancelled:
             raise
         except Exception as error:  # noqa: BLE001 - the report is still worth returning
-            report['report_files'] = {'error': _one_line(error)}
-    # Keys with a leading underscore carry objects for the plots, not results.
-    return {key: value for key, value in report.items() if not str(key).startswith('_')}
+            result['report_files'] = {'error': _one_line(error)}
+    return result
 
 
 def diagnosis_settings(job: Job) -> Any:

@@ -80,6 +80,32 @@ def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float
     return frequencies[peak] + shift * step, amplitude
 
 
+def lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
+                 frequency: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Amplitudes (m) of the sideways sway of G (across the run's mean heading, linear trend
+    removed) at each run's stride frequency and twice it: the shape of a stance."""
+    mask = valid_mask(heading)
+    count = np.maximum(mask.sum(axis=1, keepdims=True), 1)
+    mean_heading = np.where(mask, heading, 0.0).sum(axis=1, keepdims=True) / count
+    across = xy[..., 0] * np.sin(mean_heading) - xy[..., 1] * np.cos(mean_heading)
+    window = hann_windows(mask.sum(axis=1), len(t))
+    residual = detrended(across, t) * window
+    norm = np.maximum(window.sum(axis=1), 1e-12)
+    amplitudes = []
+    for harmonic in (1, 2):
+        phase = np.exp(-2j * np.pi * harmonic * frequency[:, None] * t[None, :])
+        amplitudes.append(2 * np.abs((residual * phase).sum(axis=1)) / norm)
+    return amplitudes[0], amplitudes[1]
+
+
+def sway_features(t: np.ndarray, xy: np.ndarray, heading: np.ndarray,
+                  guess_hz: float) -> np.ndarray:
+    """(n, 3) per run: heading sway amplitude (rad), sideways sway at f and 2f (m)."""
+    frequency, amplitude = heading_sway(heading, t, guess_hz)
+    first, second = lateral_sway(xy, heading, t, frequency)
+    return np.column_stack([amplitude, first, second])
+
+
 def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
     """The stride frequency (Hz) of a set of runs, with no prior guess: the peak of the mean
     power spectrum of the heading's sway, whitened by f^2 so that the slow wander of a
