@@ -38,6 +38,7 @@ from octoroach_model.recordings.mocap import (
     MarkerBody,
     axis_words,
     check_rate,
+    length_words,
     complete_frames,
     pose_chunk,
     select_body_markers,
@@ -150,8 +151,9 @@ def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
         frame_count = last_frame - first_frame + 1
         notes.append(
             f'{where}: C3D, {len(names)} body markers ({", ".join(names)}) at {rate_hz:g} Hz, '
-            f'frames {first_frame}..{last_frame}; positions in {unit or "mm (no POINT:UNITS)"} '
-            f'converted to m; pose by a least-squares rigid fit to {body.layout_origin}; '
+            f'frames {first_frame}..{last_frame}; '
+            f'{length_words(unit) if unit else "positions in mm (no POINT:UNITS) converted to m"}'
+            f'; pose by a least-squares rigid fit to {body.layout_origin}; '
             f'{axis_words(options)}; stamps from frame {first_frame} at 0 s')
         subject = split_label(names[0])[0] or default_subject or options.subject or path.stem
         topic = f'c3d:{subject}'

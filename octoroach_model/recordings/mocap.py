@@ -67,6 +67,12 @@ def axis_words(options: ReadOptions) -> str:
             '(pi/2: walking along world +y)')
 
 
+def length_words(unit: str) -> str:
+    """Say how positions in `unit` were converted, in the words of the notes."""
+    return 'positions in m' if unit.strip().lower() in ('m', 'meters', 'metres') \
+        else f'positions in {unit.strip()} converted to m'
+
+
 def stamps_ns(frames: np.ndarray, first_frame: int, rate_hz: float) -> np.ndarray:
     """Return int64 ns stamps of frame numbers: (frame - first_frame) / rate_hz."""
     offsets = np.asarray(frames, dtype=np.float64) - float(first_frame)

@@ -46,6 +46,7 @@ from octoroach_model.recordings.mocap import (
     MarkerBody,
     axis_words,
     check_rate,
+    length_words,
     complete_frames,
     pose_chunk,
     select_body_markers,
@@ -326,7 +327,7 @@ def _object_chunks(where: str, reader: _RowReader, section: CsvSection, group: _
     need = [group.columns[name] for name in ('TX', 'TY') + rotation_columns]
     topic = f'csv:{group.label}'
     notes.append(f'{where}: Vicon {section.title} section, {group.label} at '
-                 f'{section.rate_hz:g} Hz: positions in {length_unit} converted to m, '
+                 f'{section.rate_hz:g} Hz: {length_words(length_unit)}, '
                  f'rotations read as {angle_words}{"" if stated else " (not stated in the file)"}'
                  f'; {axis_words(options)}; stamps from the first tracked frame at 0 s')
     offset = options.heading_offset_rad
@@ -393,8 +394,8 @@ def _marker_chunks(where: str, reader: _RowReader, section: CsvSection,
     subject = split_label(names[0])[0] or options.subject or path_stem(where)
     topic = f'csv:{subject}'
     notes.append(f'{where}: Vicon {MARKER_SECTION} section, {len(names)} body markers '
-                 f'({", ".join(names)}) at {section.rate_hz:g} Hz: positions in {unit} '
-                 f'converted to m; pose by a least-squares rigid fit to {body.layout_origin}; '
+                 f'({", ".join(names)}) at {section.rate_hz:g} Hz: {length_words(unit)}; '
+                 f'pose by a least-squares rigid fit to {body.layout_origin}; '
                  f'{axis_words(options)}; stamps from the first tracked frame at 0 s')
     sequence = 1
     first_frame: int | None = None
