@@ -259,3 +259,22 @@ def test_layout_from_noisy_frames_averages_in_the_body_frame():
     # The body frame is the first frame's orientation at the centroid: compare shapes.
     fit = fit_rigid(found, (layout - layout.mean(0))[None])
     assert fit.rms_residual[0] < 1e-4
+
+
+def test_a_cut_file_is_read_up_to_the_cut_and_its_shortened_run_dropped(
+        tmp_path, model_runs):
+    poses = np.concatenate([model_runs.poses[0], np.zeros((60, 3)), model_runs.poses[1]])
+    markers = markers_on_body(poses, BODY_LAYOUT_M)
+    for values in markers.values():
+        values[251:311] = np.nan
+    path = write_c3d(tmp_path / 'cut.c3d', RATE_HZ, labelled(markers))
+    frame_bytes = 4 * 4 * len(markers)  # float32 x, y, z, residual per marker
+    data = path.read_bytes()
+    path.write_bytes(data[:len(data) - (len(data) % 512) - 100 * frame_bytes])
+    notes: list[str] = []
+    run_set = read_c3d(path, notes=notes, layout=BODY_LAYOUT_M)
+    assert any('truncated' in note for note in notes), notes
+    assert len(run_set) == 1
+    np.testing.assert_allclose(run_set.runs[0].poses, model_runs.poses[0], atol=TOLERANCE,
+                               rtol=0)
+    assert any('cut by the truncation' in note for note in run_set.notes), run_set.notes
