@@ -241,3 +241,11 @@ def test_a_trajectories_export_is_fitted_like_a_c3d_file(tmp_path, model_runs):
     assert any('10 frame(s) fitted on the markers that were seen' in note for note in notes)
     assert any('4 body markers (octo:front, octo:left, octo:right, octo:top)' in note
                for note in notes), notes
+
+
+def test_markers_given_for_an_export_without_trajectories_is_a_one_line_error(
+        tmp_path, model_runs):
+    path = write_vicon_csv(tmp_path / 'objects.csv', np.arange(251), {'hz': 50},
+                           {'octo': object_of(model_runs.poses[0])})
+    with pytest.raises(BagError, match='no Trajectories section; leave --markers out'):
+        read_csv(path, ReadOptions(markers=('front', 'left', 'right')))

@@ -246,6 +246,9 @@ def iter_csv_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
     elif marker_sections:
         yield from _marker_chunks(where, reader, marker_sections[0], options, notes,
                                   chunk_size)
+    elif options.markers:
+        raise BagError(f'{where}: --markers names markers, but the export has no '
+                       f'{MARKER_SECTION} section; leave --markers out to read its objects')
     else:
         titles = ', '.join(dict.fromkeys(section.title for section in sections))
         raise BagError(f'{where}: no pose in this export: no Objects or Segments section with '
