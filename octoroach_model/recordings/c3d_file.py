@@ -101,7 +101,12 @@ def _layout_rows(where: str, layout: Mapping[str, Sequence[float]],
     for index in chosen:
         label = labels[index].strip()
         value = by_name.get(label, by_name.get(split_label(label)[1]))
-        rows.append(np.asarray(value, dtype=float).reshape(3))
+        try:
+            row = np.asarray(value, dtype=float).reshape(3)
+        except (TypeError, ValueError):
+            raise BagError(f'{where}: the layout of marker {label} must be (x, y, z) in '
+                           f'metres, got {value!r}') from None
+        rows.append(row)
     return np.array(rows)
 
 
