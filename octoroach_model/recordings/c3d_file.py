@@ -1,0 +1,234 @@
+"""C3D files: the robot's pose from its markers, by a least-squares rigid fit per frame.
+
+Read with the `c3d` package's public `Reader`, frame by frame, so a file of any length is
+converted in bounded memory (one chunk of frames at a time). The mapping (docs/formats_mocap.md):
+
+- Markers: POINT:LABELS (and LABELS2, ...), ``Subject:Marker`` as Vicon writes them; labels
+  listed as model outputs (POINT:ANGLES, FORCES, MOMENTS, POWERS, SCALARS, REACTIONS) and
+  unlabelled trajectories (``*12``) are not markers. Unprefixed labels belong to the only
+  name in SUBJECTS:NAMES, if there is one. The body is `ReadOptions.markers` if given, else
+  every marker of the subject (`ReadOptions.subject`, or the only subject); it needs 3.
+- Units: POINT:UNITS (mm, cm or m) converted to metres; no unit means mm, with a note.
+- Gaps: a point with a negative residual (or NaN) was not seen. A frame is fitted on the
+  body markers it has; with fewer than 3 (or all on one line) it is a dropped frame.
+- Layout: the body's reference marker layout is given (`layout`, metres in the body frame),
+  or made from the first complete frames (every body marker seen): body axes = world axes
+  at the first of them, origin at the markers' centroid. Then the heading is relative to
+  that frame's orientation; give the layout for headings in the robot's own frame.
+- Pose: x, y of the body origin; heading = yaw of the body axis `ReadOptions.forward_axis`.
+- Time: frame f at POINT:RATE r is stamped (f - first frame) / r; one file is one stream
+  (`topic` ``c3d:<subject>``), cut into runs by the splitter at gaps longer than gap_s.
+"""
+from __future__ import annotations
+
+import struct
+import warnings
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+
+import c3d
+import numpy as np
+
+from octoroach_model.errors import BagError
+from octoroach_model.recordings.bags import PoseChunk
+from octoroach_model.recordings.mocap import (
+    LAYOUT_FRAMES,
+    LENGTH_UNITS,
+    MarkerBody,
+    axis_words,
+    check_rate,
+    length_words,
+    complete_frames,
+    pose_chunk,
+    select_body_markers,
+    split_label,
+    stamps_ns,
+    unit_scale,
+)
+from octoroach_model.recordings.options import ReadOptions
+
+__all__ = ['iter_c3d_pose_chunks']
+
+MODEL_OUTPUT_PARAMETERS = ('ANGLES', 'FORCES', 'MOMENTS', 'POWERS', 'SCALARS', 'REACTIONS')
+_C3D_ERRORS = (ValueError, struct.error, AssertionError, IndexError, KeyError, TypeError,
+               UnicodeDecodeError, OverflowError, MemoryError, AttributeError, EOFError)
+
+
+@contextmanager
+def _quiet() -> Iterator[None]:
+    """Silence the c3d package (absent analog data, cut files): notes say what matters."""
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        yield
+
+
+def _strings(reader: c3d.Reader, name: str) -> list[str]:
+    """Return a string parameter as a list of stripped strings ([] when absent)."""
+    param = reader.get(name)
+    if param is None:
+        return []
+    values = np.atleast_1d(param.string_array).ravel()
+    return [str(value).strip() for value in values]
+
+
+def _point_labels(reader: c3d.Reader) -> list[str]:
+    """Return the points' labels in storage order (LABELS, then LABELS2, ...)."""
+    labels = _strings(reader, 'POINT:LABELS')
+    extra = 2
+    while len(labels) < reader.point_used and reader.get(f'POINT:LABELS{extra}') is not None:
+        labels += _strings(reader, f'POINT:LABELS{extra}')
+        extra += 1
+    labels = labels[:reader.point_used]
+    return labels + [''] * (reader.point_used - len(labels))
+
+
+def _marker_labels(reader: c3d.Reader) -> list[str]:
+    """Return the point labels with model outputs blanked out (they are not markers)."""
+    outputs = set()
+    for name in MODEL_OUTPUT_PARAMETERS:
+        outputs.update(_strings(reader, f'POINT:{name}'))
+    return ['' if label in outputs else label for label in _point_labels(reader)]
+
+
+def _layout_rows(where: str, layout: Mapping[str, Sequence[float]],
+                 labels: list[str], chosen: list[int]) -> np.ndarray:
+    """Return the given layout as (M, 3) rows in the order of the chosen markers."""
+    by_name: dict[str, Sequence[float]] = {}
+    for key, value in layout.items():
+        by_name[key.strip()] = value
+    rows = []
+    for index in chosen:
+        label = labels[index].strip()
+        value = by_name.get(label, by_name.get(split_label(label)[1]))
+        try:
+            row = np.asarray(value, dtype=float).reshape(3)
+        except (TypeError, ValueError):
+            raise BagError(f'{where}: the layout of marker {label} must be (x, y, z) in '
+                           f'metres, got {value!r}') from None
+        rows.append(row)
+    return np.array(rows)
+
+
+def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
+                         chunk_size: int = 10_000, *,
+                         layout: Mapping[str, Sequence[float]] | None = None,
+                         ) -> Iterator[PoseChunk]:
+    """Pose samples of the rigid body in a C3D file, chunk by chunk (mapping: module doc).
+
+    `layout` maps marker names (``Marker`` or ``Subject:Marker``) to their (x, y, z) position
+    in metres in the body frame; it also names the body's markers. The stream ends with one
+    chunk whose `is_last` is True. What was converted, dropped or assumed goes to `notes`.
+    Raises BagError with a one-line reason for a file that cannot be read or is ambiguous.
+    """
+    path = Path(path)
+    where = str(path)
+    chunk_size = max(1, int(chunk_size))
+    try:
+        handle = path.open('rb')
+    except OSError as exc:
+        raise BagError(f'{where}: cannot open: {exc.strerror or exc}') from None
+    with handle:
+        try:
+            with _quiet():
+                reader = c3d.Reader(handle)
+                labels = _marker_labels(reader)
+                subjects = _strings(reader, 'SUBJECTS:NAMES')
+                units = _strings(reader, 'POINT:UNITS')
+                rate_hz = float(reader.point_rate)
+                first_frame, last_frame = int(reader.first_frame), int(reader.last_frame)
+        except _C3D_ERRORS as exc:
+            raise BagError(f'{where}: not a readable C3D file ({_reason(exc)})') from None
+        rate_hz = check_rate(rate_hz, where)
+        if reader.point_used == 0:
+            raise BagError(f'{where}: the C3D file holds no 3D points (markers)')
+        default_subject = subjects[0] if len(subjects) == 1 else ''
+        chosen = select_body_markers(where, labels, options, default_subject,
+                                     named=tuple(layout) if layout else ())
+        names = [labels[index].strip() for index in chosen]
+        unit = units[0] if units and units[0] else ''
+        scale = unit_scale(unit, LENGTH_UNITS, 'length', f'{where} POINT:UNITS') if unit \
+            else 1e-3
+        body = MarkerBody(where, names, options,
+                          _layout_rows(where, layout, labels, chosen) if layout else None)
+        if body.layout_m is None:
+            body.set_layout_from_frames(*_first_complete(reader, chosen, scale, where))
+        frame_count = last_frame - first_frame + 1
+        notes.append(
+            f'{where}: C3D, {len(names)} body markers ({", ".join(names)}) at {rate_hz:g} Hz, '
+            f'frames {first_frame}..{last_frame}; '
+            f'{length_words(unit) if unit else "positions in mm (no POINT:UNITS) converted to m"}'
+            f'; pose by a least-squares rigid fit to {body.layout_origin}; '
+            f'{axis_words(options)}; stamps from frame {first_frame} at 0 s')
+        subject = split_label(names[0])[0] or default_subject or options.subject or path.stem
+        topic = f'c3d:{subject}'
+        read = 0
+        sequence = 1
+        for frames, markers_m in _frame_blocks(reader, chosen, scale, chunk_size, where):
+            read += len(frames)
+            x, y, heading, valid = body.poses(markers_m)
+            if not valid.any():
+                continue
+            yield pose_chunk(where, topic, sequence, stamps_ns(frames[valid], first_frame,
+                                                               rate_hz),
+                             x[valid], y[valid], heading[valid])
+            sequence += int(valid.sum())
+        truncated = read < frame_count
+        if truncated:
+            notes.append(f'{where}: the file ends after {read} of its {frame_count} frames '
+                         '(truncated)')
+        notes.extend(body.summary.notes(where, ', '.join(names)))
+        empty = np.zeros(0)
+        yield pose_chunk(where, topic, sequence, np.zeros(0, dtype=np.int64), empty, empty,
+                         empty, is_last=True, truncated=truncated)
+
+
+def _reason(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def _frame_blocks(reader: c3d.Reader, chosen: list[int], scale: float, block: int,
+                  where: str) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Yield frame numbers (F,) and markers (F, M, 3) in metres, NaN where not seen."""
+    # NaN coordinates are "not seen" downstream (fit_rigid): the package's own check per frame
+    # costs a third of the reading time.
+    frames_iter = reader.read_frames(copy=False, check_nan=False)
+    index = np.asarray(chosen)
+    while True:
+        numbers = np.empty(block, dtype=np.int64)
+        points = np.empty((block, len(index), 4), dtype=np.float32)
+        count = 0
+        try:
+            with _quiet():
+                for frame_no, frame_points, _ in frames_iter:
+                    numbers[count] = frame_no
+                    points[count] = frame_points[index, :4]
+                    count += 1
+                    if count == block:
+                        break
+        except _C3D_ERRORS as exc:
+            raise BagError(f'{where}: unreadable C3D frame data ({_reason(exc)})') from None
+        if count == 0:
+            return
+        markers = points[:count, :, :3].astype(np.float64) * scale
+        markers[points[:count, :, 3] < 0] = np.nan
+        yield numbers[:count], markers
+        if count < block:
+            return
+
+
+def _first_complete(reader: c3d.Reader, chosen: list[int], scale: float,
+                    where: str) -> tuple[np.ndarray, int]:
+    """Return up to LAYOUT_FRAMES frames (metres) with every body marker seen, and the first."""
+    found: list[np.ndarray] = []
+    first_frame = 0
+    for frames, markers in _frame_blocks(reader, chosen, scale, 1000, where):
+        complete = np.isfinite(markers).all(axis=(1, 2))
+        if complete.any() and not found:
+            first_frame = int(frames[complete][0])
+        found.append(complete_frames(markers))
+        if sum(len(block) for block in found) >= LAYOUT_FRAMES:
+            break
+    frames_m = np.concatenate(found)[:LAYOUT_FRAMES] if found else np.zeros((0, len(chosen), 3))
+    return frames_m, first_frame

@@ -1,0 +1,264 @@
+"""What the motion-capture file readers share: units, subject names, markers, pose chunks.
+
+The Vicon CSV reader (`vicon_csv.py`) and the C3D reader (`c3d_file.py`) both turn frames of
+a capture into `PoseChunk` streams. This module holds the facts they have in common:
+
+- units: lengths in mm, cm or m and angles in deg or rad, converted to SI;
+- labels: Vicon names a marker or segment ``Subject:Name``; a subject is chosen with
+  `ReadOptions.subject` (or is the only one in the file);
+- stamps: frame f of a file at rate r is stamped (f - first frame) / r seconds, so every file
+  starts at 0 s and a missing frame leaves a gap of its own length;
+- `MarkerBody`: the markers of one rigid body, its reference layout and forward axis, and the
+  pose per frame by `rigid.fit_rigid`.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from octoroach_model.errors import BagError
+from octoroach_model.recordings.bags import PoseChunk
+from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.recordings.rigid import (
+    MIN_MARKERS,
+    fit_rigid,
+    forward_heading,
+    layout_from_frames,
+    layout_spans_a_plane,
+)
+
+# Unit words as motion-capture exports write them, and their value in SI units.
+LENGTH_UNITS = {'mm': 1e-3, 'millimeters': 1e-3, 'millimetres': 1e-3, 'cm': 1e-2, 'm': 1.0,
+                'meters': 1.0, 'metres': 1.0}
+ANGLE_UNITS = {'deg': math.pi / 180.0, 'degrees': math.pi / 180.0, 'rad': 1.0,
+               'radians': 1.0}
+# Frames in which every body marker was seen, averaged into the reference layout.
+LAYOUT_FRAMES = 10
+_EMPTY_INT = np.zeros(0, dtype=np.int64)
+
+
+def unit_scale(unit: str, table: dict[str, float], what: str, where: str) -> float:
+    """Return the SI value of `unit` in `table` (LENGTH_UNITS or ANGLE_UNITS), or raise."""
+    word = unit.strip().lower()
+    if word in table:
+        return table[word]
+    known = ', '.join(sorted({name for name in table if len(name) <= 3}))
+    raise BagError(f'{where}: unknown {what} unit {unit.strip()!r} (expected {known})')
+
+
+def split_label(label: str) -> tuple[str, str]:
+    """Split a ``Subject:Name`` label into ('Subject', 'Name'); ('', label) if no subject."""
+    subject, colon, name = label.strip().partition(':')
+    return (subject.strip(), name.strip()) if colon else ('', subject.strip())
+
+
+def is_marker_label(label: str) -> bool:
+    """Tell a marker label from an empty one or an unlabelled trajectory (``*12``)."""
+    text = label.strip()
+    return bool(text) and not text.startswith('*')
+
+
+def axis_words(options: ReadOptions) -> str:
+    """Say the heading convention in the words of the notes."""
+    return (f'heading = yaw of the body {options.forward_axis} axis '
+            '(pi/2: walking along world +y)')
+
+
+def length_words(unit: str) -> str:
+    """Say how positions in `unit` were converted, in the words of the notes."""
+    return 'positions in m' if unit.strip().lower() in ('m', 'meters', 'metres') \
+        else f'positions in {unit.strip()} converted to m'
+
+
+def stamps_ns(frames: np.ndarray, first_frame: int, rate_hz: float) -> np.ndarray:
+    """Return int64 ns stamps of frame numbers: (frame - first_frame) / rate_hz."""
+    offsets = np.asarray(frames, dtype=np.float64) - float(first_frame)
+    return np.round(offsets * (1e9 / rate_hz)).astype(np.int64)
+
+
+def check_rate(rate_hz: float, where: str) -> float:
+    """Return the frame rate as a positive finite float, else raise BagError."""
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise BagError(f'{where}: frame rate must be a positive number of Hz, got {rate_hz:g}')
+    return float(rate_hz)
+
+
+def pose_chunk(source: str, topic: str, first_sequence: int, stamp_ns: np.ndarray,
+               x: np.ndarray, y: np.ndarray, heading: np.ndarray, *, is_last: bool = False,
+               truncated: bool = False) -> PoseChunk:
+    """Make a PoseChunk of one stream without run markers; log time = stamp."""
+    count = len(stamp_ns)
+    sequence = np.arange(first_sequence, first_sequence + count, dtype=np.int64)
+    return PoseChunk(source, topic, '', sequence, stamp_ns, stamp_ns.copy(),
+                     np.asarray(x, dtype=float), np.asarray(y, dtype=float),
+                     np.asarray(heading, dtype=float), _EMPTY_INT, _EMPTY_INT.copy(),
+                     _EMPTY_INT.copy(), is_last, truncated)
+
+
+def _listed(names: Iterable[str], limit: int = 12) -> str:
+    names = list(names)
+    more = f' and {len(names) - limit} more' if len(names) > limit else ''
+    return ', '.join(names[:limit]) + more
+
+
+def choose_subject(where: str, subjects: Sequence[str], wanted: str | None,
+                   what: str = 'subject') -> str:
+    """Return the subject to read: `wanted` if present, else the only one (or BagError)."""
+    unique = list(dict.fromkeys(subjects))
+    if wanted is not None:
+        if wanted in unique:
+            return wanted
+        raise BagError(f'{where}: no {what} {wanted!r}; it has {_listed(unique) or "none"}')
+    named = [subject for subject in unique if subject]
+    if len(unique) == 1:
+        return unique[0]
+    if not named:
+        raise BagError(f'{where}: no {what} found')
+    raise BagError(f'{where}: several {what}s ({_listed(named)}); pass --subject NAME')
+
+
+def select_body_markers(where: str, labels: Sequence[str], options: ReadOptions,
+                        default_subject: str = '', named: Sequence[str] = ()) -> list[int]:
+    """Return the indexes into `labels` of the body's markers, checked to be at least 3.
+
+    Markers named by `named` (a given layout) or `options.markers` are found by full label
+    or by marker name within the subject; otherwise the body is every marker of the subject
+    (`options.subject`, or the only subject; unprefixed labels belong to `default_subject`).
+    """
+    candidates = [index for index, label in enumerate(labels) if is_marker_label(label)]
+    if not candidates:
+        raise BagError(f'{where}: no labelled markers in the file')
+    if not default_subject and not any(split_label(labels[i])[0] for i in candidates):
+        default_subject = options.subject or ''  # labels without subjects: take the name given
+    owner = {}
+    for index in candidates:
+        subject, name = split_label(labels[index])
+        owner[index] = (subject or default_subject, name)
+    wanted = list(named or options.markers)
+    if wanted:
+        subjects = [owner[index][0] for index in candidates]
+        in_scope = candidates
+        if options.subject is not None:
+            choose_subject(where, subjects, options.subject)
+            in_scope = [i for i in candidates if owner[i][0] == options.subject]
+        chosen = [_find_marker(where, labels, in_scope, owner, name) for name in wanted]
+        if len(set(chosen)) < len(chosen):
+            raise BagError(f'{where}: a marker is named twice in {_listed(wanted)}')
+    else:
+        subject = choose_subject(where, [owner[index][0] for index in candidates],
+                                 options.subject)
+        chosen = [index for index in candidates if owner[index][0] == subject]
+    if len(chosen) < MIN_MARKERS:
+        on_body = _listed(labels[index].strip() for index in chosen) or 'none'
+        available = _listed(labels[index].strip() for index in candidates)
+        raise BagError(f'{where}: {len(chosen)} marker(s) on the body ({on_body}); a rigid '
+                       f'fit needs at least {MIN_MARKERS}: pass --subject NAME or --markers '
+                       f'A,B,C naming 3 or more of {available}')
+    return chosen
+
+
+def _find_marker(where: str, labels: Sequence[str], scope: list[int],
+                 owner: dict[int, tuple[str, str]], name: str) -> int:
+    exact = [index for index in scope if labels[index].strip() == name.strip()]
+    if len(exact) == 1:
+        return exact[0]
+    by_name = [index for index in scope if owner[index][1] == name.strip()]
+    if len(by_name) == 1:
+        return by_name[0]
+    if by_name:
+        found = _listed(labels[index].strip() for index in by_name)
+        raise BagError(f'{where}: marker {name!r} is ambiguous ({found}); pass --subject NAME')
+    available = _listed(labels[index].strip() for index in scope)
+    raise BagError(f'{where}: no marker {name!r}; it has {available}')
+
+
+@dataclass
+class FitSummary:
+    """Counts over a marker stream, for the notes."""
+
+    frames: int = 0
+    dropped: int = 0
+    partial: int = 0
+    residuals_m: list[float] = field(default_factory=list)
+    worst_m: float = 0.0
+
+    def add(self, seen: np.ndarray, valid: np.ndarray, rms_m: np.ndarray) -> None:
+        """Count one block of frames: markers seen (F, M), valid fits, rms residuals."""
+        self.frames += len(valid)
+        self.dropped += int((~valid).sum())
+        self.partial += int((valid & ~seen.all(axis=1)).sum())
+        if valid.any():
+            good = rms_m[valid]
+            self.residuals_m.append(float(np.median(good)))
+            self.worst_m = max(self.worst_m, float(good.max()))
+
+    def notes(self, where: str, names: str) -> list[str]:
+        """Say in plain words what was dropped, partly seen, and how well the fit fits."""
+        notes = []
+        if self.dropped:
+            notes.append(f'{where}: {self.dropped} of {self.frames} frame(s) with fewer than '
+                         f'{MIN_MARKERS} of the body markers ({names}) seen (or seen on one '
+                         'line) dropped')
+        if self.partial:
+            notes.append(f'{where}: {self.partial} frame(s) fitted on the markers that were '
+                         'seen (some body markers missing)')
+        if self.residuals_m:
+            median_mm = float(np.median(self.residuals_m)) * 1e3
+            notes.append(f'{where}: rigid fit rms residual {median_mm:.3g} mm typical, '
+                         f'{self.worst_m * 1e3:.3g} mm worst')
+        return notes
+
+
+class MarkerBody:
+    """The markers of one rigid body and its reference layout: poses from marker frames.
+
+    `layout_m` (M, 3) is in metres in the body frame, one row per marker in `names` order;
+    None until `set_layout_from_frames` has seen enough complete frames.
+    """
+
+    def __init__(self, where: str, names: Sequence[str], options: ReadOptions,
+                 layout_m: np.ndarray | None = None) -> None:
+        """Name the body's markers; `layout_m` (metres, body frame) if it is known."""
+        self.where = where
+        self.names = tuple(names)
+        self.options = options
+        self.layout_m: np.ndarray | None = None
+        self.layout_origin = ''
+        self.summary = FitSummary()
+        if layout_m is not None:
+            self._set_layout(np.asarray(layout_m, dtype=float), 'the given layout')
+
+    def _set_layout(self, layout_m: np.ndarray, origin: str) -> None:
+        if layout_m.shape != (len(self.names), 3) or not layout_spans_a_plane(layout_m):
+            raise BagError(f'{self.where}: the layout of {_listed(self.names)} does not span '
+                           f'a plane (needs {MIN_MARKERS} markers not on one line)')
+        self.layout_m = layout_m
+        self.layout_origin = origin
+
+    def set_layout_from_frames(self, complete_frames_m: np.ndarray, first_frame: int) -> None:
+        """Set the layout from (K, M, 3) frames with every marker seen (layout_from_frames)."""
+        if len(complete_frames_m) == 0:
+            raise BagError(f'{self.where}: no frame shows all of {_listed(self.names)} at '
+                           'once, so their layout is unknown; pass --markers naming markers '
+                           'seen together')
+        layout = layout_from_frames(complete_frames_m)
+        self._set_layout(layout, f'the layout of the first {len(complete_frames_m)} complete '
+                                 f'frame(s) from frame {first_frame} (body axes = world axes '
+                                 'there, origin at the markers\' centroid)')
+
+    def poses(self, markers_m: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Return x [m], y [m], heading [rad] and validity of (F, M, 3) frames in metres."""
+        if self.layout_m is None:
+            raise RuntimeError('MarkerBody.poses needs the layout first')
+        fit = fit_rigid(self.layout_m, markers_m)
+        self.summary.add(np.isfinite(markers_m).all(axis=2), fit.valid, fit.rms_residual)
+        heading = forward_heading(fit.rotation, self.options.heading_offset_rad)
+        return fit.translation[:, 0], fit.translation[:, 1], heading, fit.valid
+
+
+def complete_frames(frames_m: np.ndarray) -> np.ndarray:
+    """Return the frames of (F, M, 3) in which every marker was seen."""
+    return frames_m[np.isfinite(frames_m).all(axis=(1, 2))]
