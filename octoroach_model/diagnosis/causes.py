@@ -8,7 +8,10 @@ Two kinds of estimate (docs/diagnosis.md):
   current model simulated without and with the cause (common random numbers); the size is
   read off the line at the data's value of S.
 - **path** (lateral_slip, speed_decay): the cause bends the average path, which the geometry
-  alone could mimic, so its size is fitted jointly with the geometry (eq. 9 extended).
+  alone could mimic, so its size is fitted jointly with the geometry (eq. 9 extended). The
+  fit starts from the size its `signature` statistic (mean slip angle, mean speed ratio)
+  reads off a line through the model without and with the cause: a geometry that has bent
+  to mimic the cause would otherwise hold the fit in the wrong valley.
 
 The **floor** of a cause is the smallest size the diagnosis claims: the size whose largest
 effect on a run's positions stays below the motion capture's resolution (0.1 mm) is not a
@@ -54,6 +57,7 @@ class Cause:
     floor: Callable[[RunScale], float]
     signed: bool = False
     bounds: tuple[float, float] = (0.0, 1.0)    # sizes a fit may take (path causes)
+    signature: Callable[[np.ndarray], float] | None = None   # path causes: where to start
 
     @property
     def parameter(self) -> str:
@@ -68,6 +72,11 @@ class Cause:
 def _variance_of(column: str) -> Callable[[np.ndarray], float]:
     index = INDEX[column]
     return lambda features: float(np.var(features[:, index], ddof=1))
+
+
+def _mean_of(column: str) -> Callable[[np.ndarray], float]:
+    index = INDEX[column]
+    return lambda features: float(np.mean(features[:, index]))
 
 
 def _noise_variance(features: np.ndarray) -> float:
@@ -86,10 +95,10 @@ CAUSES: tuple[Cause, ...] = (
           lambda scale: POSITION_RESOLUTION_M / max(scale.path_length_m, 1e-3)),
     Cause('speed_decay', '', 'path', 'average path (joint fit with the geometry)', None, 0.2,
           lambda scale: 2 * POSITION_RESOLUTION_M / max(scale.path_length_m, 1e-3),
-          signed=True, bounds=(-0.9, 0.9)),
+          signed=True, bounds=(-0.9, 0.9), signature=_mean_of('progress_ratio')),
     Cause('lateral_slip', 'cm/s', 'path', 'average path (joint fit with the geometry)', None,
           2.0, lambda scale: POSITION_RESOLUTION_M * 100 / max(scale.duration_s, 1e-3),
-          signed=True, bounds=(-50.0, 50.0)),
+          signed=True, bounds=(-50.0, 50.0), signature=_mean_of('slip_angle')),
     Cause('persistent_turning', 'deg/s', 'moments', 'heading rate variance across runs',
           _variance_of('heading_rate'), 5.0,
           lambda scale: math.degrees(2 * POSITION_RESOLUTION_M

@@ -58,7 +58,7 @@ class DiagnosisSettings:
 
     alpha: family level of the held-out tests (divided among the candidates of a step);
     decision_alpha: family level of the size bounds (likewise); min_gain: smallest held-out
-    gain (feature energy score, data spreads per run) a cause must bring; adequacy_alpha:
+    gain (feature score: summed CRPS, data spreads per run) a cause must bring; adequacy_alpha:
     family level over the discrepancy statistics; moment_runs / mean_path_runs / score_runs:
     simulated runs per moment point / per mean path / per scored model; workers: processes
     (1: in this process), ignored when an executor is passed to `diagnose`.
@@ -267,7 +267,7 @@ def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Sc
     first, second, _ = log_scores(current_features, features, halves.test.features,
                                   halves.scales)
     return Evaluation(cause, model, estimates, scores,
-                      PairedGain.of(current_scores.energy - scores.energy),
+                      PairedGain.of(current_scores.features - scores.features),
                       float(np.mean(current_scores.energy_cm - scores.energy_cm)),
                       float(np.mean(second - first)))
 
@@ -305,8 +305,8 @@ def _step_result(step: int, evaluated: list[Evaluation], halves: _Halves,
 
 def _excess_share(evaluation: Evaluation, halves: _Halves) -> float:
     """Share of the current model's excess score (over data predicting data) removed."""
-    before = float(np.mean(evaluation.scores.energy)) + evaluation.gain.mean
-    excess = before - float(np.mean(halves.ideal.energy))
+    before = float(np.mean(evaluation.scores.features)) + evaluation.gain.mean
+    excess = before - float(np.mean(halves.ideal.features))
     return evaluation.gain.mean / excess if excess > 1e-12 else 0.0
 
 

@@ -185,6 +185,10 @@ def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
     estimates: dict[str, SizeEstimate] = {}
     path_causes = tuple(c for c in causes if BY_NAME[c].kind == 'path')
     moment_causes = tuple(c for c in causes if BY_NAME[c].kind == 'moments')
+    for cause in path_causes:
+        if cause not in start.effects:
+            model = model.with_effect(cause, {BY_NAME[cause].parameter: path_start(
+                simulator, model, BY_NAME[cause], settings)})
     for _ in range(rounds or settings.rounds):
         if geometry or path_causes:
             model, path_estimates = fit_geometry(data, model, path_causes, settings)
@@ -294,6 +298,22 @@ def _stack(xy: np.ndarray, turn: np.ndarray, heading_weight_m: float) -> np.ndar
     if heading_weight_m > 0:
         parts.append(turn * heading_weight_m)
     return np.concatenate(parts)
+
+
+def path_start(simulator: Simulator, model: FittedModel, cause: Cause,
+               settings: FitSettings) -> float:
+    """Where the joint fit of a path cause starts: its signature statistic read off the line
+    through the model without the cause and with it at the reference size."""
+    without = {name: values for name, values in model.effects.items() if name != cause.name}
+    zero = cause.signature(simulator.features(model, settings.moment_runs // 2, MOMENTS,
+                                              without))
+    reference = cause.signature(simulator.features(model, settings.moment_runs // 2, MOMENTS, {
+        **without, cause.name: {cause.parameter: cause.reference}}))
+    if abs(reference - zero) < 1e-12:
+        return 0.0
+    size = cause.reference * (cause.signature(simulator.data.features) - zero) \
+        / (reference - zero)
+    return float(np.clip(size, 0.9 * cause.bounds[0], 0.9 * cause.bounds[1]))
 
 
 def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings) -> float:

@@ -56,7 +56,7 @@ class CandidateResult:
 
     cause: str
     parameters: dict
-    gain: float                  # held-out feature energy score gain, data spreads per run
+    gain: float                  # held-out feature score gain (summed CRPS), data spreads/run
     gain_se: float
     p_value: float
     relative: float              # share of the current model's excess score removed
@@ -140,10 +140,11 @@ class ScoreSummary:
             excess = before - best
             return float((before - after) / excess) if excess > 1e-12 else 0.0
 
-        b, e, i = (float(np.mean(s.energy)) for s in (baseline, extended, ideal))
+        b, e, i = (float(np.mean(s.features)) for s in (baseline, extended, ideal))
         bc, ec, ic = (float(np.mean(s.energy_cm)) for s in (baseline, extended, ideal))
-        return cls('held-out energy score of the run features, each feature in units of its '
-                   'spread in the calibration half; per run, lower is better. ideal: the '
+        return cls('held-out CRPS of the run features, each feature in units of its spread '
+                   'in the calibration half, summed over the features; per run, lower is '
+                   'better. ideal: the '
                    'calibration runs themselves as the model. relative: share of the '
                    "baseline's excess over the ideal that the extended model removes",
                    b, e, i, share(b, e, i),
