@@ -1,5 +1,6 @@
 """Time of the main job: `diagnose` on the reference data in bags/ (500 runs), end to end
-from the bag (reading, diagnosis with both validations, report and plots).
+from the bag (reading, diagnosis with both validations, report and plots), with the default
+two worker processes, and with one (all in this process) for comparison.
 
 Run: .venv/bin/python benchmarks/bench_diagnose.py
 """
@@ -25,13 +26,18 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as out:
         write_report(report, out, measured=measured)
     written = time.perf_counter()
+    single = time.perf_counter()
+    diagnose(measured, DiagnosisSettings(seed=1, workers=1))
+    single = time.perf_counter() - single
     print('| step | seconds |')
     print('| --- | --- |')
     print(f'| read and split {measured.n_paths} runs from bags/ | {loaded - started:.1f} |')
-    print(f'| diagnose (incl. two validations) | {diagnosed - loaded:.1f} |')
+    print(f'| diagnose (incl. two validations), 2 worker processes | {diagnosed - loaded:.1f} |')
     print(f'| report and plots | {written - diagnosed:.1f} |')
     print(f'| total | {written - started:.1f} |')
-    print(f'cause: {report["cause"]} {report["parameters"]}')
+    print(f'| diagnose with 1 process (for comparison) | {single:.1f} |')
+    print('causes: ' + (', '.join(f'{c.cause} {c.parameters}' for c in report.causes) or 'none')
+          + f'; adequate: {report.adequate}')
     return 0
 
 

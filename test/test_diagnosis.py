@@ -1,15 +1,23 @@
-"""The diagnosis must find an effect hidden in data: the suite hides causes drawn at random.
+"""The diagnosis must find effects hidden in data: the suite hides causes drawn at random.
 
-Each run of the suite draws its causes and magnitudes afresh (seed printed; set
-OCTOROACH_TEST_SEED to replay a run). Magnitudes come from DETECTABLE_RANGE: for 300 runs of
-10 cycles, the range in which the diagnosis names the cause reliably (README, "Detectable
-effects"; the report's `detectable` field gives the limit for any data set).
+Every run of the suite draws afresh, from the suite seed (printed in pytest's header and in
+every failure message; `OCTOROACH_TEST_SEED=N make test` replays a run):
+- one random cause at a time, twice: it alone is named, its size within 40 %;
+- two causes at once: both named (and nothing else), each within 40 %;
+- a null from the paper's model (Table II), and one from a robot drawn at random from the
+  robot space of README's false-positive table: no cause named;
+- an effect outside the table (a slow yaw wobble, `wobble` below): `adequate` is false and
+  summary.md says what the model still misses.
+Sizes come from HIDDEN_RANGE, where 300 runs of 10 cycles find a cause reliably (README,
+"What the diagnosis can find").
 """
 from __future__ import annotations
 
 import json
+import math
 import os
 import random
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -19,105 +27,175 @@ from octoroach_model.diagnosis import DiagnosisSettings, diagnose, write_report
 from octoroach_model.validation import ValidationSettings
 
 N_RUNS = 300
-# cause -> (main parameter, low, high, signed, fixed other parameters)
-DETECTABLE_RANGE = {
-    'initial_pose_error': ('heading_std_deg', 2.0, 8.0, False, {'position_std_cm': 0.3}),
-    'measurement_noise': ('position_std_cm', 0.05, 0.3, False, {}),
-    'gait_frequency_variation': ('relative_std', 0.02, 0.1, False, {}),
-    'speed_decay': ('fraction', 0.1, 0.4, False, {}),
-    'lateral_slip': ('velocity_cm_s', 1.0, 3.0, True, {}),
-    'persistent_turning': ('yaw_rate_std_deg_s', 5.0, 12.0, False, {}),
+# cause -> (low, high, signed, fixed other parameters) of the main parameter
+HIDDEN_RANGE = {
+    'initial_pose_error': (2.0, 8.0, False, {'position_std_cm': 0.3}),
+    'measurement_noise': (0.05, 0.3, False, {}),
+    'gait_frequency_variation': (0.03, 0.1, False, {}),
+    'speed_decay': (0.1, 0.4, False, {}),
+    'lateral_slip': (1.0, 3.0, True, {}),
+    'persistent_turning': (5.0, 12.0, False, {}),
 }
-# Smallest size the held-out test catches with 80 % power in 300 runs (the `detectable` field
-# of a report on such data); the weaker of two hidden effects sits at this size.
-DETECTION_LIMIT = {'gait_frequency_variation': 0.0073, 'speed_decay': 0.0055,
-                   'lateral_slip': 0.12, 'persistent_turning': 3.95}
-FAST = DiagnosisSettings(validate_models=False, score_runs=1000, calibration_runs=300)
+FAST = DiagnosisSettings(validate_models=False, score_runs=800, moment_runs=300,
+                         mean_path_runs=200, bootstrap=60, workers=1)
+SEED = int(os.environ.get('OCTOROACH_TEST_SEED', random.SystemRandom().randrange(10 ** 6)))
 
 
-def suite_seed() -> int:
-    seed = int(os.environ.get('OCTOROACH_TEST_SEED', random.SystemRandom().randrange(10**6)))
-    print(f'OCTOROACH_TEST_SEED={seed}')
-    return seed
+def main_parameter(cause: str) -> str:
+    return om.EFFECT_PARAMETERS[cause][0]
 
 
-def draw_effect(rng: random.Random, cause: str, where: float | None = None) -> dict:
-    parameter, low, high, signed, others = DETECTABLE_RANGE[cause]
-    value = low + (high - low) * (rng.random() if where is None else where)
+def draw_effect(rng: random.Random, cause: str) -> dict:
+    low, high, signed, others = HIDDEN_RANGE[cause]
+    value = low + (high - low) * rng.random()
     if signed and rng.random() < 0.5:
         value = -value
-    return {cause: {parameter: round(value, 4), **others}}
+    return {cause: {main_parameter(cause): round(value, 4), **others}}
 
 
-SEED = suite_seed()
-DRAWN = random.Random(SEED).sample(sorted(DETECTABLE_RANGE), 2)
+def named_sizes(report) -> dict[str, float]:
+    return {c.cause: c.parameters[main_parameter(c.cause)] for c in report.causes}
+
+
+def replay(what: str) -> str:
+    """The failure message's first words: how to draw the same case again."""
+    return f'OCTOROACH_TEST_SEED={SEED} ({what})'
+
+
+def settings(offset: int = 0) -> DiagnosisSettings:
+    return replace(FAST, seed=SEED + offset)
 
 
 @pytest.mark.parametrize('draw', [0, 1])
-def test_a_hidden_cause_drawn_at_random_is_named_and_its_size_estimated(draw):
+def test_a_hidden_cause_drawn_at_random_is_named_alone_and_its_size_estimated(draw):
     rng = random.Random(SEED * 10 + draw)
-    cause = DRAWN[draw]
+    cause = rng.choice(sorted(HIDDEN_RANGE))
     effects = draw_effect(rng, cause)
-    measured = om.simulate(N_RUNS, seed=SEED + draw, effects=effects)
-    report = diagnose(measured, DiagnosisSettings(**{**FAST.__dict__, 'seed': SEED}))
-    parameter = DETECTABLE_RANGE[cause][0]
-    truth = effects[cause][parameter]
-    assert report['cause'] == cause, (SEED, effects, report['candidates'])
-    estimate = report['parameters'][parameter]
-    assert abs(estimate - truth) <= 0.4 * abs(truth), (SEED, truth, estimate)
+    report = diagnose(om.simulate(N_RUNS, seed=SEED + draw, effects=effects), settings(draw))
+    found = named_sizes(report)
+    truth = effects[cause][main_parameter(cause)]
+    message = f'{replay(f"hidden {effects}")}: named {found}'
+    assert set(found) == {cause}, message
+    assert abs(found[cause] - truth) <= 0.4 * abs(truth), message
+    assert report.cause == cause and report.parameters[main_parameter(cause)] == found[cause]
 
 
-def test_data_from_the_paper_model_gives_none():
-    measured = om.simulate(N_RUNS, seed=SEED + 7)
-    report = diagnose(measured, DiagnosisSettings(**{**FAST.__dict__, 'seed': SEED}))
-    assert report['cause'] == 'none', (SEED, report['candidates'])
-    assert report['parameters'] == {}
-
-
-def test_with_two_effects_the_stronger_is_named():
+def test_two_causes_at_once_are_both_named_with_their_sizes():
     rng = random.Random(SEED * 10 + 5)
-    # the stronger at the top of its range (at least three times its detection limit), the
-    # weaker at its detection limit; "weak" needs a cause the baseline already has some
-    # spread in, so the weaker is drawn among those
-    weak_cause = rng.choice(sorted(DETECTION_LIMIT))
-    strong_cause = rng.choice(sorted(set(DETECTABLE_RANGE) - {weak_cause}))
-    weak_parameter = DETECTABLE_RANGE[weak_cause][0]
-    effects = {**draw_effect(rng, strong_cause, where=1.0),
-               weak_cause: {weak_parameter: DETECTION_LIMIT[weak_cause]}}
-    measured = om.simulate(N_RUNS, seed=SEED + 11, effects=effects)
-    report = diagnose(measured, DiagnosisSettings(**{**FAST.__dict__, 'seed': SEED}))
-    assert report['cause'] == strong_cause, (SEED, effects, report['candidates'])
+    first, second = rng.sample(sorted(HIDDEN_RANGE), 2)
+    effects = {**draw_effect(rng, first), **draw_effect(rng, second)}
+    report = diagnose(om.simulate(N_RUNS, seed=SEED + 5, effects=effects), settings(5))
+    found = named_sizes(report)
+    message = f'{replay(f"hidden {effects}")}: named {found}'
+    assert set(found) == {first, second}, message
+    for cause in (first, second):
+        truth = effects[cause][main_parameter(cause)]
+        assert abs(found[cause] - truth) <= 0.4 * abs(truth), message
+        named = next(c for c in report.causes if c.cause == cause)
+        low, high = named.interval[main_parameter(cause)]
+        assert low <= found[cause] <= high, message
 
 
-def test_the_report_has_the_contract_fields_a_summary_and_plots(tmp_path):
+def random_robot(rng: random.Random) -> tuple[om.ModelParameters, int, int, float]:
+    """A robot of README's false-positive table: touchdown angles within 5 deg of Table II,
+    leg 1.8-2.6 cm, strides 1.5-3.5 Hz, 8-14 cycles, 50/100/200 Hz, 150-600 runs (up to 1000
+    in the benchmark; fewer here for time), spreads 0.3-1.5 x Table III."""
+    nominal = om.ModelParameters.nominal()
+    angles = tuple(a + math.radians(rng.uniform(-5, 5)) for a in nominal.touchdown_angles)
+    robot = replace(nominal, touchdown_angles=angles, leg_length=rng.uniform(0.018, 0.026),
+                    stride_frequency=rng.uniform(1.5, 3.5),
+                    sample_rate=rng.choice([50.0, 100.0, 200.0])).with_paper_liftoff()
+    return robot, rng.randint(8, 14), rng.randint(150, 600), rng.uniform(0.3, 1.5)
+
+
+def test_data_from_the_paper_model_name_no_cause():
+    report = diagnose(om.simulate(N_RUNS, seed=SEED + 7), settings(7))
+    assert report.causes == () and report.cause == 'none' and report.parameters == {}, \
+        f'{replay("Table II null")}: named {named_sizes(report)}'
+
+
+def test_a_null_from_a_randomly_drawn_robot_names_no_cause():
+    rng = random.Random(SEED * 10 + 8)
+    robot, cycles, runs, scale = random_robot(rng)
+    sigma1, sigma2 = om.model.nominal_sigmas()
+    measured = om.simulate(runs, seed=SEED + 8, cycles=cycles, parameters=robot,
+                           sigma1=sigma1 * scale, sigma2=sigma2 * scale)
+    report = diagnose(measured, settings(8))
+    case = f'robot {robot.table()}, {cycles} cycles, {runs} runs, spread x{scale:.2f}'
+    assert report.causes == (), f'{replay(case)}: named {named_sizes(report)}'
+
+
+
+def wobble(paths: om.Paths, amplitude_deg: float, period_s: float, seed: int) -> om.Paths:
+    """An effect outside the table of causes: a slow yaw wobble (a tether, an uneven floor),
+    heading + A sin(2 pi t / P + phase_i) - A sin(phase_i), each step turned with it."""
+    rng = np.random.default_rng(seed)
+    t = paths.t
+    phase = rng.uniform(0, 2 * np.pi, paths.n_paths)
+    offset = math.radians(amplitude_deg) * (
+        np.sin(2 * np.pi * t[None, :] / period_s + phase[:, None]) - np.sin(phase)[:, None])
+    steps = np.diff(paths.poses[..., :2], axis=1)
+    middle = 0.5 * (offset[:, 1:] + offset[:, :-1])
+    cos, sin = np.cos(middle), np.sin(middle)
+    turned = np.stack([cos * steps[..., 0] - sin * steps[..., 1],
+                       sin * steps[..., 0] + cos * steps[..., 1]], axis=-1)
+    poses = paths.poses.copy()
+    poses[:, 1:, :2] = paths.poses[:, :1, :2] + np.cumsum(turned, axis=1)
+    poses[..., 2] += offset
+    return om.Paths(t, poses)
+
+
+def test_an_effect_outside_the_table_is_reported_as_unexplained(tmp_path):
+    rng = random.Random(SEED * 10 + 9)
+    amplitude, period = rng.uniform(4, 8), rng.uniform(1.5, 3.0)
+    measured = wobble(om.simulate(N_RUNS, seed=SEED + 9), amplitude, period, SEED)
+    report = diagnose(measured, settings(9))
+    message = replay(f'wobble {amplitude:.1f} deg every {period:.2f} s')
+    assert not report.adequate, f'{message}: adequate with {named_sizes(report)}'
+    assert report.unexplained and all(row.material for row in report.unexplained), message
+    written = write_report(report, tmp_path, plots=False)
+    summary = written['summary'].read_text()
+    assert 'not adequate' in summary and report.unexplained[0].statistic in summary, message
+
+
+def test_the_report_has_the_documented_fields_a_summary_and_plots(tmp_path):
     measured = om.simulate(200, seed=3, effects={
         'initial_pose_error': {'heading_std_deg': 4.5, 'position_std_cm': 0.3}})
-    settings = DiagnosisSettings(score_runs=600, calibration_runs=200,
-                                 validation=ValidationSettings(
-                                     epsilon=0.3, delta=0.3, k=8, grid_points=5))
-    report = diagnose(measured, settings)
+    quick = replace(FAST, validate_models=True, validation=ValidationSettings(
+        epsilon=0.3, delta=0.3, k=8, grid_points=5))
+    report = diagnose(measured, quick)
     written = write_report(report, tmp_path, measured=measured)
     loaded = json.loads(written['report'].read_text())
     for key in ('paths', 'baseline', 'discrepancies', 'candidates', 'cause', 'parameters',
-                'extended', 'gain'):
-        assert key in loaded
-    assert loaded['paths'] == 200
-    assert loaded['cause'] == 'initial_pose_error'
+                'extended', 'gain', 'causes', 'adequate', 'unexplained'):
+        assert key in loaded, key
+    assert loaded['paths'] == 200 and loaded['cause'] == 'initial_pose_error'
+    assert loaded['causes'][0]['cause'] == 'initial_pose_error'
+    assert set(loaded['causes'][0]) >= {'cause', 'parameters', 'interval', 'gain', 'p_value'}
+    low, high = loaded['causes'][0]['interval']['heading_std_deg']
+    assert low < 4.5 < high
     for key in ('sigma1', 'sigma2', 'violation'):
-        assert key in loaded['baseline'] and key in loaded['extended']
+        assert key in loaded['baseline'] and key in loaded['extended'], key
     for key in ('metric', 'baseline', 'extended', 'relative'):
-        assert key in loaded['gain']
-    assert loaded['gain']['extended'] > loaded['gain']['baseline']
-    row = loaded['discrepancies'][0]
-    assert set(row) >= {'statistic', 'data', 'model', 'z'}
+        assert key in loaded['gain'], key
+    assert loaded['gain']['extended'] < loaded['gain']['baseline']      # lower is better
+    assert 0 < loaded['gain']['relative'] <= 1.5
+    assert set(loaded['discrepancies'][0]) >= {'statistic', 'data', 'model', 'z'}
     assert {c['cause'] for c in loaded['candidates']} == set(om.EFFECT_NAMES)
     for candidate in loaded['candidates']:
-        assert set(candidate) >= {'cause', 'parameters', 'gain', 'p_value', 'detectable'}
+        assert set(candidate) >= {'cause', 'parameters', 'gain', 'p_value', 'detectable',
+                                  'detectable_method'}
     summary = written['summary'].read_text()
-    assert 'initial_pose_error' in summary and 'Gain' in summary
+    assert 'initial_pose_error' in summary and 'would go unseen' in summary
     for name in ('paths.png', 'violation_grid.png', 'deciding_statistic.png',
                  'discrepancies.png'):
-        assert (tmp_path / name).stat().st_size > 10_000
+        assert (tmp_path / name).stat().st_size > 10_000, name
+
+
+def test_statistics_that_are_numerical_noise_are_no_discrepancy():
+    report = diagnose(om.simulate(120, seed=4, cycles=6), replace(FAST, seed=4))
+    start = next(row for row in report.discrepancies if row.statistic == 'start heading spread')
+    assert start.z == 0.0 and not start.material     # both 0 up to rounding: not a finding
 
 
 def test_too_few_runs_are_refused_with_a_reason():
@@ -128,8 +206,9 @@ def test_too_few_runs_are_refused_with_a_reason():
 def test_the_diagnosis_is_reproducible_for_a_seed():
     measured = om.simulate(120, seed=4, effects={'persistent_turning':
                                                  {'yaw_rate_std_deg_s': 10.0}})
-    settings = DiagnosisSettings(validate_models=False, score_runs=400, calibration_runs=150)
-    first, second = diagnose(measured, settings), diagnose(measured, settings)
-    assert first['cause'] == second['cause']
-    assert first['parameters'] == second['parameters']
-    assert np.isclose(first['gain']['extended'], second['gain']['extended'])
+    quick = replace(FAST, seed=2)
+    first, second = diagnose(measured, quick), diagnose(measured, quick)
+    first_json, second_json = first.to_json(), second.to_json()
+    for volatile in ('elapsed_s',):
+        first_json.pop(volatile), second_json.pop(volatile)
+    assert first_json == second_json

@@ -29,19 +29,22 @@ def straight_run(duration_s: float, rate_hz: float = RATE_HZ, speed: float = 0.2
     return Run(t, poses, f'test run {duration_s}', 0.0)
 
 
-def test_runs_of_unequal_length_are_compared_on_the_shortest_duration() -> None:
+def test_runs_of_unequal_length_each_keep_all_their_samples() -> None:
     run_set = RunSet([straight_run(3.0), straight_run(2.0), straight_run(2.5)])
     paths = run_set.to_paths(rate_hz=RATE_HZ)
-    assert paths.t[-1] == pytest.approx(2.0)
-    assert paths.poses.shape == (3, 101, 3)
-    assert any('common duration 2.000 s' in note for note in paths.info['notes'])
+    assert paths.t[-1] == pytest.approx(3.0)
+    assert paths.poses.shape == (3, 151, 3)
+    assert list(paths.lengths) == [151, 101, 126] and paths.well_formed and paths.ragged
+    np.testing.assert_allclose(paths.poses[1, 100], run_set.runs[1].poses[-1])
+    assert np.isnan(paths.poses[1, 101:]).all()
+    assert any('2 of 3 runs end before the longest' in note for note in paths.info['notes'])
 
 
 def test_min_duration_drops_shorter_runs_with_a_note() -> None:
     run_set = RunSet([straight_run(3.0), straight_run(0.4), straight_run(2.5)])
     paths = run_set.to_paths(rate_hz=RATE_HZ, min_duration_s=2.0)
     assert paths.n_paths == 2
-    assert paths.t[-1] == pytest.approx(2.5)
+    assert paths.t[-1] == pytest.approx(3.0) and list(paths.lengths) == [151, 126]
     assert any('1 run(s) shorter than 2 s dropped' in note for note in paths.info['notes'])
 
 

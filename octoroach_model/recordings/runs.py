@@ -9,11 +9,16 @@ Policies (also in the package README):
 - Gaps. Inside a marker run a gap longer than `gap_s` (a burst of dropped frames) is bridged
   by linear interpolation and noted; without markers the same gap splits the run. Shorter
   gaps (dropped frames) are always interpolated when resampling.
-- Damage. Non-finite poses, samples whose stamp is far from both neighbours (stray stamps)
-  and repeated stamps are dropped; small out-of-order jitter is sorted; a backwards clock
-  jump longer than `gap_s` starts a new run; runs with fewer than 2 samples are dropped. In a
-  truncated bag the run cut by the damage is dropped when it is shorter than the others. All
-  of it is counted in `RunSet.notes`, never raised.
+- Damage. Non-finite poses, frames no robot could reach (a position more than
+  JUMP_LIMIT_M, or a heading more than JUMP_LIMIT_RAD, away from the median of the frame and
+  its two neighbours on each side: a corrupted float or a marker swap), samples whose stamp
+  is far from both neighbours (stray stamps) and repeated stamps are dropped; small
+  out-of-order jitter is sorted; a backwards clock jump longer than `gap_s` starts a new run;
+  runs with fewer than 2 samples are dropped. In a truncated bag the run cut by the damage is
+  dropped when it is shorter than the others. All of it is counted in `RunSet.notes`, never
+  raised.
+- Lengths. Runs keep all their samples: on the common grid a run that ends before the
+  longest one is NaN after its end (see `Paths`), and the notes say how many ended early.
 """
 from __future__ import annotations
 
@@ -37,6 +42,12 @@ from octoroach_model.recordings.dataset import is_dataset_file, load_dataset
 
 DEFAULT_GAP_S = 0.5
 DEFAULT_RATE_HZ = 50.0
+# A frame this far from the median of its neighbourhood was not reached by the robot: the
+# OctoRoACH walks about 11 cm/s (0.4 cm a frame at 30 Hz), the fastest small legged robots a
+# few m/s; 5 cm or 30 deg in one frame is a damaged value, not motion.
+JUMP_LIMIT_M = 0.05
+JUMP_LIMIT_RAD = 0.5236
+JUMP_WINDOW = 5
 
 
 class Run(NamedTuple):
@@ -98,11 +109,11 @@ class RunSet:
 
     def to_paths(self, rate_hz: float = DEFAULT_RATE_HZ,
                  min_duration_s: float | None = None) -> Paths:
-        """The runs on one grid t = 0, 1/rate_hz, ... over their common duration.
+        """The runs on one grid t = 0, 1/rate_hz, ... up to the longest run's end.
 
-        The common duration is the shortest run's; with `min_duration_s`, shorter runs are
-        dropped (with a note) first. Each coordinate is interpolated linearly (heading is
-        unwrapped already), which fills dropped frames.
+        Every run keeps all of its samples; one that ends earlier is NaN after its end. With
+        `min_duration_s`, shorter runs are dropped (with a note) first. Each coordinate is
+        interpolated linearly (heading is unwrapped already), which fills dropped frames.
         """
         if not (np.isfinite(rate_hz) and rate_hz > 0):
             raise DataError(f'sample rate must be a positive number of Hz, got {rate_hz}')
@@ -122,20 +133,22 @@ class RunSet:
                 raise DataError(f'no run lasts {min_duration_s:g} s (the longest lasts '
                                 f'{longest:.3f} s)')
         durations = np.array([run.duration_s for run in runs])
-        duration = float(durations.min())
         # a quarter sample of slack: live stamps jitter, and a 2 s run must not lose its end
-        n_samples = int(np.floor(duration * rate_hz + 0.25)) + 1
-        if n_samples < 2:
-            raise DataError(f'the shortest run lasts {duration:.3f} s, less than one sample '
-                            f'at {rate_hz:g} Hz ({runs[int(durations.argmin())].source})')
-        if durations.max() - duration > 1.0 / rate_hz:
-            notes.append(f'runs compared on their common duration {duration:.3f} s '
-                         f'(the longest lasts {durations.max():.3f} s)')
-        grid = np.arange(n_samples) / rate_hz
-        poses = np.empty((len(runs), n_samples, 3))
-        for index, run in enumerate(runs):
+        lengths = np.floor(durations * rate_hz + 0.25).astype(int) + 1
+        if lengths.max() < 2:
+            raise DataError(f'the longest run lasts {durations.max():.3f} s, less than one '
+                            f'sample at {rate_hz:g} Hz')
+        grid = np.arange(int(lengths.max())) / rate_hz
+        poses = np.full((len(runs), len(grid), 3), np.nan)
+        for index, (run, length) in enumerate(zip(runs, lengths)):
             for column in range(3):
-                poses[index, :, column] = np.interp(grid, run.t, run.poses[:, column])
+                poses[index, :length, column] = np.interp(grid[:length], run.t,
+                                                          run.poses[:, column])
+        early = lengths < lengths.max()
+        if early.any():
+            notes.append(f'{int(early.sum())} of {len(runs)} runs end before the longest '
+                         f'({durations.max():.3f} s), between {durations[early].min():.3f} and '
+                         f'{durations[early].max():.3f} s; each is used to its end')
         info = {
             'sources': [run.source for run in runs],
             'start_stamps_s': [run.start_stamp_s for run in runs],
@@ -144,6 +157,24 @@ class RunSet:
             'duration_s': float(grid[-1]),
         }
         return Paths(grid, poses, info)
+
+
+def reachable(poses: np.ndarray) -> np.ndarray:
+    """(k,) False for frames more than JUMP_LIMIT_M / JUMP_LIMIT_RAD away from the median of
+    the JUMP_WINDOW frames around them (themselves included): a single damaged frame, or two
+    in a row, cannot move that median."""
+    if len(poses) < 3:
+        return np.ones(len(poses), dtype=bool)
+    half = JUMP_WINDOW // 2
+    padded = np.concatenate([np.repeat(poses[:1], half, axis=0), poses,
+                             np.repeat(poses[-1:], half, axis=0)])
+    windows = np.lib.stride_tricks.sliding_window_view(padded, JUMP_WINDOW, axis=0)
+    centre = np.median(windows[:, :2], axis=-1)                       # (k, 2)
+    heading = poses[:, HEADING]
+    around = np.angle(np.exp(1j * (windows[:, HEADING] - heading[:, None])))
+    off_heading = np.abs(np.median(around, axis=-1))
+    off_position = np.hypot(*(poses[:, :2] - centre).T)
+    return (off_position <= JUMP_LIMIT_M) & (off_heading <= JUMP_LIMIT_RAD)
 
 
 class _StreamSplitter:
@@ -228,6 +259,9 @@ class _StreamSplitter:
         fresh = np.concatenate([[True], np.diff(stamp) > 0])
         self.counts['duplicate'] += int((~fresh).sum())
         stamp, poses = stamp[fresh], poses[fresh].copy()
+        reached = reachable(poses)
+        self.counts['jump'] += int((~reached).sum())
+        stamp, poses = stamp[reached], poses[reached]
         if len(stamp) < 2:
             self.counts['short'] += 1
             return
@@ -267,6 +301,9 @@ class _StreamSplitter:
         summary = [f'{label}: {len(self.runs)} run(s), {how}']
         plain = {
             'non-finite': '{} non-finite pose(s) dropped',
+            'jump': ('{} frame(s) no robot could reach (more than '
+                     f'{JUMP_LIMIT_M * 100:g} cm or {np.degrees(JUMP_LIMIT_RAD):.0f} deg from '
+                     'their neighbours) dropped'),
             'stray': '{} sample(s) with a stray stamp (far from both neighbours) dropped',
             'out of order': '{} out-of-order sample(s) sorted back into time order',
             'duplicate': '{} sample(s) with a repeated stamp dropped',
