@@ -3,7 +3,8 @@
 Method (docs/diagnosis.md has it in full):
 1. The runs are split at random (seeded) into a calibration half and a held-out half.
 2. The baseline (the paper's model) is fitted on the calibration half: geometry on the
-   gait-aligned average path (mean of simulated runs), one spread scale along Table III.
+   average path and the sway within a stride (means of simulated runs), one spread scale
+   along Table III.
 3. Forward selection: every cause not yet in the model is added in turn and all included
    sizes refit together (modelfit.fit_causes); each extended model is scored on the held-out
    runs (scoring.py). A cause enters when (a) its size's lower confidence bound clears its
@@ -30,18 +31,19 @@ from octoroach_model.diagnosis.causes import BY_NAME, CAUSES, RunScale
 from octoroach_model.diagnosis.decide import SizeVerdict, decision_z, judge
 from octoroach_model.diagnosis.executors import executor_for
 from octoroach_model.diagnosis.modelfit import (
-    FitSettings, FittedModel, RunData, SizeEstimate, Simulator, fit_causes)
+    CausesFit, FitSettings, FittedModel, GeometryUncertainty, RunData, Simulator, fit_causes)
 from octoroach_model.diagnosis.report import (
     CandidateResult, DiagnosisReport, NamedCause, RunLengths, ScoreSummary, StepResult)
 from octoroach_model.diagnosis.scoring import (
     PairedGain, Scores, energy_score, feature_scales, log_scores, position_points_cm,
     score_model)
-from octoroach_model.diagnosis.statistics import STATISTICS, critical_z, discrepancies
+from octoroach_model.diagnosis.statistics import (
+    STATISTICS, critical_z, discrepancies, statistic_values)
 from octoroach_model.errors import DataError
 from octoroach_model.model import ModelParameters
 from octoroach_model.paths import Paths
 from octoroach_model.validation import ValidationSettings, chernoff_sample_size
-from octoroach_model.validation.fit import fit_nominal, mean_start_pose
+from octoroach_model.validation.fit import average_target, fit_nominal, mean_start_pose
 from octoroach_model.validation.gait import stride_frequency_estimate
 
 Progress = Callable[[float, str], None]
@@ -114,7 +116,8 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         say(0.02, 'preparing the runs (features, gait clock)')
         halves = _prepare(measured, settings)
         say(0.08, 'fitting the baseline (geometry on the mean path, spread scale)')
-        baseline = _baseline(halves, settings)
+        baseline_fit = _baseline(halves, settings)
+        baseline = baseline_fit.model
         simulator = Simulator(halves.test, settings.seed)
         current_scores = _score(simulator, baseline, halves, settings)
         baseline_scores = current_scores
@@ -136,8 +139,8 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
                 break
             model = chosen.model
             if settings.rounds > 1:
-                model, _ = fit_causes(halves.train, model, model.causes, settings.fit(),
-                                      rounds=settings.rounds - 1)
+                model = fit_causes(halves.train, model, model.causes, settings.fit(),
+                                   rounds=settings.rounds - 1).model
             current_scores = _score(simulator, model, halves, settings)
             remaining.remove(chosen.cause)
         say(0.75, 'refitting the extended model on all runs')
@@ -147,17 +150,20 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             validations = {name: pool.submit(paper_validation, measured, fitted,
                                              settings.validation)
                            for name, fitted in (('baseline', baseline), ('extended', model))}
-        final, final_estimates = final_future.result()
+        final_fit = final_future.result()
+        final, final_estimates = final_fit.model, final_fit.estimates
         say(0.85, 'discrepancies and adequacy')
         rng = np.random.default_rng([settings.seed, 41])
         everything = Simulator(halves.all, settings.seed)
         n_model = max(halves.all.n, 1000)
         baseline_rows = discrepancies(
             halves.all.features, everything.features(baseline, n_model, DISCREPANCY_PURPOSE),
-            rng, settings.bootstrap)
+            rng, settings.bootstrap, fit_errors(everything, baseline, baseline_fit.geometry,
+                                                n_model, halves.train.n / halves.all.n))
         final_rows = discrepancies(
             halves.all.features, everything.features(final, n_model, DISCREPANCY_PURPOSE),
-            rng, settings.bootstrap)
+            rng, settings.bootstrap, fit_errors(everything, final, final_fit.geometry,
+                                                n_model))
         bound = critical_z(settings.adequacy_alpha, len(STATISTICS))
         unexplained = [row for row in final_rows if abs(row.z) > bound and row.material]
         validation_results = {name: future.result() for name, future in validations.items()}
@@ -225,19 +231,19 @@ def _prepare(measured: Paths, settings: DiagnosisSettings) -> _Halves:
                    RunScale(duration, path_length))
 
 
-def _baseline(halves: _Halves, settings: DiagnosisSettings) -> FittedModel:
+def _baseline(halves: _Halves, settings: DiagnosisSettings) -> CausesFit:
     """The paper's model on the calibration half: a quick deterministic fit (eq. 9) as the
     start, then geometry on the mean path and the spread scale, refit together."""
     train = halves.train
     start_pose = mean_start_pose(train.paths)
     initial = ModelParameters.nominal()
     initial = replace(initial, stride_frequency=train.stride_frequency)
+    aligned = average_target(train.paths, start_pose, train.stride_frequency, align_gait=True)
     quick = fit_nominal(train.paths, initial, heading_weight_m=settings.heading_weight_m,
-                        align_gait=True, start_pose=start_pose, target=train.target,
+                        align_gait=True, start_pose=start_pose, target=aligned,
                         tolerance=1e-6)
     start = FittedModel(quick.parameters, start_pose, 1.0, {})
-    model, _ = fit_causes(train, start, (), settings.fit())
-    return model
+    return fit_causes(train, start, (), settings.fit())
 
 
 @dataclass(frozen=True)
@@ -259,8 +265,9 @@ def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Sc
     held-out runs against `current` (a top-level function: it runs in worker processes)."""
     causes = (*current.causes, cause)
     geometry = BY_NAME[cause].kind == 'path'
-    model, estimates = fit_causes(halves.train, current, causes, settings.fit(),
-                                  geometry=geometry, rounds=1)
+    fitted = fit_causes(halves.train, current, causes, settings.fit(), geometry=geometry,
+                        rounds=1)
+    model, estimates = fitted.model, fitted.estimates
     simulator = Simulator(halves.test, settings.seed)
     scores, features = _score(simulator, model, halves, settings, with_features=True)
     current_features = simulator.features(current, settings.score_runs, SCORE_PURPOSE)
@@ -317,8 +324,31 @@ def _step_message(result: StepResult) -> str:
     return f'{head} (best gain {best.cause} {best.gain:.3g}, p = {best.p_value:.2g})'
 
 
+def fit_errors(simulator: Simulator, model: FittedModel,
+               uncertainty: GeometryUncertainty | None, n_runs: int,
+               data_share: float = 1.0) -> np.ndarray | None:
+    """Each statistic's error from the model's fitted geometry (and path-cause sizes): the
+    change of the statistic when each entry of the fit's vector moves by its standard error
+    (common random numbers), combined through the fit's correlations. `data_share` < 1 when
+    the model was fitted on a part of the runs its statistics are compared with."""
+    if uncertainty is None:
+        return None
+    base = statistic_values(simulator.features(model, n_runs, DISCREPANCY_PURPOSE))
+    errors = np.sqrt(np.maximum(np.diag(uncertainty.covariance), 0.0))
+    changes = []
+    for index, error in enumerate(errors):
+        moved = uncertainty.perturbed(model, index, float(error)) if error > 0 else model
+        changes.append(statistic_values(simulator.features(moved, n_runs,
+                                                           DISCREPANCY_PURPOSE)) - base)
+    changes = np.array(changes)                                   # (vector, statistics)
+    correlation = uncertainty.covariance / np.outer(np.maximum(errors, 1e-300),
+                                                    np.maximum(errors, 1e-300))
+    variance = np.einsum('is,ij,js->s', changes, correlation, changes)
+    return np.sqrt(np.maximum(variance, 0.0) / data_share)
+
+
 def _final_fit(halves: _Halves, model: FittedModel, settings: DiagnosisSettings
-               ) -> tuple[FittedModel, dict[str, SizeEstimate]]:
+               ) -> CausesFit:
     """The final model refit on all runs: the sizes a report states, and the model whose
     adequacy is judged on all runs (a model fitted on half of them would show that half's
     sampling error as discrepancies)."""

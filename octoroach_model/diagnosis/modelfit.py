@@ -3,9 +3,10 @@
 A `FittedModel` is the geometry, the start pose, one spread scale along Table III's direction
 and the sizes of the causes it includes. `fit_causes` estimates all of them together by
 rounds (block coordinate descent), each round:
-1. the geometry, with the sizes of path causes (lateral_slip, speed_decay) free, on the
-   average path on a common gait clock: the mean of simulated runs against the data's
-   (unbiased for the stochastic model; validation/fit.py);
+1. the geometry, with the sizes of path causes (lateral_slip, speed_decay) free: the mean of
+   simulated runs (every cause included) against the data's average path, and their mean
+   sway within a stride against the data's (unbiased for the stochastic model, and, as model
+   and data are averaged alike, whatever the causes; validation/fit.py);
 2. the spread scale s, (sigma1, sigma2) = s x Table III, from the within-run variance of the
    per-cycle heading change (start errors and steady turning leave it alone);
 3. each moments cause from its variance-like statistic (causes.py), the others held.
@@ -102,7 +103,7 @@ class RunData:
     def __post_init__(self) -> None:
         self.features = run_features(self.paths, self.stride_frequency, self.reference_heading)
         start = (0.0, 0.0, self.reference_heading)
-        self.target = average_target(self.paths, start, self.stride_frequency, align_gait=True)
+        self.target = average_target(self.paths, start, self.stride_frequency, align_gait=False)
 
     @property
     def n(self) -> int:
@@ -175,9 +176,47 @@ MOMENTS = 11     # purpose codes of the simulations (each its own random numbers
 SPREAD = 12
 
 
+@dataclass(frozen=True)
+class GeometryUncertainty:
+    """Covariance of the geometry fit's vector: leg length [m], touchdown angles [rad],
+    stride frequency [Hz], then the sizes of the path causes in `free` (their own units)."""
+
+    free: tuple[str, ...]
+    covariance: np.ndarray
+
+    def perturbed(self, model: FittedModel, index: int, step: float) -> FittedModel:
+        """`model` with entry `index` of the vector moved by `step`."""
+        parameters = model.parameters
+        if index == 0:
+            parameters = replace(parameters, leg_length=parameters.leg_length + step)
+        elif index <= 4:
+            angles = list(parameters.touchdown_angles)
+            angles[index - 1] += step
+            parameters = replace(parameters, touchdown_angles=tuple(angles))
+        elif index == 5:
+            parameters = replace(parameters,
+                                 stride_frequency=parameters.stride_frequency + step)
+        else:
+            cause = BY_NAME[self.free[index - 6]]
+            values = dict(model.effects[cause.name])
+            values[cause.parameter] += step
+            return model.with_effect(cause.name, values)
+        return replace(model, parameters=parameters.with_paper_liftoff())
+
+
+@dataclass(frozen=True)
+class CausesFit:
+    """A model fitted with its causes: the model, each size's estimate, and the geometry's
+    uncertainty (None when the geometry was held)."""
+
+    model: FittedModel
+    estimates: dict
+    geometry: GeometryUncertainty | None = None
+
+
 def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
                settings: FitSettings, *, geometry: bool = True, rounds: int | None = None
-               ) -> tuple[FittedModel, dict[str, SizeEstimate]]:
+               ) -> CausesFit:
     """The model with `causes`, every size refit together (module docstring)."""
     simulator = Simulator(data, settings.seed)
     model = replace(start, effects={cause: dict(start.effects.get(cause) or _zero(cause))
@@ -189,9 +228,11 @@ def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
         if cause not in start.effects:
             model = model.with_effect(cause, {BY_NAME[cause].parameter: path_start(
                 simulator, model, BY_NAME[cause], settings)})
+    uncertainty = None
     for _ in range(rounds or settings.rounds):
         if geometry or path_causes:
-            model, path_estimates = fit_geometry(data, model, path_causes, settings)
+            model, path_estimates, uncertainty = fit_geometry(data, model, path_causes,
+                                                              settings)
             estimates.update(path_estimates)
         model = replace(model, sigma_scale=fit_spread(simulator, model, settings))
         for cause in moment_causes:
@@ -199,7 +240,7 @@ def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
             estimates[cause] = estimate
             model = model.with_effect(cause, _values(model, BY_NAME[cause], estimate, data,
                                                      simulator, settings))
-    return model, estimates
+    return CausesFit(model, estimates, uncertainty)
 
 
 def _zero(cause: str) -> dict[str, float]:
@@ -226,9 +267,11 @@ def _start_variance(features: np.ndarray) -> float:
 
 
 def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...],
-                 settings: FitSettings) -> tuple[FittedModel, dict[str, SizeEstimate]]:
-    """Geometry and path-cause sizes on the gait-aligned average path (mean of simulated
-    runs); standard errors from resampling the runs through the fit's Jacobian."""
+                 settings: FitSettings
+                 ) -> tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]:
+    """Geometry and path-cause sizes on the average path and the sway within a stride (means
+    of simulated runs); their covariance from resampling the runs through the fit's
+    Jacobian."""
     free = tuple(FreeEffect(cause, BY_NAME[cause].parameter, *BY_NAME[cause].bounds,
                             start=float(model.effects[cause][BY_NAME[cause].parameter]))
                  for cause in path_causes)
@@ -238,31 +281,29 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
                             sway=data.sway)
     fit = fit_nominal(data.paths, initial=model.parameters, heading_weight_m=(
         settings.heading_weight_m), effects=held, free=free, multistart=False,
-        align_gait=True, mean=mean, start_pose=model.start_pose, target=data.target,
+        align_gait=False, mean=mean, start_pose=model.start_pose, target=data.target,
         refine=True, tolerance=settings.tolerance)
     fitted = replace(model, parameters=fit.parameters, effects={
         name: dict(fit.effects.get(name, values)) for name, values in model.effects.items()})
+    covariance = path_covariance(fit, data, mean, settings)
+    errors = np.sqrt(np.diag(covariance))
     estimates = {}
-    if free:
-        errors = path_standard_errors(fit, data, mean, settings)
-        for offset, item in enumerate(free):
-            size = float(fit.effects[item.cause][item.parameter])
-            estimates[item.cause] = SizeEstimate(item.cause, size, errors[6 + offset])
-    return fitted, estimates
+    for offset, item in enumerate(free):
+        size = float(fit.effects[item.cause][item.parameter])
+        estimates[item.cause] = SizeEstimate(item.cause, size, float(errors[6 + offset]))
+    return fitted, estimates, GeometryUncertainty(path_causes, covariance)
 
 
-def path_standard_errors(fit, data: RunData, mean: MeanPathSettings, settings: FitSettings,
-                         n_boot: int = 60) -> np.ndarray:
-    """Standard errors of the fit's vector, from two sources of error added in quadrature:
-    the measured runs (bootstrap) and the simulated runs (bootstrap of their antithetic
-    pairs); each resample's solution is one Gauss-Newton step from the fit."""
+def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSettings,
+                    n_boot: int = 60) -> np.ndarray:
+    """Covariance of the fit's vector, from two sources of error added: the measured runs
+    (bootstrap) and the simulated runs (bootstrap of their antithetic pairs); each
+    resample's solution is one Gauss-Newton step from the fit."""
     pseudo_inverse = np.linalg.pinv(fit.jacobian)
     target = data.target
     weights = sway_weights(fit.heading_weight_m, len(target.t))
     data_sway = data.features[:, SWAY_COLUMNS]
-    full = simulated_runs(fit.parameters, fit.start_pose, mean.sway.t, {
-        name: values for name, values in fit.effects.items()
-        if name != 'gait_frequency_variation'}, mean)
+    full = simulated_runs(fit.parameters, fit.start_pose, mean.sway.t, fit.effects, mean)
     model_sway = mean.sway.of_runs(full, fit.parameters.stride_frequency)
     runs = full[:, :len(target.t)]
 
@@ -289,7 +330,8 @@ def path_standard_errors(fit, data: RunData, mean: MeanPathSettings, settings: F
         change = vector(pairs[pick, :, :2].mean(axis=0), pairs[pick, :, 2].mean(axis=0),
                         pair_sway[pick].mean(axis=0)) - centre
         model_steps.append(pseudo_inverse @ change)
-    return np.hypot(np.std(data_steps, axis=0, ddof=1), np.std(model_steps, axis=0, ddof=1))
+    return (np.atleast_2d(np.cov(np.array(data_steps), rowvar=False))
+            + np.atleast_2d(np.cov(np.array(model_steps), rowvar=False)))
 
 
 def _stack(xy: np.ndarray, turn: np.ndarray, heading_weight_m: float) -> np.ndarray:

@@ -126,18 +126,31 @@ class Discrepancy:
 def values_with_errors(features: np.ndarray, rng: np.random.Generator, n_boot: int
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Every statistic's value and bootstrap standard error over runs."""
-    values = np.array([s.function(features) for s in STATISTICS])
+    values = statistic_values(features)
     n = features.shape[0]
     boot = np.array([[s.function(features[pick]) for s in STATISTICS]
                      for pick in (rng.integers(0, n, n) for _ in range(n_boot))])
     return values, np.std(boot, axis=0, ddof=1)
 
 
+def statistic_values(features: np.ndarray) -> np.ndarray:
+    """Every statistic of STATISTICS, in order."""
+    return np.array([s.function(features) for s in STATISTICS])
+
+
 def discrepancies(data_features: np.ndarray, model_features: np.ndarray,
-                  rng: np.random.Generator, n_boot: int) -> list[Discrepancy]:
-    """Every statistic of data against model, largest |z| first."""
+                  rng: np.random.Generator, n_boot: int,
+                  fit_se: np.ndarray | None = None) -> list[Discrepancy]:
+    """Every statistic of data against model, largest |z| first.
+
+    `fit_se` (per statistic) is the error the model's statistics carry because its
+    parameters were fitted to these same runs: without it, a model fitted on many runs would
+    be judged against a precision its own fit does not have.
+    """
     data, data_se = values_with_errors(data_features, rng, n_boot)
     model, model_se = values_with_errors(model_features, rng, n_boot)
+    if fit_se is not None:
+        model_se = np.hypot(model_se, fit_se)
     rows = []
     for index, statistic in enumerate(STATISTICS):
         difference = data[index] - model[index]
