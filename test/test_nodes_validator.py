@@ -32,6 +32,7 @@ from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 import octoroach_model as om  # noqa: E402
+from octoroach_model import validation_jobs  # noqa: E402
 from octoroach_model.nodes import validator  # noqa: E402
 from octoroach_model.recordings import save_dataset  # noqa: E402
 
@@ -398,13 +399,13 @@ def test_diagnose_answers_the_report_with_its_cause_without_blocking(
         start_node, client, tmp_path, monkeypatch):
     from octoroach_model.diagnosis import DiagnosisSettings
 
-    def quick(job: validator.Job) -> DiagnosisSettings:
+    def quick(job: validation_jobs.Job) -> DiagnosisSettings:
         """The library's diagnosis with fewer model runs, so the test stays short."""
         names = {f.name for f in fields(DiagnosisSettings)}
         return replace(DiagnosisSettings(seed=job.settings.seed),
                        **{k: v for k, v in QUICK_DIAGNOSIS.items() if k in names})
 
-    monkeypatch.setattr(validator, 'diagnosis_settings', quick)
+    monkeypatch.setattr(validation_jobs, 'diagnosis_settings', quick)
     data = dataset(tmp_path, 80, seed=3)
     node = start_node(bags=[str(data)], report_dir=str(tmp_path / 'report')).node
 
