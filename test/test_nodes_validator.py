@@ -9,7 +9,6 @@ so that n x k fits them (epsilon = delta = 0.3 gives n = 11; k = 4 uses 44 runs)
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -26,9 +25,7 @@ pytest.importorskip('rclpy')
 
 import rclpy  # noqa: E402
 from rclpy.context import Context  # noqa: E402
-from rclpy.executors import (  # noqa: E402
-    ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
-from rclpy.node import Node  # noqa: E402
+from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 import octoroach_model as om  # noqa: E402
@@ -36,7 +33,7 @@ from octoroach_model import validation_jobs  # noqa: E402
 from octoroach_model.nodes import validator  # noqa: E402
 from octoroach_model.recordings import save_dataset  # noqa: E402
 
-from ros_helpers import REPO, NodeSet, ros_env, wait_until  # noqa: E402
+from ros_helpers import REPO, Client, NodeSet, ros_env, wait_until  # noqa: E402
 
 SMALL = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 5}     # n = 11, 44 runs
 LONG = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 41, 'nominal': 'table2'}
@@ -61,141 +58,6 @@ def overrides(values: dict[str, Any]) -> list[str]:
         text = json.dumps(value) if isinstance(value, list) else str(value)
         rules += ['-p', f'{name}:={text}']
     return rules
-
-
-# -- a client in its own context ------------------------------------------------------------
-
-class Client:
-    """Service calls and subscriptions from a node of this test, spun on its own thread.
-
-    `domain`: the ROS domain of the nodes to talk to (NodeSet.domain for node processes);
-    default this process's own.
-    """
-
-    def __init__(self, domain: int | None = None) -> None:
-        self.context = Context()
-        rclpy.init(args=[], context=self.context,
-                   domain_id=int(os.environ['ROS_DOMAIN_ID']) if domain is None else domain)
-        self.node = Node('validator_test_client', context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._clients: dict[str, Any] = {}
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except ExternalShutdownException:
-            pass
-
-    def client(self, srv_type: Any, name: str, timeout: float = 20.0) -> Any:
-        if name not in self._clients:
-            client = self.node.create_client(srv_type, name)
-            if not client.wait_for_service(timeout_sec=timeout):
-                seen = sorted(n for n, _ in self.node.get_service_names_and_types())
-                raise AssertionError(f'service {name} did not appear within {timeout:g} s '
-                                     f'(ROS_DOMAIN_ID {os.environ.get("ROS_DOMAIN_ID")}; '
-                                     f'services seen: {seen})')
-            self._clients[name] = client
-        return self._clients[name]
-
-    def start(self, srv_type: Any, name: str, request: Any = None) -> Call:
-        """Send a request; the Call records when the answer arrived."""
-        client = self.client(srv_type, name)
-        call = Call(time.perf_counter())
-        call.future = client.call_async(request or srv_type.Request())
-        call.future.add_done_callback(call.arrived)
-        return call
-
-    def call(self, srv_type: Any, name: str, request: Any = None,
-             timeout: float = 60.0) -> tuple[Any, float]:
-        """(response, seconds from request to answer)."""
-        call = self.start(srv_type, name, request)
-        return call.wait(timeout), call.seconds
-
-    def trigger(self, name: str, timeout: float = 60.0) -> tuple[bool, dict, float]:
-        """(success, parsed JSON message, seconds) of a Trigger call."""
-        from std_srvs.srv import Trigger
-
-        response, seconds = self.call(Trigger, name, timeout=timeout)
-        return response.success, json.loads(response.message), seconds
-
-    def get(self, node: str, name: str) -> tuple[Any, float]:
-        from rcl_interfaces.srv import GetParameters
-
-        response, seconds = self.call(GetParameters, f'/{node}/get_parameters',
-                                      GetParameters.Request(names=[name]))
-        return Parameter.from_parameter_msg(_msg(name, response.values[0])).value, seconds
-
-    def set(self, node: str, name: str, value: Any) -> tuple[Any, float]:
-        """(SetParametersResult, seconds)."""
-        from rcl_interfaces.srv import SetParameters
-
-        request = SetParameters.Request(
-            parameters=[Parameter(name, value=value).to_parameter_msg()])
-        response, seconds = self.call(SetParameters, f'/{node}/set_parameters', request)
-        return response.results[0], seconds
-
-    def latched(self, topic: str, timeout: float = 10.0) -> Any:
-        """First message of a transient_local topic, subscribing only now."""
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-        got: list[Any] = []
-        arrived = threading.Event()
-        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-        def keep(msg: Any) -> None:
-            got.append(msg)
-            arrived.set()
-
-        subscription = self.node.create_subscription(DiagnosticArray, topic, keep, qos)
-        try:
-            assert arrived.wait(timeout), f'nothing latched on {topic} within {timeout:g} s'
-            return got[0]
-        finally:
-            self.node.destroy_subscription(subscription)
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self._thread.join(timeout=5)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-        self.context.destroy()
-
-
-def _msg(name: str, value: Any) -> Any:
-    from rcl_interfaces.msg import Parameter as ParameterMsg
-
-    return ParameterMsg(name=name, value=value)
-
-
-class Call:
-    """One request in flight."""
-
-    def __init__(self, sent: float) -> None:
-        self.sent = sent
-        self.answered: float | None = None
-        self.future: Any = None
-        self._event = threading.Event()
-
-    def arrived(self, future: Any) -> None:
-        self.answered = time.perf_counter()
-        self._event.set()
-
-    @property
-    def seconds(self) -> float:
-        assert self.answered is not None
-        return self.answered - self.sent
-
-    def done(self) -> bool:
-        return self._event.is_set()
-
-    def wait(self, timeout: float) -> Any:
-        assert self._event.wait(timeout), f'no answer within {timeout:g} s'
-        return self.future.result()
 
 
 @pytest.fixture
@@ -288,8 +150,8 @@ def test_validate_answers_json_and_latches_the_statistics(start_node, client, da
 
 def test_a_fixed_point_is_evaluated_and_a_half_set_pair_is_refused(start_node, client, data60):
     start_node(bags=[str(data60)], nominal='table2', **SMALL)
-    assert client.set('validator', 'sigma1', 0.12)[0].successful   # one at a time, as ros2
-                                                                    # param set does
+    # one at a time, as `ros2 param set` does
+    assert client.set('validator', 'sigma1', 0.12)[0].successful
     ok, answer, _ = client.trigger('/validator/validate')
     assert not ok and 'set both >= 0' in answer['error']
 
