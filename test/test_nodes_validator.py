@@ -313,3 +313,58 @@ def test_bad_start_up_input_is_one_error_line(rule, words):
     lines = done.stderr.strip().splitlines()
     assert lines[-1].startswith('error: ') and words in lines[-1], done.stderr
     assert 'Traceback' not in done.stderr
+
+
+def test_a_bag_growing_inside_its_directory_changes_the_stamps_the_directory_does_not(
+        tmp_path):
+    """Why the validator once kept answering with 3 runs while 50 were on disk: it watched
+    the bag directory, whose time stamp a recorder appending to the .mcap never changes."""
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    data = bag / 'bag_0.mcap'
+    data.write_bytes(b'\x89MCAP0\r\n')
+    directory_before, stamps_before = bag.stat().st_mtime_ns, validation_jobs.source_stamps(
+        [str(bag)])
+
+    with data.open('ab') as stream:       # what a recorder's flush does
+        stream.write(bytes(4096))
+
+    assert bag.stat().st_mtime_ns == directory_before
+    stamps = validation_jobs.source_stamps([str(bag)])
+    assert stamps != stamps_before and stamps[0][2] == 4096 + 8
+    (bag / 'metadata.yaml').write_text('rosbag2_bagfile_information: {}\n')   # bag closed
+    assert len(validation_jobs.source_stamps([str(bag)])) == 2
+
+
+def test_a_bag_being_recorded_is_validated_as_it_grows(tmp_path, client_on):
+    """Recorder, simulator and validator at once: each call sees the runs on disk by then."""
+    bag = tmp_path / 'live'
+    fast = {'nominal': 'table2', 'sigma1': 0.12, 'sigma2': 0.15, 'epsilon': 0.5,
+            'delta': 0.5, 'k': 2, 'min_duration_s': 0.45}   # n = 3: 6 runs of 0.5 s
+    with NodeSet(tmp_path) as nodes:
+        recorder = nodes.start('recorder', '-o', str(bag), '--topics', '/vicon/*',
+                               '/*/run_start')
+        recorder.wait_for_log('recording .* to')
+        nodes.start('simulator', '--ros-args', '-p', 'robots:=2', '-p', 'cycles:=1',
+                    '-p', 'pause_s:=0.5', '-p', 'runs:=30', '-p', 'seed:=5',
+                    '-p', 'wait_subscribers:=1', '-p', 'wait_timeout_s:=60.0')
+        node = nodes.start('validator', '--ros-args',
+                           *overrides({'bags': [str(bag)], **fast}))
+        client = client_on(nodes.domain)
+        node.wait_for_log('ready')
+
+        counts: list[int] = []
+        deadline = time.monotonic() + 90
+        while len(set(counts)) < 3 and time.monotonic() < deadline:
+            ok, answer, _ = client.trigger('/validator/validate')
+            assert not (bag / 'metadata.yaml').exists(), 'the bag was closed: not live'
+            if ok:
+                counts.append(answer['paths_available'])
+            else:   # too early: nothing recorded yet, or too few runs
+                assert not counts, f'{answer}\n{nodes.logs()}'
+            time.sleep(1.0)
+
+        assert len(set(counts)) >= 3, f'run counts seen: {counts}\n{nodes.logs()}'
+        assert counts == sorted(counts), counts
+        assert node.stop(signal.SIGINT) == 0, node.log
+        assert recorder.stop(signal.SIGINT) == 0, recorder.log
