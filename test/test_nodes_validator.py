@@ -368,3 +368,28 @@ def test_a_bag_being_recorded_is_validated_as_it_grows(tmp_path, client_on):
         assert counts == sorted(counts), counts
         assert node.stop(signal.SIGINT) == 0, node.log
         assert recorder.stop(signal.SIGINT) == 0, recorder.log
+
+
+def test_call_prints_the_answer_of_a_running_validator(start_node, data60, capsys):
+    node = start_node(nominal='table2', **SMALL)
+
+    assert validator.main(['--call', 'validate']) == 1          # no bags yet
+    out, err = capsys.readouterr()
+    assert 'bags' in json.loads(out)['error']
+    assert err.startswith('error: /validator/validate: no measured runs') and \
+        err.count('\n') == 1, err
+
+    node.node.set_parameters([Parameter('bags', value=[str(data60)])])
+    assert validator.main(['--call', 'validate']) == 0
+    out, err = capsys.readouterr()
+    result = json.loads(out)
+    assert (result['n'], result['k'], result['paths_available']) == (11, 4, 60)
+    assert err == ''
+
+
+def test_call_without_a_validator_says_so_in_one_line(capsys):
+    assert validator.main(['--call', 'diagnose', '--node', '/nobody', '--timeout', '1.0']) == 1
+    out, err = capsys.readouterr()
+    assert out == '' and err.startswith('error: no service /nobody/diagnose within 1 s'), err
+    assert validator.main(['--timeout', '1.0']) == 2
+    assert capsys.readouterr().err == 'error: --node and --timeout go with --call\n'

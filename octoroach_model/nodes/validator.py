@@ -365,8 +365,9 @@ def call_service(service: str, node_name: str, timeout_s: float,
     executor.add_node(node)
     try:
         client = node.create_client(Trigger, name)
-        if not client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT_S):
-            return fail(f'no service {name} within {DISCOVERY_TIMEOUT_S:g} s: is the validator '
+        discovery_s = min(timeout_s, DISCOVERY_TIMEOUT_S)
+        if not client.wait_for_service(timeout_sec=discovery_s):
+            return fail(f'no service {name} within {discovery_s:g} s: is the validator '
                         'running, on the same ROS_DOMAIN_ID?', 1)
         future = client.call_async(Trigger.Request())
         executor.spin_until_future_complete(future, timeout_sec=timeout_s)
@@ -402,7 +403,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.add_argument('--node', default='/validator',
                             help='--call: the validator node (default: /validator)')
         parser.add_argument('--timeout', type=float, default=3600.0, metavar='S',
-                            help='--call: longest wait for the answer, seconds (default: 3600)')
+                            help='--call: longest wait for the answer, seconds (for the service '
+                            f'to appear: at most {DISCOVERY_TIMEOUT_S:g}; default: 3600)')
         args = parser.parse_args(own)
         if args.call is None and (args.node != '/validator' or args.timeout != 3600.0):
             raise UsageError('--node and --timeout go with --call')
