@@ -23,7 +23,7 @@ __all__ = ['EFFECT_PREFIX', 'RunSettings', 'marker_topic', 'pose_topic']
 
 NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 FRAME = re.compile(r'^[A-Za-z0-9_/]+$')
-EFFECT_PREFIX = 'effect_params.'  # effect parameters are EFFECT_PREFIX + the contract's key
+EFFECT_PREFIX = 'effect_params.'  # effect parameter = EFFECT_PREFIX + the cause's key
 
 
 def pose_topic(subject: str, segment: str) -> str:
@@ -40,8 +40,8 @@ def marker_topic(subject: str) -> str:
 class RunSettings:
     """The settings of one run of every robot, taken when the run starts.
 
-    Lengths in metres, angles in radians, rates in Hz; `effect_params` keep the contract's
-    keys and units (`heading_std_deg`, `position_std_cm`, ...).
+    Lengths in metres, angles in radians, rates in Hz; `effect_params` keep the causes'
+    own keys and units (`heading_std_deg`, `position_std_cm`, ...).
     """
 
     robots: int

@@ -152,3 +152,11 @@ def client_on():
     yield make
     for client in made:
         client.close()
+
+
+def test_the_ros_docs_list_every_parameter_of_every_node():
+    text = (REPO / 'docs' / 'ros.md').read_text()
+    for node, specs in SPECS.items():
+        assert f'config/{node}.yaml' in text, node
+        missing = [spec.name for spec in specs if f'| `{spec.name}` |' not in text]
+        assert not missing, f'docs/ros.md lacks {node} parameters {missing}'

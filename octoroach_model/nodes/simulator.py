@@ -36,7 +36,7 @@ SUMMARY = ('ROS node: publishes model-generated VICON poses (geometry_msgs/msg/T
            ' pause and a run marker between them. Every setting is a ROS parameter; changes are'
            ' checked when set and apply from the next run.')
 NOTES = """
-Effect parameters keep the contract's keys and units (heading_std_deg is in degrees,
+Effect parameters keep the causes' own keys and units (heading_std_deg is in degrees,
 position_std_cm in centimetres, ...); only the ones of the selected `effect` are used.
 With robots > 1 each robot i is subject SUBJECT_i (segment SEGMENT_i, or SUBJECT_i when
 segment is empty) on /vicon/SUBJECT_i/SEGMENT_i with markers on /SUBJECT_i/run_start; all
@@ -96,7 +96,7 @@ def simulator_specs() -> list[ParamSpec]:
         ParamSpec('start_y', start_y, 'y at the start of every run', 'm', -1000.0, 1000.0),
         ParamSpec('start_heading', start_heading, 'heading at the start (pi/2: along +y)',
                   'rad', -2 * math.pi, 2 * math.pi),
-        ParamSpec('effect', 'none', 'model extension (contract table) added to every run',
+        ParamSpec('effect', 'none', 'model extension: a cause (docs/ros.md) added to every run',
                   choices=('none', *EFFECT_NAMES)),
     ]
     for key, (low, high) in PARAMETER_RANGES.items():
