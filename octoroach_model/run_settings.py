@@ -6,17 +6,16 @@ so a test or a benchmark can rebuild any run the node published from the same va
 """
 from __future__ import annotations
 
-import re
-import secrets
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+import re
+import secrets
 from typing import Any
 
 import numpy as np
 
 from octoroach_model.errors import ParameterError
-from octoroach_model.model import (
-    EFFECT_PARAMETERS, ModelParameters, check_effects, simulate)
+from octoroach_model.model import check_effects, EFFECT_PARAMETERS, ModelParameters, simulate
 from octoroach_model.paths import Paths
 
 __all__ = ['EFFECT_PREFIX', 'RunSettings', 'marker_topic', 'pose_topic']
@@ -27,12 +26,12 @@ EFFECT_PREFIX = 'effect_params.'  # effect parameter = EFFECT_PREFIX + the cause
 
 
 def pose_topic(subject: str, segment: str) -> str:
-    """VICON topic of a subject's segment (vicon_bridge convention)."""
+    """Return the VICON topic of a subject's segment (vicon_bridge convention)."""
     return f'/vicon/{subject}/{segment}'
 
 
 def marker_topic(subject: str) -> str:
-    """Run-marker topic of a subject."""
+    """Return the run-marker topic of a subject."""
     return f'/{subject}/run_start'
 
 
@@ -62,7 +61,7 @@ class RunSettings:
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> RunSettings:
-        """Settings from parameter values; ParameterError where they do not fit together."""
+        """Make settings from parameter values; ParameterError where they do not fit."""
         for key in ('subject', 'segment'):
             if values[key] and not NAME.match(values[key]):
                 raise ParameterError(f'{key} {values[key]!r} must be a name: a letter, then '
@@ -90,33 +89,33 @@ class RunSettings:
         return settings
 
     def subjects(self) -> list[tuple[str, str]]:
-        """(subject, segment) of each robot."""
+        """Return (subject, segment) of each robot."""
         if self.robots == 1:
             return [(self.subject, self.segment or self.subject)]
         return [(f'{self.subject}_{i}', f'{self.segment}_{i}' if self.segment
                  else f'{self.subject}_{i}') for i in range(self.robots)]
 
     def effects(self) -> dict[str, dict[str, float]] | None:
-        """{effect: {key: value}} for `simulate`, None without an effect."""
+        """Return {effect: {key: value}} for `simulate`, None without an effect."""
         if self.effect == 'none':
             return None
         return {self.effect: {key: self.effect_params.get(key, 0.0)
                               for key in EFFECT_PARAMETERS[self.effect]}}
 
     def model_parameters(self) -> ModelParameters:
-        """Table II with this stride frequency and sample rate."""
+        """Return Table II with this stride frequency and sample rate."""
         return replace(ModelParameters.nominal(), stride_frequency=self.stride_frequency,
                        sample_rate=self.rate)
 
     def run_seed(self, run_index: int) -> int:
-        """Seed of run `run_index`: derived from (seed, index), or fresh entropy (seed < 0)."""
+        """Return the seed of run `run_index`: from (seed, index), or fresh entropy (seed < 0)."""
         if self.seed < 0:
             return secrets.randbits(63)
         state = np.random.SeedSequence([self.seed, run_index]).generate_state(2, np.uint32)
         return int(state[0]) << 31 | int(state[1]) >> 1
 
     def simulate(self, seed: int) -> Paths:
-        """One run per robot: Paths with poses (robots, T, 3)."""
+        """Draw one run per robot: Paths with poses (robots, T, 3)."""
         return simulate(self.robots, seed=seed, sigma1=self.sigma1, sigma2=self.sigma2,
                         cycles=self.cycles, parameters=self.model_parameters(),
                         draws=self.draws, effects=self.effects(), start_pose=self.start_pose)

@@ -13,9 +13,9 @@ call would go unseen.
 """
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+import os
 from pathlib import Path
 from typing import Any
 
@@ -54,7 +54,7 @@ class Job:
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> Job:
-        """A job from parameter values; ParameterError where they do not fit together."""
+        """Make a job from parameter values; ParameterError where they do not fit together."""
         settings = ValidationSettings(
             rho=values['rho'], epsilon=values['epsilon'], delta=values['delta'],
             k=values['k'], gamma=values['gamma'], seed=values['seed'],
@@ -68,7 +68,7 @@ class Job:
                    report_dir=values['report_dir'], settings=settings)
 
     def sigmas(self) -> tuple[float, float] | None:
-        """The fixed point to evaluate, or None for the search (15)."""
+        """Return the fixed point to evaluate, or None for the search (15)."""
         if self.sigma1 < 0 and self.sigma2 < 0:
             return None
         if self.sigma1 < 0 or self.sigma2 < 0:
@@ -78,14 +78,14 @@ class Job:
         return self.sigma1, self.sigma2
 
     def require_sources(self) -> None:
-        """ParameterError when no source is named."""
+        """Raise ParameterError when no source is named."""
         if not self.sources:
             raise ParameterError('no measured runs: set the parameter bags (bag directories, '
                                  '.mcap files or .npz data sets)')
 
 
 def source_stamps(sources: Sequence[str]) -> tuple[FileStamp, ...]:
-    """(path, mtime, size) of every bag or data-set file under `sources`, sorted.
+    """Return (path, mtime, size) of every bag or data-set file under `sources`, sorted.
 
     A file source is stamped itself; a directory (a bag, or a folder of bags) by every file
     ending in WATCHED_SUFFIXES below it. A missing source has no stamp, so its appearance
@@ -119,7 +119,7 @@ class Workbench:
         self._measured: Paths | None = None
 
     def measured(self, job: Job) -> Paths:
-        """The runs of `job.sources`, read again when a name, a setting or a file changed."""
+        """Return the runs of `job.sources`, read again when a name, setting or file changed."""
         from octoroach_model.recordings import load_measured
 
         job.require_sources()
@@ -134,7 +134,7 @@ class Workbench:
 
 
 def run_validation(job: Job, bench: Workbench, progress: Progress) -> dict[str, Any]:
-    """The offline `validate` chain (load, nominal model, validate) as JSON-ready data."""
+    """Run the offline `validate` chain (load, nominal model, validate); JSON-ready data."""
     from octoroach_model.validation import validate_measured
 
     progress(0.0, 'loading the measured runs')
@@ -147,7 +147,7 @@ def run_validation(job: Job, bench: Workbench, progress: Progress) -> dict[str, 
 
 
 def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict[str, Any]:
-    """`diagnose` on the measured runs as JSON-ready data; report files too with report_dir."""
+    """Run `diagnose` on the measured runs; JSON-ready data, and files with report_dir."""
     from octoroach_model.diagnosis import diagnose
     from octoroach_model.jsonio import jsonable
 
@@ -172,7 +172,7 @@ def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict[str, A
 
 
 def diagnosis_settings(job: Job) -> Any:
-    """DiagnosisSettings of a call: the library defaults with the call's seed."""
+    """Return the diagnosis settings of a call: the library defaults with its seed."""
     from octoroach_model.diagnosis import DiagnosisSettings
 
     return DiagnosisSettings(seed=job.settings.seed)

@@ -12,18 +12,18 @@ log file (no pipe to fill up); `NodeProcess.log` is what a failing assertion sho
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 import itertools
 import json
 import os
+from pathlib import Path
 import re
 import signal
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]

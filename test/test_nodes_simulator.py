@@ -5,10 +5,10 @@ one executor; the process-level behaviour (exit codes, one-line errors) goes thr
 """
 from __future__ import annotations
 
-import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+import math
+import time
 
 import numpy as np
 import pytest

@@ -8,15 +8,15 @@ so that n x k fits them (epsilon = delta = 0.3 gives n = 11; k = 4 uses 44 runs)
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
+from dataclasses import fields, replace
 import json
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
-from dataclasses import fields, replace
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -33,7 +33,7 @@ from octoroach_model import validation_jobs  # noqa: E402
 from octoroach_model.nodes import validator  # noqa: E402
 from octoroach_model.recordings import save_dataset  # noqa: E402
 
-from ros_helpers import REPO, Client, NodeSet, ros_env, wait_until  # noqa: E402
+from ros_helpers import Client, NodeSet, REPO, ros_env, wait_until  # noqa: E402
 
 SMALL = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 5}     # n = 11, 44 runs
 LONG = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 41, 'nominal': 'table2'}

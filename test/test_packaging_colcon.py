@@ -9,9 +9,9 @@ executable against the installed copy (AMENT_PREFIX_PATH, PYTHONPATH) to see it 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 

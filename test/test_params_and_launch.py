@@ -18,7 +18,7 @@ pytest.importorskip('rclpy')
 
 from octoroach_model.nodes import recorder, replay, simulator, validator  # noqa: E402
 
-from ros_helpers import REPO, Client, NodeSet, read_launch_file, wait_until  # noqa: E402
+from ros_helpers import Client, NodeSet, read_launch_file, REPO, wait_until  # noqa: E402
 
 LAUNCH_FILE = REPO / 'launch' / 'octoroach.launch.xml'
 SPECS = {

@@ -9,14 +9,14 @@ verdict on 48 runs, the bag is closed, the replay played it.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-from ros_helpers import REPO, fresh_domain, ros_env
+from ros_helpers import fresh_domain, REPO, ros_env
 
 SECTION = '## With ROS'
 

@@ -7,12 +7,12 @@ the `--help` text, and the three cannot drift apart. Message conversion is in `m
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
 import math
 import sys
 import textwrap
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import Any, NoReturn, TYPE_CHECKING
 
 from octoroach_model.errors import OctoroachError, ParameterError
 
@@ -70,7 +70,7 @@ class ParamSpec:
         return 'string array'
 
     def range_text(self) -> str:
-        """Allowed values for humans: '[lo, hi]', 'a | b', or ''."""
+        """Return the allowed values for humans: '[lo, hi]', 'a | b', or ''."""
         if self.choices:
             return ' | '.join(self.choices)
         if self.low is not None and self.high is not None:
@@ -78,7 +78,7 @@ class ParamSpec:
         return ''
 
     def descriptor(self) -> ParameterDescriptor:
-        """The ROS descriptor: type, description with unit, range, read-only flag."""
+        """Build the ROS descriptor: type, description with unit, range, read-only flag."""
         from rcl_interfaces.msg import (
             FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType)
 
@@ -137,7 +137,7 @@ def _number(value: float) -> str:
 
 def with_defaults(specs: Sequence[ParamSpec], defaults: dict[str, Any] | None
                   ) -> list[ParamSpec]:
-    """The specs with some defaults replaced by command-line flags.
+    """Return the specs with some defaults replaced by command-line flags.
 
     A flag is the most specific thing a user says, so its value wins over the same parameter
     in --ros-args or in a params file (which may well hold the parameter's plain default).
@@ -196,7 +196,7 @@ def current_values(node: Node, specs: Iterable[ParamSpec]) -> dict[str, ParamVal
 
 
 def _plain(value: Any) -> ParamValue:
-    """rclpy hands string arrays back as lists or array-likes; make them lists."""
+    """Make string arrays plain lists (rclpy hands them back as lists or array-likes)."""
     if isinstance(value, (bool, int, float, str)):
         return value
     return [str(v) for v in value]
@@ -216,7 +216,7 @@ def set_parameters_callback(
         node: Node, specs: Sequence[ParamSpec],
         check_all: Callable[[dict[str, ParamValue]], str | None] | None = None,
 ) -> Callable[[list[Parameter]], SetParametersResult]:
-    """A callback for `add_on_set_parameters_callback`: ranges, choices, then `check_all`.
+    """Make a callback for `add_on_set_parameters_callback`: ranges, choices, `check_all`.
 
     `check_all` sees every value as it would be after the change (for checks across
     parameters) and returns a reason to reject, or None.

@@ -10,7 +10,7 @@ Publishers get real message objects; rclpy serializes them.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
@@ -43,7 +43,7 @@ def set_stamp(stamp: Time, stamp_ns: int) -> None:
 
 
 def planar_rows(poses: np.ndarray) -> list[list[PlanarPose]]:
-    """(..., T, 3) poses as nested lists of (x, y, qz, qw) in plain floats, one per sample.
+    """Turn (..., T, 3) poses into lists of (x, y, qz, qw) in plain floats, one per sample.
 
     Computed for a whole run at once, so that publishing a sample only copies four numbers.
     """
@@ -54,7 +54,7 @@ def planar_rows(poses: np.ndarray) -> list[list[PlanarPose]]:
 
 
 def transform_message(frame_id: str, child_frame_id: str) -> TransformStamped:
-    """A TransformStamped with its frames set, to be filled by `fill_transform`."""
+    """Make a TransformStamped with its frames set, to be filled by `fill_transform`."""
     from geometry_msgs.msg import TransformStamped
 
     message = TransformStamped()
@@ -74,13 +74,13 @@ def fill_transform(message: TransformStamped, pose: PlanarPose,
 
 def pose_to_transform(pose: Sequence[float], stamp_ns: int, frame_id: str,
                       child_frame_id: str) -> TransformStamped:
-    """TransformStamped of a planar pose (x [m], y [m], heading [rad]) at `stamp_ns`."""
+    """Make the TransformStamped of a planar pose (x [m], y [m], heading [rad]) at a time."""
     [[row]] = planar_rows(np.asarray(pose, dtype=float).reshape(1, 3))
     return fill_transform(transform_message(frame_id, child_frame_id), row, stamp_ns)
 
 
 def transform_to_pose(message: Any) -> tuple[float, float, float]:
-    """(x [m], y [m], heading [rad]) of a TransformStamped (or a PoseStamped)."""
+    """Return (x [m], y [m], heading [rad]) of a TransformStamped (or a PoseStamped)."""
     if hasattr(message, 'transform'):
         position, rotation = message.transform.translation, message.transform.rotation
     else:
@@ -90,7 +90,7 @@ def transform_to_pose(message: Any) -> tuple[float, float, float]:
 
 
 def run_marker(run_index: int) -> UInt32:
-    """The run marker of run `run_index` (std_msgs/msg/UInt32; wraps at 2**32)."""
+    """Make the run marker of run `run_index` (std_msgs/msg/UInt32; wraps at 2**32)."""
     from std_msgs.msg import UInt32
 
     return UInt32(data=int(run_index) % 2**32)
@@ -99,7 +99,7 @@ def run_marker(run_index: int) -> UInt32:
 # -- validation statistics ------------------------------------------------------------------
 
 def status_fields(result: Mapping[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
-    """(accepted, the verdict in words, key/value pairs) of a validation result (JSON form)."""
+    """Return (accepted, verdict in words, key/value pairs) of a validation result (JSON)."""
     accepted = bool(result['accepted'])
     where = (f"sigma1 = {result['sigma1']:.3f} rad, sigma2 = {result['sigma2']:.3f} rad "
              f"(n = {result['n']}, k = {result['k']})")
@@ -107,7 +107,7 @@ def status_fields(result: Mapping[str, Any]) -> tuple[bool, str, list[tuple[str,
         message = (f"accepted: estimated violation {result['violation']:.3f} <= rho = "
                    f"{result['rho']} at {where}")
     elif result.get('mode') == 'search':
-        message = (f"rejected: no spread on the grid keeps the violation below rho = "
+        message = ('rejected: no spread on the grid keeps the violation below rho = '
                    f"{result['rho']}; at {where} it is {result['violation']:.3f}")
     else:
         message = (f"rejected: estimated violation {result['violation']:.3f} > rho = "
@@ -126,7 +126,7 @@ def _text(value: Any) -> str:
 
 def violation_array(result: Mapping[str, Any], name: str, hardware_id: str,
                     stamp_ns: int) -> DiagnosticArray:
-    """A DiagnosticArray with one status of a validation result: OK if accepted, else WARN."""
+    """Make a DiagnosticArray of a validation result: one status, OK if accepted, else WARN."""
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
     accepted, message, values = status_fields(result)

@@ -12,21 +12,20 @@ the ROS glue between them.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
 import math
 import sys
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from octoroach_model.errors import OctoroachError
 from octoroach_model.nodes.common import (
-    ParamSpec, ParamValue, UsageError, current_values, declare_parameters, fail, node_parser,
-    run_node, set_parameters_callback, split_ros_args, vicon_qos)
+    current_values, declare_parameters, fail, node_parser, ParamSpec, ParamValue, run_node,
+    set_parameters_callback, split_ros_args, UsageError, vicon_qos)
 from octoroach_model.nodes.messages import (
-    PlanarPose, fill_transform, planar_rows, run_marker, transform_message)
-from octoroach_model.run_settings import (
-    EFFECT_PREFIX, RunSettings, marker_topic, pose_topic)
+    fill_transform, planar_rows, PlanarPose, run_marker, transform_message)
+from octoroach_model.run_settings import EFFECT_PREFIX, marker_topic, pose_topic, RunSettings
 
 __all__ = ['RunSettings', 'Simulator', 'main', 'marker_topic', 'pose_topic',
            'simulator_specs']
@@ -57,7 +56,7 @@ def _effect_unit(key: str) -> str:
 
 
 def simulator_specs() -> list[ParamSpec]:
-    """The simulator's parameters; model defaults come from config/table2.yaml."""
+    """List the simulator's parameters; model defaults come from config/table2.yaml."""
     from octoroach_model.model import (
         DRAWS, EFFECT_NAMES, EFFECT_PARAMETERS, PARAMETER_RANGES, ModelParameters,
         nominal_sigmas)
@@ -241,7 +240,7 @@ class Simulator(Node):  # type: ignore[misc,valid-type]
             self._end_run()
 
     def _subscribers_ready(self) -> bool:
-        """Before the first run: are `wait_subscribers` subscribers matched on every topic?"""
+        """Tell whether run 0 may start: `wait_subscribers` matched on every topic, or timeout."""
         if self._waited:
             return True
         wanted = int(self.get_parameter('wait_subscribers').value)
@@ -311,7 +310,7 @@ class Simulator(Node):  # type: ignore[misc,valid-type]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """`simulator [--help] [--ros-args ...]`; returns the exit code."""
+    """Run `simulator [--help] [--ros-args ...]`; return the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)

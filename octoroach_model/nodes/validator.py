@@ -18,24 +18,24 @@ running validator and prints the JSON answer, for machines without the `ros2` co
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from datetime import datetime
 import json
 import math
 import sys
 import threading
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
-from datetime import datetime
 from typing import Any
 
 from octoroach_model.errors import OctoroachError, ParameterError
 from octoroach_model.jsonio import dumps
 from octoroach_model.nodes.common import (
-    ParamSpec, ParamValue, UsageError, current_values, declare_parameters, fail, node_parser,
-    rejected_override, run_node, set_parameters_callback, split_ros_args)
+    current_values, declare_parameters, fail, node_parser, ParamSpec, ParamValue,
+    rejected_override, run_node, set_parameters_callback, split_ros_args, UsageError)
 from octoroach_model.nodes.messages import status_fields, violation_array
 from octoroach_model.validation_jobs import (
-    Cancelled, Job, Progress, Workbench, run_diagnosis, run_validation)
+    Cancelled, Job, Progress, run_diagnosis, run_validation, Workbench)
 
 SUMMARY = ("ROS node: the paper's probabilistic validation of the OctoRoACH model on measured "
            'runs, as a service. ~/validate fits the nominal model (eq. 9) to the runs named in '
@@ -74,7 +74,7 @@ BAGS = ParamSpec('bags', [], 'bag directories, .mcap files or .npz data sets to 
 
 
 def validator_specs() -> list[ParamSpec]:
-    """Every parameter but `bags` (declared apart: rclpy cannot type an empty list)."""
+    """List every parameter but `bags` (declared apart: an empty list has no type)."""
     from octoroach_model.model import DRAWS
     from octoroach_model.recordings import DEFAULT_GAP_S
     from octoroach_model.validation import ValidationSettings
@@ -141,7 +141,7 @@ def _one_line(error: BaseException) -> str:
 
 
 def error_json(reason: str) -> str:
-    """The answer of a call that failed: {"error": reason}."""
+    """Make the answer of a call that failed: {"error": reason}."""
     return dumps({'error': reason})
 
 
@@ -215,7 +215,7 @@ class Validator(Node):  # type: ignore[misc,valid-type]
             raise ParameterError(reason)
 
     def bags(self) -> list[str]:
-        """The `bags` parameter; [] while unset (rclpy's typed parameter without a value)."""
+        """Return the `bags` parameter; [] while unset (a typed parameter without a value)."""
         from rclpy.exceptions import ParameterUninitializedException
 
         try:
@@ -294,9 +294,9 @@ class Validator(Node):  # type: ignore[misc,valid-type]
             if running.kind == 'validation':
                 self._publish(result)
             running.success, running.message = True, dumps(result)
-            logger.info(f'{running.kind} done in {elapsed:.1f} s'
-                        + (f": {status_fields(result)[1]}" if running.kind == 'validation'
-                           else f": cause {result.get('cause')}"))
+            outcome = (status_fields(result)[1] if running.kind == 'validation'
+                       else f"cause {result.get('cause')}")
+            logger.info(f'{running.kind} done in {elapsed:.1f} s: {outcome}')
         except Cancelled:
             running.message = error_json(f'{running.kind} cancelled: the node is shutting down')
         except OctoroachError as error:
@@ -391,7 +391,7 @@ def call_service(service: str, node_name: str, timeout_s: float,
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """`validator [--help] [--call SERVICE] [--ros-args ...]`; returns the exit code."""
+    """Run `validator [--help] [--call SERVICE] [--ros-args ...]`; return the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)
