@@ -36,7 +36,7 @@ from octoroach_model.recordings import save_dataset  # noqa: E402
 from ros_helpers import Client, NodeSet, REPO, ros_env, wait_until  # noqa: E402
 
 SMALL = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 5}     # n = 11, 44 runs
-LONG = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 41, 'nominal': 'table2'}
+LONG = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 101, 'nominal': 'table2'}
 QUICK_DIAGNOSIS = {'calibration_runs': 50, 'score_runs': 100, 'bootstrap': 5,
                    'validate_models': False}
 FAST_S = 0.1   # an answer while a job runs must come within this
