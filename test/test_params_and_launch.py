@@ -160,3 +160,16 @@ def test_the_ros_docs_list_every_parameter_of_every_node():
         assert f'config/{node}.yaml' in text, node
         missing = [spec.name for spec in specs if f'| `{spec.name}` |' not in text]
         assert not missing, f'docs/ros.md lacks {node} parameters {missing}'
+
+
+def test_the_validator_starts_on_its_params_file_alone_with_no_bags(tmp_path, client_on):
+    """`bags: []` in a params file is an unset string array, as the node's own default."""
+    with NodeSet(tmp_path) as nodes:
+        node = nodes.start('validator', '--ros-args', '--params-file',
+                           str(REPO / 'config' / 'validator.yaml'))
+        node.wait_for_log(r'ready: 0 source\(s\) in bags')
+        client = client_on(nodes.domain)
+        assert client.get('validator', 'k')[0] == 11
+        ok, answer, _ = client.trigger('/validator/validate')
+        assert not ok and 'set the parameter bags' in answer['error']
+        assert node.stop(signal.SIGTERM) == 0, node.log
