@@ -15,7 +15,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
         (f'share/{PACKAGE}', ['package.xml']),
-        (f'share/{PACKAGE}/config', glob('config/*.yaml')),
+        (f'share/{PACKAGE}/config', glob('config/*.yaml')),     # Table II, params files
+        (f'share/{PACKAGE}/launch', glob('launch/*.launch.xml')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
