@@ -96,12 +96,19 @@ def test_simulated_runs_are_recorded_and_read_back_as_the_models_runs(tmp_path):
     assert data.poses.shape[0] == 3 and data.poses.shape[2] == 3
 
 
-def test_a_killed_recorder_leaves_a_bag_readable_up_to_its_last_flush(tmp_path):
+def test_a_killed_recorder_leaves_a_bag_that_repair_makes_complete(tmp_path):
+    from mcap.reader import make_reader
+    from rosbags.highlevel import AnyReader
+
+    from octoroach_model.cli import repair_main
+
     bag = tmp_path / 'killed'
     with NodeSet(tmp_path) as nodes:
         recorder = nodes.start('recorder', '-o', str(bag), '--ros-args',
                                '-p', 'log_period_s:=0.5')
         recorder.wait_for_log('recording .* to')
+        recorder.wait_for_log(f'if this recorder dies, make the bag complete with: '
+                              f'python -m octoroach_model repair {bag}')
         nodes.start('simulator', '--ros-args', '-p', 'wait_subscribers:=1', '-p', 'cycles:=2',
                     '-p', 'pause_s:=0.5', '-p', 'seed:=5', '-p', 'wait_timeout_s:=60.0')
         wait_until(lambda: recorded_count(recorder) >= 160, 60.0,
@@ -110,13 +117,24 @@ def test_a_killed_recorder_leaves_a_bag_readable_up_to_its_last_flush(tmp_path):
         recorder.kill()
 
     assert not (bag / 'metadata.yaml').exists()
-    messages = bag_messages(bag)
+    survivors = [(m.topic, m.log_time_ns, bytes(m.data)) for m in bag_messages(bag)]
     # flushed at least once a second: at most ~1 s (50 poses) plus the log delay missing
-    assert len(messages) >= logged - 75, (len(messages), logged)
+    assert len(survivors) >= logged - 75, (len(survivors), logged)
     runs = recordings.read_runs([bag])
     assert len(runs.runs) >= 2
     assert all(len(run.t) == 51 for run in runs.runs[:2])
     assert any('metadata.yaml' in note or 'truncated' in note for note in runs.notes)
+
+    assert repair_main([str(bag)]) == 0
+    assert (bag / 'metadata.yaml').is_file()
+    with AnyReader([bag]) as reader:
+        assert [(c.topic, t, bytes(d)) for c, t, d in reader.messages()] == survivors
+    (file,) = bag.glob('*.mcap')
+    with file.open('rb') as stream:
+        indexed = make_reader(stream)
+        assert indexed.get_summary().chunk_indexes
+        assert [(c.topic, m.log_time, bytes(m.data)) for _, c, m in
+                indexed.iter_messages(log_time_order=False)] == survivors
 
 
 @pytest.mark.parametrize('message_type', [recordings.TRANSFORM_STAMPED,
@@ -176,6 +194,73 @@ def test_recording_writes_in_reception_order_and_flushes_a_readable_file(tmp_pat
     bag.close()
     assert [m.log_time_ns for m in bag_messages(tmp_path / 'bag')] == [10, 20, 30, 40, 50]
     assert bag_topics(tmp_path / 'bag')['/octoroach/run_start']['message_count'] == 5
+
+
+def publishers_of(topic: str, domain: int, node_name: str, timeout: float = 30.0) -> list:
+    """QoS profiles of `node_name`'s publishers on `topic`, seen from the ROS graph."""
+    import time as clock
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+
+    context = Context()
+    rclpy.init(args=[], context=context, domain_id=domain)
+    node = Node('qos_probe', context=context)
+    try:
+        deadline = clock.monotonic() + timeout
+        while clock.monotonic() < deadline:
+            found = [info.qos_profile for info in node.get_publishers_info_by_topic(topic)
+                     if info.node_name == node_name]
+            if found:
+                return found
+            clock.sleep(0.1)
+        raise AssertionError(f'no publisher of {node_name} on {topic} within {timeout:g} s')
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+        context.destroy()
+
+
+def best_effort_bag(path):
+    """One run of a bag whose publishers offered best-effort QoS when it was recorded."""
+    from octoroach_model.recordings import PoseBagWriter, QosProfile
+
+    paths = simulate(1, seed=2, cycles=2)
+    stamps = 10**18 + np.round(paths.t * 1e9).astype(np.int64)
+    offered = (QosProfile(history='unknown', depth=0, reliability='best_effort'),)
+    with PoseBagWriter(path, offered_qos=offered) as writer:
+        writer.write_marker(0, int(stamps[0]))
+        writer.write_poses(stamps, paths.poses[0])
+    return path
+
+
+def test_replay_keeps_the_recorded_best_effort_qos_unless_overridden(tmp_path):
+    from rclpy.qos import ReliabilityPolicy
+
+    source, copy = best_effort_bag(tmp_path / 'best_effort'), tmp_path / 'copy'
+    topic = recordings.DEFAULT_POSE_TOPIC
+    with NodeSet(tmp_path) as nodes:
+        recorder = nodes.start('recorder', '-o', str(copy), '--ros-args',
+                               '-p', 'log_period_s:=0.5')
+        recorder.wait_for_log('recording .* to')
+        replay = nodes.start('replay', str(source), '--rate', '5', '--loop',
+                             '--wait-subscribers', '1', '--wait-timeout', '60')
+        replay.wait_for_log(f'{topic} .*: best_effort, volatile, depth 1000')
+        (profile,) = publishers_of(topic, nodes.domain, 'replay')
+        assert profile.reliability == ReliabilityPolicy.BEST_EFFORT
+        wait_until(lambda: recorded_count(recorder) > 0, 30.0, f'a recording\n{nodes.logs()}')
+        assert replay.stop(signal.SIGINT) == 0, nodes.logs()
+        assert recorder.stop(signal.SIGINT) == 0, nodes.logs()
+        forced = nodes.start('replay', str(source), '--loop', '--reliability', 'reliable',
+                             '--qos-depth', '20')
+        forced.wait_for_log(f'{topic} .*: reliable, volatile, depth 20')
+        (profile,) = publishers_of(topic, nodes.domain, 'replay')
+        assert profile.reliability == ReliabilityPolicy.RELIABLE
+        assert forced.stop(signal.SIGINT) == 0, nodes.logs()
+    # the recorder saw a best-effort publisher, and its bag says so
+    recorded = bag_topics(copy)[topic]['topic_metadata']['offered_qos_profiles']
+    assert [profile['reliability'] for profile in recorded] == ['best_effort']
 
 
 def test_replay_of_a_missing_bag_is_one_error_line(tmp_path, capfd):
