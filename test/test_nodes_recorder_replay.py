@@ -17,11 +17,10 @@ pytest.importorskip('rclpy')
 from octoroach_model import recordings, simulate  # noqa: E402
 from octoroach_model.nodes import recorder as recorder_node  # noqa: E402
 from octoroach_model.nodes import replay as replay_node  # noqa: E402
+from octoroach_model.nodes.simulator import RunSettings, simulator_specs  # noqa: E402
 from octoroach_model.recordings.reader import BagReader  # noqa: E402
 from octoroach_model.recordings.recording import Recording  # noqa: E402
-from octoroach_model.nodes.simulator import RunSettings, simulator_specs  # noqa: E402
-
-from ros_helpers import NodeSet, call_trigger, wait_until  # noqa: E402
+from ros_helpers import call_trigger, NodeSet, wait_until  # noqa: E402
 
 # RIHS01 type hashes of Jazzy's messages (what rclpy reports for its publishers)
 TRANSFORM_HASH = 'RIHS01_0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206'
@@ -176,15 +175,15 @@ def test_a_bag_replayed_at_10x_into_the_recorder_comes_back_unchanged(tmp_path, 
 
 
 def test_recording_writes_in_reception_order_and_flushes_a_readable_file(tmp_path):
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
 
     store = get_typestore(Stores.ROS2_JAZZY)
     marker = store.types['std_msgs/msg/UInt32']
     bag = Recording(tmp_path / 'bag')
     channel = bag.add_topic('/octoroach/run_start', 'std_msgs/msg/UInt32')
     for received in (30, 10, 20, 50, 40):
-        bag.push(channel, received, bytes(store.serialize_cdr(marker(data=received),
-                                                               'std_msgs/msg/UInt32')))
+        data = store.serialize_cdr(marker(data=received), 'std_msgs/msg/UInt32')
+        bag.push(channel, received, bytes(data))
     bag.drain(older_than_ns=35)
     bag.flush()
     messages = bag_messages(tmp_path / 'bag')
@@ -197,7 +196,7 @@ def test_recording_writes_in_reception_order_and_flushes_a_readable_file(tmp_pat
 
 
 def publishers_of(topic: str, domain: int, node_name: str, timeout: float = 30.0) -> list:
-    """QoS profiles of `node_name`'s publishers on `topic`, seen from the ROS graph."""
+    """Get the QoS profiles of `node_name`'s publishers on `topic` from the ROS graph."""
     import time as clock
 
     import rclpy

@@ -3,32 +3,32 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-import pytest
-import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+import numpy as np
+import pytest
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
+import yaml
 
 from octoroach_model.errors import BagError, DataError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import (
+    bag_topics,
     DEFAULT_MARKER_TOPIC,
     DEFAULT_POSE_TOPIC,
-    MARKER_TYPE,
-    POSE_STAMPED,
-    TRANSFORM_STAMPED,
-    PoseBagWriter,
-    bag_topics,
     heading_to_quaternion,
     iter_pose_samples,
     load_measured,
     marker_topic,
+    MARKER_TYPE,
+    POSE_STAMPED,
     pose_topic,
+    PoseBagWriter,
     quaternion_to_heading,
     read_runs,
     subject_of,
+    TRANSFORM_STAMPED,
     write_paths_bag,
 )
 

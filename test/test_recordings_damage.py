@@ -3,20 +3,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hypothesis import given, HealthCheck, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
 
 from octoroach_model.errors import BagError, DataError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import (
     DEFAULT_POSE_TOPIC,
-    PoseBagWriter,
     iter_pose_samples,
     load_measured,
+    PoseBagWriter,
     read_runs,
     write_paths_bag,
 )
@@ -38,7 +38,7 @@ def wavy_paths(n_runs: int = 10, duration_s: float = 5.0) -> Paths:
 
 def write_stream(path: Path, stamps_ns: np.ndarray, poses: np.ndarray,
                  marker_at: list[int] | None = None) -> Path:
-    """Writes samples in the given (arrival) order; a marker precedes each index in marker_at."""
+    """Write samples in the given (arrival) order; a marker precedes each index in marker_at."""
     log_times = START_NS + np.arange(len(stamps_ns)) * PERIOD_NS  # receive clock: monotonic
     with PoseBagWriter(path, marker_topic='/octoroach/run_start' if marker_at else None) as bag:
         edges = sorted(set(marker_at or []) | {0, len(stamps_ns)})
@@ -50,7 +50,7 @@ def write_stream(path: Path, stamps_ns: np.ndarray, poses: np.ndarray,
 
 
 def clean_stream(n_runs: int = 3, samples: int = 100) -> tuple[np.ndarray, np.ndarray, list]:
-    """Runs of `samples` at 50 Hz with 1.5 s between them: stamps, poses, run start indices."""
+    """Make runs of `samples` at 50 Hz 1.5 s apart: stamps, poses, run start indices."""
     stamps, poses, starts = [], [], []
     for run in range(n_runs):
         starts.append(run * samples)
@@ -137,8 +137,8 @@ def test_a_sqlite3_bag_without_a_pose_topic_lists_its_topics(tmp_path: Path) -> 
 
 def test_an_unknown_storage_plugin_is_refused_with_the_reason(tmp_path: Path) -> None:
     bag = write_paths_bag(tmp_path / 'odd', wavy_paths(1, 1.0))
-    text = (bag / 'metadata.yaml').read_text().replace('storage_identifier: mcap',
-                                                        'storage_identifier: leveldb')
+    text = (bag / 'metadata.yaml').read_text()
+    text = text.replace('storage_identifier: mcap', 'storage_identifier: leveldb')
     (bag / 'metadata.yaml').write_text(text)
     with pytest.raises(BagError, match=r"odd: storage 'leveldb' is not supported"):
         read_runs(bag)

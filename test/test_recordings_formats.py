@@ -7,29 +7,29 @@ back (and convert) to the reference runs within 1e-6 m / 1e-6 rad.
 """
 from __future__ import annotations
 
-import math
-import sys
 from collections.abc import Callable
+import math
 from pathlib import Path
+import sys
 
 import numpy as np
 import pytest
 from rosbags.rosbag1 import Writer as Ros1Writer
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Ros2Writer
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 
 from octoroach_model.cli import convert_main, validate_main
 from octoroach_model.errors import BagError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import (
+    bag_topics,
     DEFAULT_MARKER_TOPIC,
     DEFAULT_POSE_TOPIC,
-    ReadOptions,
-    bag_topics,
     iter_pose_samples,
     load_measured,
     read_runs,
+    ReadOptions,
     write_paths_bag,
 )
 from octoroach_model.recordings.convert import convert_to_bag
@@ -47,7 +47,7 @@ geometry_msgs/Pose pose
 
 
 def turning_paths(n_runs: int = 4, seed: int = 7) -> Paths:
-    """Runs that cross heading +-pi (so every reader must unwrap), each different."""
+    """Make runs that cross heading +-pi (so every reader must unwrap), each different."""
     rng = np.random.default_rng(seed)
     print(f'turning_paths seed {seed}')
     t = np.arange(int(2.0 * RATE_HZ) + 1) / RATE_HZ
@@ -173,7 +173,7 @@ def vicon_pose(bag, build, stamp, x, y, heading) -> None:
 
 
 def tf_pose(bag, build, stamp, x, y, heading) -> None:
-    """The robot and a fixed frame on /tf, as mocap drivers broadcast them."""
+    """Write the robot and a fixed frame on /tf, as mocap drivers broadcast them."""
     bag.write('/tf', 'tf2_msgs/msg/TFMessage', stamp, build.tf([
         build.transform(stamp, 'world', 'vicon/world', 0.0, 0.0, 0.0),
         build.transform(stamp, '/vicon/world', ROBOT, x, y, heading)]))
@@ -240,7 +240,7 @@ def truth() -> Paths:
 
 @pytest.fixture(scope='module')
 def reference(tmp_path_factory: pytest.TempPathFactory, truth: Paths):
-    """The runs of the package's own standard bag of `truth`."""
+    """Read the runs of the package's own standard bag of `truth`."""
     bag = write_paths_bag(tmp_path_factory.mktemp('reference') / 'reference', truth,
                           gap_s=(PERIOD_NS / 1e9) - float(truth.t[-1]),
                           start_time_ns=START_NS)
@@ -332,8 +332,8 @@ def test_several_moving_frames_need_a_frame_and_the_error_names_them(
         read_runs(source, options=ReadOptions(frame='robot_c'))
 
 
-def test_a_frame_fixed_to_the_robot_by_tf_static_is_followed(tmp_path: Path,
-                                                            truth: Paths) -> None:
+def test_a_frame_fixed_to_the_robot_by_tf_static_is_followed(
+        tmp_path: Path, truth: Paths) -> None:
     offset_m, turn = 0.05, math.pi / 2
     store = get_typestore(Stores.ROS2_JAZZY)
     build = Messages(store)

@@ -5,32 +5,32 @@ reader with mcap-ros2-support's decoder, and plain YAML.
 """
 from __future__ import annotations
 
+from pathlib import Path
 import shutil
 import time
-from pathlib import Path
 
-import numpy as np
-import pytest
-import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+import numpy as np
+import pytest
 from rosbags.interfaces import QosDurability, QosReliability
 from rosbags.rosbag2 import Reader
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
+import yaml
 
 from octoroach_model import simulate
 from octoroach_model.errors import BagError, DataError
 from octoroach_model.recordings import (
-    DEFAULT_POSE_TOPIC,
     BagReader,
     BagWriter,
+    DEFAULT_POSE_TOPIC,
     PoseBagWriter,
     QosOverride,
     QosProfile,
     replay_profile,
     write_paths_bag,
 )
-from octoroach_model.recordings.qos import INFINITE_NS, dump_profiles, load_profiles
+from octoroach_model.recordings.qos import dump_profiles, INFINITE_NS, load_profiles
 
 # RIHS01 of geometry_msgs/msg/TransformStamped, as rclpy reports it on Jazzy
 TRANSFORM_HASH = 'RIHS01_0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206'
@@ -95,7 +95,7 @@ def test_rosbags_reads_the_qos_and_the_hash(bag: Path) -> None:
 def test_the_writer_refuses_an_existing_bag_and_negative_times(bag: Path,
                                                                tmp_path: Path) -> None:
     with pytest.raises(BagError, match=r'runs: cannot write the bag: it exists already'):
-        BagWriter(bag).open()
+        BagWriter(bag).create()
     with pytest.raises(DataError, match=r'negative time stamps'):
         with PoseBagWriter(tmp_path / 'negative') as writer:
             writer.write_poses(np.array([-5]), np.zeros((1, 3)))
@@ -105,7 +105,7 @@ def test_a_flushed_bag_survives_its_writer(tmp_path: Path) -> None:
     """What is on disk after a flush (a copy taken while the writer runs) reads back whole."""
     store = get_typestore(Stores.ROS2_JAZZY)
     message = store.types['std_msgs/msg/UInt32']
-    writer = BagWriter(tmp_path / 'live', flush_period_s=0.05).open()
+    writer = BagWriter(tmp_path / 'live', flush_period_s=0.05).create()
     channel = writer.add_topic('/counter', 'std_msgs/msg/UInt32')
 
     def write(values: range) -> None:
@@ -133,11 +133,14 @@ def test_a_flushed_bag_survives_its_writer(tmp_path: Path) -> None:
 
 
 def test_the_mcap_api_the_bag_layer_relies_on_is_there() -> None:
-    """Public mcap API used by the reader and the crash-safe writer (fails on an upgrade that
-    drops it): Writer.flush ends the open chunk; breakup_chunk decodes one chunk."""
+    """Check the public mcap API the reader and the crash-safe writer use.
+
+    Fails on an upgrade that drops it: Writer.flush ends the open chunk; breakup_chunk
+    decodes one chunk.
+    """
     import io
 
-    from mcap.stream_reader import StreamReader, breakup_chunk
+    from mcap.stream_reader import breakup_chunk, StreamReader
     from mcap.writer import Writer
 
     stream = io.BytesIO()

@@ -6,18 +6,23 @@ import json
 from pathlib import Path
 
 from octoroach_model.commands.common import (
-    OneLineParser, add_pose_arguments, finite_float, new_output, read_options)
+    add_pose_arguments,
+    finite_float,
+    new_output,
+    OneLineParser,
+    read_options,
+)
 
 
 def parser() -> argparse.ArgumentParser:
-    """The `convert` command line."""
+    """Build the `convert` command line."""
     result = OneLineParser(
         prog='convert', description="Turn pose recordings into the package's standard bag: "
         'TransformStamped on /vicon/SUBJECT/SUBJECT (metres, heading as the yaw) with a run '
         'marker on /SUBJECT/run_start before each run, as `simulate` writes. Inputs: rosbag2 '
         'bags (MCAP or sqlite3) with poses on any pose topic or on /tf, ROS 1 .bag files, Vicon '
         '.csv exports and .c3d files (docs/formats.md). Every sample is copied; markers are '
-        "kept, or put where runs start. Prints JSON with notes on what was converted.")
+        'kept, or put where runs start. Prints JSON with notes on what was converted.')
     result.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
                         help='bags, .bag/.mcap/.csv/.c3d files, or folders of them')
     result.add_argument('--out', type=Path, required=True, help='bag directory to create')

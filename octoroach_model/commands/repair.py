@@ -5,11 +5,11 @@ import argparse
 import json
 from pathlib import Path
 
-from octoroach_model.commands.common import OneLineParser, new_output
+from octoroach_model.commands.common import new_output, OneLineParser
 
 
 def parser() -> argparse.ArgumentParser:
-    """The `repair` command line."""
+    """Build the `repair` command line."""
     result = OneLineParser(
         prog='repair', description='Make a rosbag2 MCAP bag that a killed recorder left '
         'behind (no footer, no index, no metadata.yaml) complete, keeping every message that '

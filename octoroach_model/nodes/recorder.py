@@ -9,22 +9,30 @@ package reads up to the last flush and that `repair` makes complete.
 """
 from __future__ import annotations
 
-import fnmatch
-import functools
-import importlib
-import sys
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
+import fnmatch
+import functools
+import importlib
 from pathlib import Path
+import sys
+import time
 from typing import Any
 
 from octoroach_model.errors import DataError, OctoroachError
 from octoroach_model.nodes.common import (
-    ParamSpec, UsageError, declare_parameters, fail, node_parser, run_node,
+    declare_parameters,
+    fail,
+    node_parser,
+    ParamSpec,
+    run_node,
+    set_parameters_callback,
+    split_ros_args,
+    UsageError,
+    vicon_qos,
     with_defaults,
-    set_parameters_callback, split_ros_args, vicon_qos)
+)
 
 SUMMARY = ('ROS node: records VICON pose topics (TransformStamped or PoseStamped) and run '
            'markers to a rosbag2 MCAP bag directory (ROS 2 Jazzy layout), flushed every '
@@ -50,9 +58,13 @@ MAX_TAKEN_PER_CALLBACK = 1000  # then let timers (flush, drain) run
 
 
 def recorder_specs() -> list[ParamSpec]:
-    """The recorder's parameters."""
+    """List the recorder's parameters."""
     from octoroach_model.recordings import (
-        DEFAULT_GAP_S, DEFAULT_MARKER_TOPIC, DEFAULT_POSE_TOPIC, DEFAULT_RATE_HZ)
+        DEFAULT_GAP_S,
+        DEFAULT_MARKER_TOPIC,
+        DEFAULT_POSE_TOPIC,
+        DEFAULT_RATE_HZ,
+    )
 
     return [
         ParamSpec('output', '', 'bag directory to create; empty: ./octoroach_YYYYmmdd_HHMMSS',
@@ -78,9 +90,14 @@ def default_output() -> str:
 
 
 def qos_profile_of(profile: Any) -> Any:
-    """rclpy QoSProfile (as discovery reports a publisher's) -> the bag's QosProfile."""
+    """Turn an rclpy QoSProfile (as discovery reports it) into the bag's QosProfile."""
     from octoroach_model.recordings.qos import (
-        DURABILITY, HISTORY, LIVELINESS, RELIABILITY, QosProfile)
+        DURABILITY,
+        HISTORY,
+        LIVELINESS,
+        QosProfile,
+        RELIABILITY,
+    )
 
     return QosProfile(
         history=HISTORY.get(int(profile.history), 'unknown'), depth=int(profile.depth),
@@ -103,7 +120,7 @@ def _message_class(msgtype: str) -> Any:
 
 
 def export_dataset(bag: Path, dataset: str, gap_s: float, rate_hz: float) -> str:
-    """Runs of `bag` (read_runs) resampled into data set `dataset`; a one-line summary."""
+    """Resample the runs of `bag` (read_runs) into data set `dataset`; say what was written."""
     from octoroach_model.recordings import read_runs, save_dataset
 
     paths = read_runs([bag], gap_s=gap_s).to_paths(rate_hz=rate_hz)
@@ -137,7 +154,7 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
         values = declare_parameters(self, self._specs)
         self.add_on_set_parameters_callback(set_parameters_callback(self, self._specs))
         self._patterns = [self._resolve(topic) for topic in values['topics']]
-        from octoroach_model.recordings.recording import REORDER_WINDOW_S, Recording
+        from octoroach_model.recordings.recording import Recording, REORDER_WINDOW_S
 
         output = Path(values['output'] or default_output())
         self._reorder_ns = int(REORDER_WINDOW_S * 1e9)
@@ -225,8 +242,10 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
         self.get_logger().info(f'recording {topic} [{msgtype}]')
 
     def _connection(self, recorded: _Recorded) -> Any:
-        """The bag connection of a topic and type, made at its first message (so a type that
-        never delivers leaves no trace in the bag)."""
+        """Get the bag channel of a topic and type, made at its first message.
+
+        So a type that never delivers leaves no trace in the bag.
+        """
         key = (recorded.topic, recorded.msgtype)
         connection = self._connections.get(key)
         if connection is None:
@@ -311,7 +330,7 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """`recorder [-o BAG] [--dataset FILE] [--topics T ...] [--ros-args ...]`."""
+    """Run `recorder [-o BAG] [--dataset FILE] [--topics T ...] [--ros-args ...]`."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)

@@ -14,19 +14,26 @@ so a recorder listening gets every message.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 import importlib
+from pathlib import Path
 import sys
 import threading
 import time
-from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 from octoroach_model.errors import BagError, OctoroachError
 from octoroach_model.nodes.common import (
-    ParamSpec, UsageError, declare_parameters, fail, node_parser, run_node,
+    declare_parameters,
+    fail,
+    node_parser,
+    ParamSpec,
+    run_node,
+    set_parameters_callback,
+    split_ros_args,
+    UsageError,
     with_defaults,
-    set_parameters_callback, split_ros_args)
+)
 
 SUMMARY = ('ROS node: publishes every message of a rosbag2 bag (MCAP directory or file, or '
            'sqlite3 directory) on its recorded topics with the recorded types (raw CDR, '
@@ -47,7 +54,7 @@ FALLBACK_DEPTH = 1000
 
 
 def replay_specs() -> list[ParamSpec]:
-    """The replay node's parameters."""
+    """List the replay node's parameters."""
     return [
         ParamSpec('bag', '', 'bag directory or .mcap file to play', read_only=True),
         ParamSpec('rate', 1.0, 'speed factor: recorded intervals are divided by it', '',
@@ -75,7 +82,7 @@ def _message_class(msgtype: str) -> Any:
 
 
 def rclpy_qos(profile: Any) -> Any:
-    """The bag layer's QosProfile (keep_last, reliability, durability) as an rclpy one."""
+    """Turn the bag layer's QosProfile (keep_last, reliability, durability) into rclpy's."""
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     return QoSProfile(
@@ -233,7 +240,7 @@ class Replay(Node):  # type: ignore[misc,valid-type]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """`replay BAG [--rate R] [--loop] [--wait-subscribers N] [--reliability R] ...`."""
+    """Run `replay BAG [--rate R] [--loop] [--wait-subscribers N] [--reliability R] ...`."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)

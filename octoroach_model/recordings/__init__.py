@@ -16,10 +16,10 @@ validator alike):
 from __future__ import annotations
 
 from octoroach_model.recordings.bags import (
-    PoseChunk,
     bag_topics,
     iter_pose_samples,
     iter_source_pose_chunks,
+    PoseChunk,
     read_options,
 )
 from octoroach_model.recordings.dataset import (
@@ -35,17 +35,17 @@ from octoroach_model.recordings.reader import BagMessage, BagReader, TopicInfo
 from octoroach_model.recordings.runs import (
     DEFAULT_GAP_S,
     DEFAULT_RATE_HZ,
-    Run,
-    RunSet,
     load_measured,
     read_runs,
+    Run,
+    RunSet,
 )
 from octoroach_model.recordings.sources import (
+    bag_files,
+    BagFiles,
+    expand_sources,
     MEASURED_SUFFIXES,
     POSE_INPUT_SUFFIXES,
-    BagFiles,
-    bag_files,
-    expand_sources,
     source_files,
 )
 from octoroach_model.recordings.vicon import (
@@ -55,17 +55,17 @@ from octoroach_model.recordings.vicon import (
     DEFAULT_START_TIME_NS,
     DEFAULT_SUBJECT,
     DEFAULT_WORLD_FRAME,
+    heading_to_quaternion,
+    marker_topic,
     MARKER_TYPE,
     ODOMETRY,
     POSE_STAMPED,
-    POSE_TYPES,
-    TF_MESSAGE,
-    TRANSFORM_STAMPED,
-    heading_to_quaternion,
-    marker_topic,
     pose_topic,
+    POSE_TYPES,
     quaternion_to_heading,
     subject_of,
+    TF_MESSAGE,
+    TRANSFORM_STAMPED,
 )
 from octoroach_model.recordings.writer import BagWriter
 

@@ -18,9 +18,9 @@ the yaw of the child frame plus the forward-axis offset (`ReadOptions.forward_ax
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
+import math
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -29,24 +29,24 @@ import numpy as np
 from octoroach_model.errors import BagError, ParameterError
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.pose_messages import (
-    PoseLayout,
-    TfLayout,
     frame_getter,
     full_pose_getter,
     pose_getter,
     pose_layout,
+    PoseLayout,
     tf_layout,
+    TfLayout,
 )
-from octoroach_model.recordings.reader import BagMessage, BagReader, TopicInfo, describe_topics
-from octoroach_model.recordings.sources import PathLike, Sources, expand_sources, input_kind
+from octoroach_model.recordings.reader import BagMessage, BagReader, describe_topics, TopicInfo
+from octoroach_model.recordings.sources import expand_sources, input_kind, PathLike, Sources
 from octoroach_model.recordings.vicon import (
     DEFAULT_POSE_TOPIC,
+    marker_topic,
     MARKER_TYPE,
     POSE_STAMPED,
-    TRANSFORM_STAMPED,
-    marker_topic,
     quaternion_to_heading,
     subject_of,
+    TRANSFORM_STAMPED,
     wrap_angle,
 )
 
@@ -125,7 +125,7 @@ def iter_pose_samples(sources: Sources, *, topic: str | None = None,
 
 def iter_source_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
                             chunk_size: int = DEFAULT_CHUNK_SIZE) -> Iterator[PoseChunk]:
-    """The pose streams of one source, by its kind (bag, Vicon CSV, C3D)."""
+    """Yield the pose streams of one source, by its kind (bag, Vicon CSV, C3D)."""
     kind = input_kind(path)
     if kind == 'csv':
         reader = _mocap_reader('vicon_csv', 'iter_csv_pose_chunks', 'Vicon CSV exports')
@@ -141,7 +141,7 @@ def iter_source_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
 
 
 def _mocap_reader(module: str, function: str, what: str) -> Callable[..., Iterator[PoseChunk]]:
-    """The reader of a motion-capture format, imported when first needed."""
+    """Import the reader of a motion-capture format when first needed."""
     import importlib
 
     try:
@@ -293,7 +293,7 @@ class _FrameSeen:
 
 def _choose_frame(reader: BagReader, dynamic: dict[str, TfLayout],
                   lists: dict[str, TfLayout], options: ReadOptions) -> _TfChoice:
-    """Scans the transform lists once: which child frames there are, and which move."""
+    """Scan the transform lists once: which child frames there are, and which move."""
     name = reader.name
     statics = [topic for topic in lists if topic.endswith('_static')]
     seen: dict[str, _FrameSeen] = {}
@@ -348,7 +348,7 @@ def _choose_frame(reader: BagReader, dynamic: dict[str, TfLayout],
 
 
 def attrgetter_list(path: str) -> Callable[[Any], list[Any]]:
-    """message -> its list of transforms."""
+    """Get a message's list of transforms."""
     from operator import attrgetter
 
     get = attrgetter(path)
@@ -357,7 +357,7 @@ def attrgetter_list(path: str) -> Callable[[Any], list[Any]]:
 
 def _static_chain(frame: str, static: dict[str, tuple[str, tuple[float, ...]]],
                   seen: dict[str, _FrameSeen]) -> tuple[str, tuple[float, ...]] | None:
-    """(moving ancestor, pose of `frame` in it) through /tf_static, or None."""
+    """Follow /tf_static up to a moving frame: (that frame, pose of `frame` in it) or None."""
     pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     current = frame
     for _ in range(32):
@@ -427,7 +427,7 @@ def _marker_topics(name: str, topics: dict[str, TopicInfo], streams: dict[str, s
 
 def iter_bag_pose_chunks(path: PathLike, options: ReadOptions, notes: list[str],
                          chunk_size: int = DEFAULT_CHUNK_SIZE) -> Iterator[PoseChunk]:
-    """The pose streams of one bag (rosbag2 or ROS 1), chunk by chunk."""
+    """Yield the pose streams of one bag (rosbag2 or ROS 1), chunk by chunk."""
     reader = BagReader(path, notes)
     topics = reader.topics()
     name = reader.name

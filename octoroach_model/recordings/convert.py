@@ -10,27 +10,23 @@ Conversion streams: one chunk of samples at a time is in memory.
 """
 from __future__ import annotations
 
-import shutil
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+import shutil
 from typing import NamedTuple
 
 import numpy as np
 
 from octoroach_model.errors import BagError, DataError
-from octoroach_model.recordings.bags import (
-    DEFAULT_CHUNK_SIZE,
-    PoseChunk,
-    iter_source_pose_chunks,
-)
+from octoroach_model.recordings.bags import DEFAULT_CHUNK_SIZE, iter_source_pose_chunks, PoseChunk
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.pose_writer import PoseBagWriter
-from octoroach_model.recordings.sources import PathLike, expand_sources
+from octoroach_model.recordings.sources import expand_sources, PathLike
 from octoroach_model.recordings.vicon import (
+    child_frame,
     DEFAULT_SUBJECT,
     DEFAULT_WORLD_FRAME,
-    child_frame,
     marker_topic,
     pose_topic,
     subject_of,
@@ -65,7 +61,7 @@ def convert_to_bag(inputs: Sequence[PathLike] | PathLike, out: PathLike, *,
                    options: ReadOptions | None = None, subject: str | None = None,
                    gap_s: float = DEFAULT_GAP_S,
                    chunk_size: int = DEFAULT_CHUNK_SIZE) -> ConvertReport:
-    """Writes the pose stream of every input into one new standard bag at `out`.
+    """Write the pose stream of every input into one new standard bag at `out`.
 
     Each input must hold one pose stream (choose with `options`: topic, /tf frame, subject).
     The output subject is `subject`, else the input's (``/vicon/S/S``), else 'octoroach'.
@@ -129,7 +125,7 @@ def _with_first(first: PoseChunk, rest: Iterator[PoseChunk]) -> Iterator[PoseChu
 
 def _write_chunk(writer: PoseBagWriter, chunk: PoseChunk, state: _StreamState, gap_ns: int,
                  counts: dict[str, int]) -> None:
-    """Writes a chunk's finite samples with the run markers that go before them."""
+    """Write a chunk's finite samples with the run markers that go before them."""
     poses = chunk.poses
     finite = np.isfinite(poses).all(axis=1)
     counts['dropped'] += int((~finite).sum())

@@ -12,11 +12,11 @@ from functools import lru_cache
 from typing import TYPE_CHECKING
 
 from rosbags.typesys import (
-    Stores,
-    TypesysError,
     get_types_from_idl,
     get_types_from_msg,
     get_typestore,
+    Stores,
+    TypesysError,
 )
 
 if TYPE_CHECKING:
@@ -42,7 +42,7 @@ def jazzy_types() -> Typestore:
 
 
 def standard_definition(msgtype: str) -> TypeDefinition | None:
-    """The definition a bag gets for a standard Jazzy type, or None for an unknown type."""
+    """Describe a standard Jazzy type as a bag stores it; None for an unknown type."""
     store = jazzy_types()
     if msgtype not in store.fielddefs:
         return None
@@ -51,7 +51,7 @@ def standard_definition(msgtype: str) -> TypeDefinition | None:
 
 
 def parse_definition(msgtype: str, encoding: str, text: str) -> dict:
-    """rosbags type dictionary of a definition text (msg or IDL); TypesysError if unreadable."""
+    """Parse a definition text (msg or IDL) into rosbags types; TypesysError if unreadable."""
     if encoding in ('ros2msg', 'ros1msg', 'msg'):
         return get_types_from_msg(text, msgtype)
     if encoding in ('ros2idl', 'idl'):
@@ -95,5 +95,5 @@ class BagTypes:
         return self.knows(msgtype)
 
     def deserialize_cdr(self, data: bytes | memoryview, msgtype: str) -> object:
-        """A CDR message as a rosbags message object."""
+        """Decode a CDR message into a rosbags message object."""
         return self.store.deserialize_cdr(data, msgtype)

@@ -84,7 +84,7 @@ def _find_pose(fielddefs: FieldDefs, msgtype: str, prefix: str,
 
 
 def pose_layout(msgtype: str, fielddefs: FieldDefs) -> PoseLayout | None:
-    """The layout of a single-pose message type, None when it holds no pose."""
+    """Find where a single-pose message type keeps its pose; None when it holds none."""
     found = _find_pose(fielddefs, msgtype, '', 0)
     if found is None:
         return None
@@ -100,7 +100,7 @@ def pose_layout(msgtype: str, fielddefs: FieldDefs) -> PoseLayout | None:
 
 
 def tf_layout(msgtype: str, fielddefs: FieldDefs) -> TfLayout | None:
-    """The layout of a transform-list type (TFMessage), None for any other type."""
+    """Find the layout of a transform-list type (TFMessage); None for any other type."""
     for name, kind in _fields(fielddefs, msgtype):
         if kind[0] not in (Nodetype.SEQUENCE, Nodetype.ARRAY):
             continue
@@ -117,7 +117,7 @@ Sample = tuple[int, float, float, float, float, float, float]
 
 
 def pose_getter(layout: PoseLayout) -> Callable[[Any], Sample]:
-    """message -> (stamp ns, x, y, qx, qy, qz, qw); stamp 0 when the type has no time."""
+    """Make a getter of (stamp ns, x, y, qx, qy, qz, qw); stamp 0 when there is no time."""
     position = attrgetter(layout.position)
     orientation = attrgetter(layout.orientation)
     stamp = attrgetter(layout.stamp) if layout.stamp else None
@@ -132,7 +132,7 @@ def pose_getter(layout: PoseLayout) -> Callable[[Any], Sample]:
 
 
 def full_pose_getter(layout: PoseLayout) -> Callable[[Any], tuple[float, ...]]:
-    """message -> (x, y, z, qx, qy, qz, qw), for composing transforms."""
+    """Make a getter of (x, y, z, qx, qy, qz, qw), for composing transforms."""
     position = attrgetter(layout.position)
     orientation = attrgetter(layout.orientation)
 
@@ -145,7 +145,7 @@ def full_pose_getter(layout: PoseLayout) -> Callable[[Any], tuple[float, ...]]:
 
 
 def frame_getter(path: str) -> Callable[[Any], str]:
-    """message -> frame name without a leading '/' (ROS 1 tf wrote '/world'); '' if none."""
+    """Make a getter of a frame name without a leading '/' (ROS 1 wrote '/world')."""
     if not path:
         return lambda message: ''
     get = attrgetter(path)

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from octoroach_model.errors import BagError, DataError
-from octoroach_model.paths import HEADING, X, Y, Paths
+from octoroach_model.paths import HEADING, Paths, X, Y
 from octoroach_model.recordings.msgtypes import jazzy_types
 from octoroach_model.recordings.qos import QosProfile
 from octoroach_model.recordings.sources import PathLike
@@ -22,10 +22,10 @@ from octoroach_model.recordings.vicon import (
     DEFAULT_POSE_TOPIC,
     DEFAULT_START_TIME_NS,
     DEFAULT_WORLD_FRAME,
+    heading_to_quaternion,
     MARKER_TYPE,
     POSE_TYPES,
     TRANSFORM_STAMPED,
-    heading_to_quaternion,
 )
 from octoroach_model.recordings.writer import BagWriter
 
@@ -80,7 +80,7 @@ class PoseBagWriter:
         return types[self.message_type](header=header, pose=pose)
 
     def __enter__(self) -> PoseBagWriter:
-        self._bag.open()
+        self._bag.create()
         self._pose_channel = self._bag.add_topic(self.topic, self.message_type,
                                                  offered_qos=self.offered_qos)
         return self
@@ -92,14 +92,14 @@ class PoseBagWriter:
             self._bag.abort()
 
     def close(self) -> None:
-        """Writes the MCAP summary and metadata.yaml."""
+        """Write the MCAP summary and metadata.yaml."""
         if self._pose_channel is not None:
             self._bag.close()
             self._pose_channel = None
 
     def write_poses(self, stamp_ns: np.ndarray, poses: np.ndarray, *,
                     log_time_ns: np.ndarray | None = None) -> None:
-        """Writes samples (k, 3) x, y, heading at header stamps `stamp_ns` (int ns).
+        """Write samples (k, 3) x, y, heading at header stamps `stamp_ns` (int ns).
 
         The log time defaults to the stamp, as for a recorder on the VICON machine.
         """
@@ -129,7 +129,7 @@ class PoseBagWriter:
             write(channel, log_int, bytes(serialize(message, msgtype)))
 
     def write_marker(self, run_index: int, log_time_ns: int) -> None:
-        """Writes one run-start marker (UInt32 run index) at `log_time_ns`."""
+        """Write one run-start marker (UInt32 run index) at `log_time_ns`."""
         if self.marker_topic is None:
             raise BagError(f'{self.path}: this writer has no marker topic')
         if self._pose_channel is None:
@@ -148,7 +148,7 @@ def write_paths_bag(out_path: PathLike, paths: Paths, *, topic: str = DEFAULT_PO
                     marker_topic: str | None = DEFAULT_MARKER_TOPIC, gap_s: float = 1.0,
                     start_time_ns: int = DEFAULT_START_TIME_NS,
                     message_type: str = TRANSFORM_STAMPED) -> PathLike:
-    """Writes each run of `paths` at its sample times, one run after another.
+    """Write each run of `paths` at its sample times, one run after another.
 
     Runs are separated by `gap_s` (>= 1 s) of silence so that any reader can split them; one
     marker per run (data = run index) precedes its first pose unless `marker_topic` is None.

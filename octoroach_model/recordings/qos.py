@@ -53,7 +53,7 @@ class QosProfile:
     avoid_ros_namespace_conventions: bool = False
 
     def to_rosbag2(self) -> dict[str, Any]:
-        """The mapping rosbag2 Jazzy writes (metadata version 9), keys in its order."""
+        """Give the mapping rosbag2 Jazzy writes (metadata version 9), keys in its order."""
         def span(nanoseconds: int) -> dict[str, int]:
             sec, nsec = divmod(int(nanoseconds), 10**9)
             return {'sec': sec, 'nsec': nsec}
@@ -72,7 +72,7 @@ class QosProfile:
 
     @classmethod
     def from_rosbag2(cls, entry: Mapping[str, Any]) -> QosProfile:
-        """A profile from metadata.yaml or channel metadata, of any metadata version."""
+        """Read a profile from metadata.yaml or channel metadata, of any metadata version."""
         try:
             values: dict[str, Any] = {}
             for key, names in _POLICIES.items():
@@ -131,7 +131,7 @@ class QosOverride:
 
 def replay_profile(offered: Sequence[QosProfile], override: QosOverride = QosOverride(),
                    fallback_depth: int = 1000) -> tuple[QosProfile, str]:
-    """The profile to publish a recorded topic with, and a note when it is not the recorded one.
+    """Choose the profile to publish a recorded topic with, and say when it is not as recorded.
 
     As ``ros2 bag play`` does: the recorded offer when every publisher offered the same
     reliability, durability and liveliness; otherwise the most widely matched choice

@@ -15,21 +15,21 @@ Message types come from the bag's own definitions where Jazzy does not know them
 """
 from __future__ import annotations
 
-import struct
 from collections.abc import Collection, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple
+import struct
+from typing import Any, NamedTuple, TYPE_CHECKING
 
 from mcap.exceptions import EndOfFile, McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import breakup_chunk, StreamReader
 
 from octoroach_model.errors import BagError
 from octoroach_model.recordings.msgtypes import BagTypes
-from octoroach_model.recordings.qos import QosProfile, load_profiles
-from octoroach_model.recordings.sources import ROS1_SUFFIX, PathLike, bag_files
+from octoroach_model.recordings.qos import load_profiles, QosProfile
+from octoroach_model.recordings.sources import bag_files, PathLike, ROS1_SUFFIX
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Connection
@@ -86,7 +86,7 @@ class FileDamage:
     complete: bool = False  # reached the data end (or footer) record
 
     def note(self) -> str | None:
-        """The plain-word note on a cut file, None for a whole one."""
+        """Say in plain words what a cut file lost; None for a whole file."""
         if self.damage:
             return (f'{self.path}: truncated MCAP ({self.damage}): read {self.messages} '
                     'messages, the rest is lost')
@@ -94,7 +94,7 @@ class FileDamage:
 
 
 def check_mcap_magic(path: Path) -> None:
-    """BagError unless `path` starts like an MCAP file."""
+    """Raise BagError unless `path` starts like an MCAP file."""
     try:
         with path.open('rb') as stream:
             magic = stream.read(len(MCAP_MAGIC))
@@ -239,7 +239,7 @@ class BagReader:
         return found
 
     def _channel_info(self, channel: Channel, schema: Schema | None) -> ChannelInfo:
-        """A channel as stored; registers its type from the schema when Jazzy lacks it."""
+        """Record a channel as stored; register its type from the schema if Jazzy lacks it."""
         msgtype = schema.name if schema is not None else ''
         encoding = schema.encoding if schema is not None else ''
         data = bytes(schema.data) if schema is not None else b''
@@ -297,7 +297,7 @@ class BagReader:
             self.truncated = True
 
     def decode(self, message: BagMessage) -> object:
-        """The message as a rosbags message object (raises on undecodable bytes)."""
+        """Decode a message into a rosbags message object (raises on undecodable bytes)."""
         if self._rosbags_types is not None:
             store, ros1 = self._rosbags_types
             if ros1:
@@ -322,7 +322,7 @@ class BagReader:
 
     def _any_reader(self) -> Any:
         from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
+        from rosbags.typesys import get_typestore, Stores
 
         default = get_typestore(Stores.ROS1_NOETIC if self.storage == 'ros1'
                                 else Stores.ROS2_JAZZY)
@@ -397,7 +397,7 @@ def _topic_info(channel: ChannelInfo, count: int) -> TopicInfo:
 
 
 def _connection_topic(connection: Connection) -> TopicInfo:
-    """TopicInfo of a rosbags connection (sqlite3 or ROS 1)."""
+    """Describe a rosbags connection (sqlite3 or ROS 1) as a TopicInfo."""
     offered: tuple[QosProfile, ...] = ()
     profiles = getattr(connection.ext, 'offered_qos_profiles', None) or []
     try:
@@ -417,7 +417,7 @@ def _connection_topic(connection: Connection) -> TopicInfo:
 
 
 def _add_topic(topics: dict[str, TopicInfo], topic: str, info: TopicInfo) -> None:
-    """Adds a channel's topic; the same topic in several files or channels sums its count."""
+    """Add a channel's topic; the same topic in several files or channels sums its count."""
     if topic in topics:
         old = topics[topic]
         count = -1 if min(old.count, info.count) < 0 else old.count + info.count
@@ -426,7 +426,7 @@ def _add_topic(topics: dict[str, TopicInfo], topic: str, info: TopicInfo) -> Non
 
 
 def describe_topics(topics: dict[str, TopicInfo]) -> str:
-    """'it has /a [type], /b [type]' for error messages."""
+    """Say 'it has /a [type], /b [type]' for error messages."""
     if not topics:
         return 'it has no topics'
     listed = (f'{name} [{info.msgtype}]' for name, info in sorted(topics.items()))

@@ -32,7 +32,7 @@ class Recording:
     """A bag being recorded live; see the module docstring."""
 
     def __init__(self, path: PathLike, *, flush_period_s: float = 1.0) -> None:
-        self._bag = BagWriter(path, flush_period_s=flush_period_s).open()
+        self._bag = BagWriter(path, flush_period_s=flush_period_s).create()
         self.path = self._bag.path
         self._pending: list[_Pending] = []
         self._serial = 0
@@ -57,7 +57,7 @@ class Recording:
 
     def add_topic(self, topic: str, msgtype: str, offered_qos: Sequence[QosProfile] = (),
                   type_hash: str = '') -> int:
-        """A channel for `topic` with its publishers' QoS profiles; returns its id."""
+        """Add a channel for `topic` with its publishers' QoS profiles; return its id."""
         channel = self._bag.add_topic(topic, msgtype, offered_qos=offered_qos,
                                       type_hash=type_hash or None)
         while len(self._topics) <= channel:

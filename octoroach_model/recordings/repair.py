@@ -18,22 +18,18 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import NamedTuple
 
-import yaml
 from mcap.records import Channel, Message, Schema
+import yaml
 
 from octoroach_model.errors import BagError
 from octoroach_model.recordings.qos import load_profiles
-from octoroach_model.recordings.reader import (
-    TRUNCATION_KEY,
-    FileDamage,
-    iter_mcap_records,
-)
-from octoroach_model.recordings.sources import METADATA_FILE, ROS1_SUFFIX, PathLike, bag_files
+from octoroach_model.recordings.reader import FileDamage, iter_mcap_records, TRUNCATION_KEY
+from octoroach_model.recordings.sources import bag_files, METADATA_FILE, PathLike, ROS1_SUFFIX
 from octoroach_model.recordings.writer import (
     FileRecord,
     McapFileWriter,
-    TopicRecord,
     metadata_document,
+    TopicRecord,
     write_metadata_yaml,
 )
 
@@ -129,7 +125,7 @@ def repair_bag(source: PathLike, out: PathLike | None = None) -> RepairReport:
 
 
 def _scan(file: Path) -> tuple[_FileScan, FileDamage]:
-    """Walks one file: its topics, counts and time range, and what is damaged."""
+    """Walk one file: its topics, counts and time range, and what is damaged."""
     report = FileDamage(file)
     scan = _FileScan()
     schemas: dict[int, Schema] = {}
@@ -162,7 +158,7 @@ def _scan(file: Path) -> tuple[_FileScan, FileDamage]:
 
 
 def _rewrite(source: Path, destination: Path) -> _FileScan:
-    """Copies every readable message of `source` into a new complete MCAP file."""
+    """Copy every readable message of `source` into a new complete MCAP file."""
     writer = McapFileWriter(destination)
     try:
         schemas: dict[int, Schema] = {}
@@ -183,7 +179,7 @@ def _rewrite(source: Path, destination: Path) -> _FileScan:
                     message_encoding=record.message_encoding, metadata=record.metadata)
             elif isinstance(record, Schema):
                 schemas[record.id] = record
-        scan = _FileScan({index: topic for index, topic in enumerate(writer.topic_records())},
+        scan = _FileScan(dict(enumerate(writer.topic_records())),
                          writer.file_record(destination.name))
         writer.finish(sync=True)
     except BaseException:
@@ -194,7 +190,7 @@ def _rewrite(source: Path, destination: Path) -> _FileScan:
 
 
 def _keep(path: Path) -> str:
-    """Renames `path` to a free ``PATH.damaged[.N]`` name; returns the new name."""
+    """Rename `path` to a free ``PATH.damaged[.N]`` name; return the new name."""
     kept = path.with_name(path.name + DAMAGED_SUFFIX)
     number = 1
     while kept.exists():
@@ -205,7 +201,7 @@ def _keep(path: Path) -> str:
 
 
 def _swap(original: Path, final: Path) -> str:
-    """Keeps the damaged original, then gives its name to the repaired copy."""
+    """Keep the damaged original, then give its name to the repaired copy."""
     kept = _keep(original)
     final.with_name(final.name + '.partial').replace(final)
     return kept

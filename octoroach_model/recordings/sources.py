@@ -7,8 +7,8 @@ recursively; a bag directory counts as one source).
 """
 from __future__ import annotations
 
-import os
 from collections.abc import Iterable
+import os
 from pathlib import Path
 from typing import NamedTuple, Union
 
@@ -40,7 +40,7 @@ class BagFiles(NamedTuple):
 
 
 def is_bag_directory(path: Path) -> bool:
-    """A rosbag2 directory: metadata.yaml, or storage files named after the directory."""
+    """Tell a rosbag2 directory: metadata.yaml, or storage files named after it."""
     if (path / METADATA_FILE).is_file():
         return True
     files = [p for p in path.iterdir() if p.is_file() and p.suffix in ROS2_SUFFIXES]
@@ -86,9 +86,9 @@ def _search_folder(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
 
 def source_files(sources: Sources, *,
                  suffixes: tuple[str, ...] = MEASURED_SUFFIXES) -> list[Path]:
-    """Every file whose change changes what `sources` read as: a bag directory's storage
-    files and metadata.yaml, the other inputs themselves.
+    """List every file whose change changes what `sources` read as.
 
+    That is a bag directory's storage files and metadata.yaml, and the other inputs themselves.
     Watch these (size, modification time) to notice a bag that a recorder is still writing:
     the directory's own time stamp does not change when a file inside it grows.
     """
@@ -116,7 +116,7 @@ def input_kind(path: Path) -> str:
 
 
 def bag_files(source: PathLike) -> BagFiles:
-    """The storage files of a rosbag2 bag directory (from metadata.yaml if present) or file."""
+    """List the storage files of a rosbag2 bag directory (or file), metadata.yaml first."""
     path = Path(source)
     if not path.exists():
         raise BagError(f'{path}: no such file or directory')

@@ -28,22 +28,22 @@ TF_STATIC_TOPIC = '/tf_static'
 
 
 def pose_topic(subject: str) -> str:
-    """The VICON pose topic of `subject` (vicon_bridge naming)."""
+    """Name the VICON pose topic of `subject` (vicon_bridge naming)."""
     return f'/vicon/{subject}/{subject}'
 
 
 def child_frame(subject: str) -> str:
-    """The VICON child frame of `subject`."""
+    """Name the VICON child frame of `subject`."""
     return f'vicon/{subject}/{subject}'
 
 
 def marker_topic(subject: str) -> str:
-    """The run-marker topic of `subject`."""
+    """Name the run-marker topic of `subject`."""
     return f'/{subject}/run_start'
 
 
 def subject_of(name: str) -> str | None:
-    """The subject S of a ``/vicon/S/S`` topic or ``vicon/S/S`` frame, else None."""
+    """Find the subject S of a ``/vicon/S/S`` topic or ``vicon/S/S`` frame, else None."""
     parts = name.strip('/').split('/')
     if len(parts) == 3 and parts[0] == 'vicon' and parts[1] == parts[2] and parts[1]:
         return parts[1]

@@ -18,20 +18,20 @@ an arbitrary byte loses at most the chunk being cut.
 """
 from __future__ import annotations
 
-import os
-import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+import os
 from pathlib import Path
-from typing import IO, Any
+import time
+from typing import Any, IO
 
-import yaml
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
+import yaml
 
 from octoroach_model.errors import BagError, DataError
-from octoroach_model.recordings.msgtypes import TypeDefinition, standard_definition
-from octoroach_model.recordings.qos import QosProfile, dump_profiles, load_profiles
+from octoroach_model.recordings.msgtypes import standard_definition, TypeDefinition
+from octoroach_model.recordings.qos import dump_profiles, load_profiles, QosProfile
 from octoroach_model.recordings.sources import METADATA_FILE, PathLike
 
 ROS_DISTRO = 'jazzy'
@@ -66,7 +66,7 @@ class FileRecord:
 def metadata_document(files: Sequence[FileRecord], topics: Sequence[TopicRecord], *,
                       storage: str = 'mcap',
                       custom_data: Mapping[str, str] | None = None) -> dict[str, Any]:
-    """The content of metadata.yaml (inside ``rosbag2_bagfile_information``), Jazzy's form."""
+    """Build metadata.yaml's content (inside ``rosbag2_bagfile_information``), Jazzy's form."""
     counted = [record for record in files if record.message_count]
     start = min((record.start_ns for record in counted), default=0)
     end = max((record.start_ns + record.duration_ns for record in counted), default=0)
@@ -101,7 +101,7 @@ def metadata_document(files: Sequence[FileRecord], topics: Sequence[TopicRecord]
 
 
 def write_metadata_yaml(directory: Path, document: Mapping[str, Any]) -> Path:
-    """Writes ``metadata.yaml`` atomically (temporary file, then rename)."""
+    """Write ``metadata.yaml`` atomically (temporary file, then rename)."""
     target = directory / METADATA_FILE
     partial = directory / (METADATA_FILE + '.partial')
     try:
@@ -149,7 +149,7 @@ class McapFileWriter:
     def add_channel(self, topic: str, msgtype: str, *, schema_encoding: str,
                     schema_data: bytes, message_encoding: str = 'cdr',
                     metadata: Mapping[str, str] | None = None) -> int:
-        """A new channel (one topic and type); its schema is shared with others of the type."""
+        """Add a channel (one topic and type); its schema is shared with others of the type."""
         key = (msgtype, schema_encoding, bytes(schema_data))
         schema_id = self._schemas.get(key)
         if schema_id is None:
@@ -162,7 +162,7 @@ class McapFileWriter:
 
     def write(self, channel_id: int, log_time_ns: int, data: bytes, *,
               publish_time_ns: int | None = None, sequence: int = 0) -> None:
-        """Appends one serialized message to the file."""
+        """Append one serialized message to the file."""
         log_time_ns = int(log_time_ns)
         if log_time_ns < 0:
             raise DataError(f'{self.path}: negative time stamps cannot be written')
@@ -175,17 +175,17 @@ class McapFileWriter:
         self.end_ns = max(self.end_ns, log_time_ns)
 
     def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
-        """An MCAP metadata record (rosbag2 keeps its bag metadata in one named 'rosbag2')."""
+        """Add an MCAP metadata record (rosbag2 keeps its metadata in one named 'rosbag2')."""
         self._mcap.add_metadata(name, dict(data))
 
     def flush(self, sync: bool = True) -> None:
-        """Ends the open chunk and hands the file to the OS (and the disk, with `sync`)."""
+        """End the open chunk and hand the file to the OS (and the disk, with `sync`)."""
         self._mcap.flush()
         if sync:
             os.fsync(self._stream.fileno())
 
     def finish(self, sync: bool = False) -> None:
-        """Writes the summary, index and footer and closes the file (synced, with `sync`)."""
+        """Write the summary, index and footer and close the file (synced, with `sync`)."""
         if self.finished:
             return
         self._mcap.finish()
@@ -196,7 +196,7 @@ class McapFileWriter:
         self.finished = True
 
     def abort(self) -> None:
-        """Closes the file as it is (no summary): what was flushed stays readable."""
+        """Close the file as it is (no summary): what was flushed stays readable."""
         if not self.finished:
             self.finished = True
             try:
@@ -205,7 +205,7 @@ class McapFileWriter:
                 pass
 
     def file_record(self, relative: str) -> FileRecord:
-        """This file's entry of metadata.yaml."""
+        """Give this file's entry of metadata.yaml."""
         start = self.start_ns or 0
         return FileRecord(relative, start, max(0, self.end_ns - start), self.message_count)
 
@@ -225,14 +225,14 @@ class McapFileWriter:
 
 
 def channel_metadata(offered_qos: Sequence[QosProfile], type_hash: str) -> dict[str, str]:
-    """An MCAP channel's metadata as rosbag2 Jazzy writes it."""
+    """Build an MCAP channel's metadata as rosbag2 Jazzy writes it."""
     return {'offered_qos_profiles': dump_profiles(offered_qos), 'topic_type_hash': type_hash}
 
 
 class BagWriter:
     """A new rosbag2 bag directory ``PATH`` with ``PATH/PATH_0.mcap`` and metadata.yaml.
 
-    Use as a context manager (or `open` and `close`). Topics are added with `add_topic`
+    Use as a context manager (or `create` and `close`). Topics are added with `add_topic`
     (standard Jazzy types are described from Jazzy's definitions) and written to with
     `write(channel, log_time_ns, cdr_bytes)`.
 
@@ -266,8 +266,8 @@ class BagWriter:
         """The MCAP file inside the bag directory, named as rosbag2 names it."""
         return self.path / f'{self.path.name}_0.mcap'
 
-    def open(self) -> BagWriter:
-        """Creates the directory and the MCAP file; BagError if the bag exists already."""
+    def create(self) -> BagWriter:
+        """Create the directory and the MCAP file; BagError if the bag exists already."""
         if self.path.exists():
             raise BagError(f'{self.path}: cannot write the bag: it exists already; '
                            'choose a new path')
@@ -280,7 +280,7 @@ class BagWriter:
         return self
 
     def __enter__(self) -> BagWriter:
-        return self.open()
+        return self.create()
 
     def __exit__(self, exc_type: object, *exc_info: object) -> None:
         if exc_type is None:
@@ -297,7 +297,7 @@ class BagWriter:
                   offered_qos: Sequence[QosProfile] = (),
                   definition: TypeDefinition | None = None,
                   type_hash: str | None = None) -> int:
-        """A channel for `topic`; `definition` defaults to Jazzy's (BagError if unknown)."""
+        """Add a channel for `topic`; `definition` defaults to Jazzy's (BagError if unknown)."""
         definition = definition or standard_definition(msgtype)
         if definition is None:
             raise BagError(f'{self.path}: no definition of message type {msgtype}')
@@ -309,7 +309,7 @@ class BagWriter:
     def add_channel(self, topic: str, msgtype: str, *, schema_encoding: str,
                     schema_data: bytes, message_encoding: str = 'cdr',
                     metadata: Mapping[str, str] | None = None) -> int:
-        """A channel copied as stored elsewhere (repair, conversion of raw messages)."""
+        """Add a channel copied as stored elsewhere (repair, conversion of raw messages)."""
         return self._require().add_channel(topic, msgtype, schema_encoding=schema_encoding,
                                            schema_data=schema_data,
                                            message_encoding=message_encoding,
@@ -317,7 +317,7 @@ class BagWriter:
 
     def write(self, channel: int, log_time_ns: int, data: bytes, *,
               publish_time_ns: int | None = None, sequence: int = 0) -> None:
-        """Appends one serialized message (CDR) on `channel`."""
+        """Append one serialized message (CDR) on `channel`."""
         self._require().write(channel, log_time_ns, data, publish_time_ns=publish_time_ns,
                               sequence=sequence)
         self._unflushed = True
@@ -352,7 +352,7 @@ class BagWriter:
         return yaml.safe_dump(self._document(), sort_keys=False, default_flow_style=False)
 
     def close(self) -> None:
-        """Writes the MCAP summary and footer, then metadata.yaml."""
+        """Write the MCAP summary and footer, then metadata.yaml."""
         if self.closed or self._file is None:
             return
         file = self._file
@@ -363,7 +363,7 @@ class BagWriter:
         write_metadata_yaml(self.path, document)
 
     def abort(self) -> None:
-        """Closes the file without summary or metadata.yaml (`repair` completes it)."""
+        """Close the file without summary or metadata.yaml (`repair` completes it)."""
         if self._file is not None and not self.closed:
             self._file.abort()
         self.closed = True
