@@ -1,4 +1,4 @@
-"""Memory and time of reading large pose inputs: do `read_runs` and `convert` stay bounded?
+"""Measure memory and time of reading large pose inputs: do `read_runs` and `convert` stay bounded.
 
 For each bag kind (the package's MCAP bag, TFMessage on /tf in MCAP, Odometry in MCAP,
 TransformStamped in a rosbag2 sqlite3 bag, a ROS 1 bag), a child process writes an input of
@@ -72,7 +72,7 @@ def _write_standard(bag: Path, n_runs: int, n_samples: int) -> None:
 
 
 def _write_rosbags(kind: str, bag: Path, n_runs: int, n_samples: int) -> Path:
-    """An input written by rosbags' own writers, message by message."""
+    """Write an input with rosbags' own writers, message by message."""
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import StoragePlugin
     from rosbags.rosbag2 import Writer as Writer2
@@ -90,9 +90,8 @@ def _write_rosbags(kind: str, bag: Path, n_runs: int, n_samples: int) -> Path:
         serialize = store.serialize_cdr
     types = store.types
     seq = {'seq': 0} if kind == 'ros1' else {}
-    msgtype = {'tf': 'tf2_msgs/msg/TFMessage',
-               'odometry': 'nav_msgs/msg/Odometry'}.get(kind,
-                                                       'geometry_msgs/msg/TransformStamped')
+    msgtypes = {'tf': 'tf2_msgs/msg/TFMessage', 'odometry': 'nav_msgs/msg/Odometry'}
+    msgtype = msgtypes.get(kind, 'geometry_msgs/msg/TransformStamped')
     topic = {'tf': '/tf', 'odometry': '/odom'}.get(kind, '/vicon/octoroach/octoroach')
     stamp = types['builtin_interfaces/msg/Time'](sec=0, nanosec=0)
     header = types['std_msgs/msg/Header'](stamp=stamp, frame_id='vicon/world', **seq)

@@ -379,6 +379,17 @@ def test_a_type_without_a_definition_says_why_it_is_unreadable(tmp_path: Path,
         read_runs(path)
 
 
+def test_a_damaged_ros1_bag_is_one_error_naming_it(tmp_path: Path, truth: Paths) -> None:
+    source = WRITERS['ros1 /tf only'](tmp_path / 'old', truth)
+    data = source.read_bytes()
+    (tmp_path / 'cut.bag').write_bytes(data[:len(data) // 2])  # the index is at the end
+    with pytest.raises(BagError, match=r'cut\.bag: unreadable ROS 1 bag'):
+        read_runs(tmp_path / 'cut.bag')
+    (tmp_path / 'text.bag').write_text('not a bag')
+    with pytest.raises(BagError, match=r'text\.bag: not a ROS 1 bag of format 2\.0'):
+        read_runs(tmp_path / 'text.bag')
+
+
 def test_every_reader_accepts_the_formats_directly(tmp_path: Path, truth: Paths) -> None:
     folder = tmp_path / 'lab'
     folder.mkdir()

@@ -7,8 +7,8 @@ keeps every message up to the damage, skips a chunk it cannot decode (bad checks
 record) and says in `notes` what was lost. File order is arrival order, which is what cuts a
 stream at its run markers. One chunk at a time is in memory.
 
-sqlite3 bags and ROS 1 bags go through rosbags' `AnyReader` (timestamp order). Its ROS 1
-reader holds the bag's index in memory (one entry per message); the sqlite3 reader streams.
+sqlite3 bags go through rosbags' `AnyReader` (time order, streamed from the database); ROS 1
+bags through `ros1.Ros1Bag` (rosbags' record parsers, chunk by chunk in file order).
 
 Message types come from the bag's own definitions where Jazzy does not know them
 (`msgtypes.BagTypes`), so a lab's custom pose message decodes like a standard one.
@@ -29,6 +29,7 @@ from mcap.stream_reader import breakup_chunk, StreamReader
 from octoroach_model.errors import BagError
 from octoroach_model.recordings.msgtypes import BagTypes
 from octoroach_model.recordings.qos import load_profiles, QosProfile
+from octoroach_model.recordings.ros1 import Ros1Bag
 from octoroach_model.recordings.sources import bag_files, PathLike, ROS1_SUFFIX
 
 if TYPE_CHECKING:
@@ -345,7 +346,49 @@ class BagReader:
                     if 'index' in reason.lower() and self.storage == 'ros1' else '')
             raise BagError(f'{self.name}: cannot read the bag: {reason}{hint}') from None
 
+    def _ros1_types(self, connections: list[Any]) -> Any:
+        """Build a type store of the bag's own definitions (Noetic's where it has none)."""
+        from rosbags.typesys import get_types_from_msg, get_typestore, Stores, TypesysError
+
+        types: dict = {}
+        for connection in connections:
+            if connection.msgdef.data:
+                try:
+                    types.update(get_types_from_msg(connection.msgdef.data, connection.msgtype))
+                except TypesysError as error:
+                    self.types.unreadable[connection.msgtype] = f'unreadable definition: {error}'
+        noetic = get_typestore(Stores.ROS1_NOETIC)
+        store = get_typestore(Stores.EMPTY)
+        store.register({**{name: noetic.fielddefs[name] for name in noetic.fielddefs},
+                        **types})
+        return store
+
+    def _ros1_topics(self) -> dict[str, TopicInfo]:
+        with Ros1Bag(self.path) as bag:
+            self._rosbags_types = (self._ros1_types(bag.connections), True)
+            topics: dict[str, TopicInfo] = {}
+            for connection in bag.connections:
+                self._connection_channel(connection)
+                info = _connection_topic(connection)._replace(
+                    count=bag.counts.get(connection.id, 0))
+                _add_topic(topics, connection.topic, info)
+        return topics
+
+    def _ros1_messages(self, topics: Collection[str] | None) -> Iterator[BagMessage]:
+        wanted = None if topics is None else set(topics)
+        with Ros1Bag(self.path) as bag:
+            if self._rosbags_types is None:
+                self._rosbags_types = (self._ros1_types(bag.connections), True)
+            selected = {c.id: self._connection_channel(c) for c in bag.connections
+                        if wanted is None or c.topic in wanted}
+            for connection, timestamp, data in bag.messages(selected):
+                yield BagMessage(connection.topic, connection.msgtype, timestamp, timestamp,
+                                 data, selected[connection.id])
+
     def _rosbags_topics(self) -> dict[str, TopicInfo]:
+        if self.storage == 'ros1':
+            return self._ros1_topics()
+
         def listing(reader: Any) -> dict[str, TopicInfo]:
             topics: dict[str, TopicInfo] = {}
             for connection in reader.connections:
@@ -372,6 +415,9 @@ class BagReader:
         from rosbags.rosbag1 import ReaderError as Ros1Error
         from rosbags.rosbag2 import ReaderError as Ros2Error
 
+        if self.storage == 'ros1':
+            yield from self._ros1_messages(topics)
+            return
         wanted = None if topics is None else set(topics)
         try:
             with self._any_reader() as reader:
