@@ -1,7 +1,7 @@
 """ROS 1 bags (format 2.0), streamed chunk by chunk with rosbags' own record readers.
 
 rosbags' `Reader.open()` loads the index entry of every message before the first one is read
-(about 180 bytes each: 179 MB for a bag of a million poses). This reader opens the bag with
+(some 180 bytes each: memory that grows with the bag). This reader opens the bag with
 the same rosbags pieces (`Reader.read_connection`, `read_chunk_info`, `read_chunk`,
 `Header.read`), keeps only the connections and the list of chunks from the index, and reads
 the chunks in file order: one decompressed chunk is in memory at a time, and messages come in

@@ -11,10 +11,10 @@ Layout (rosbag2 Jazzy, storage plugin mcap, metadata version 9):
   854775807}``) and ``type_description_hash``.
 
 Crash-safe mode (the recorder): `flush()` ends the open chunk, hands everything written so far
-to the operating system and syncs it to disk. mcap's `Writer.flush()` is public API (mcap >=
-1.3) and does exactly the first two; a process killed with SIGKILL after a flush leaves a file
-that `BagReader` and `repair` read up to that flush. Chunks are small (64 KiB): a file cut at
-an arbitrary byte loses at most the chunk being cut.
+to the operating system and syncs it to disk. mcap's `Writer.flush()` is public API (in the
+version pinned in requirements.txt; a test checks it) and does the first two; a process killed
+with SIGKILL after a flush leaves a file that `BagReader` and `repair` read up to that flush.
+Chunks are small (64 KiB): a file cut at an arbitrary byte loses at most the chunk being cut.
 """
 from __future__ import annotations
 
