@@ -41,6 +41,7 @@ def jazzy_types() -> Typestore:
     return get_typestore(Stores.ROS2_JAZZY)
 
 
+@lru_cache(maxsize=256)
 def standard_definition(msgtype: str) -> TypeDefinition | None:
     """Describe a standard Jazzy type as a bag stores it; None for an unknown type."""
     store = jazzy_types()
