@@ -6,7 +6,8 @@ import sys
 from pathlib import Path
 
 from octoroach_model.commands.common import (
-    OneLineParser, add_input_arguments, new_output, nonnegative_int, progress_printer)
+    OneLineParser, add_input_arguments, new_output, nonnegative_int, progress_printer,
+    read_options)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -35,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
         from octoroach_model.errors import ParameterError
         raise ParameterError(f'--out {args.out} is a directory that is not empty; '
                              f'choose a new or empty one')
-    measured = load_measured(args.bags, topic=args.topic, gap_s=args.gap_s)
+    measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s)
     report = diagnose(measured, DiagnosisSettings(seed=args.seed),
                       progress=progress_printer('diagnose'))
     report['sources'] = [str(path) for path in args.bags]
