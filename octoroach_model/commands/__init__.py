@@ -17,6 +17,8 @@ OFFLINE: dict[str, str] = {
     'simulate': 'writes N model runs to a bag',
     'validate': "the paper's validation of measured runs, as JSON",
     'diagnose': 'what the model gets wrong, the causes, the extended model and its gain',
+    'study': 'how well the diagnosis does over many simulated data sets (on Dask)',
+    'plan': 'how many runs an experiment needs to detect a given effect',
 }
 
 
