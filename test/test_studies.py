@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 import random
 
 import numpy as np
@@ -32,6 +33,7 @@ def suite_seed() -> int:
 
 
 SEED = suite_seed()
+REPO = Path(__file__).resolve().parents[1]
 
 VARIED = """
 name: varied   # a comment
@@ -122,6 +124,13 @@ def test_a_bad_spec_is_one_line_naming_what_is_wrong(text, reason):
         parse_spec(yaml.safe_load(text))
     message = str(caught.value)
     assert reason in message and '\n' not in message, message
+
+
+@pytest.mark.parametrize('path', sorted((REPO / 'studies').glob('*.yaml')),
+                         ids=lambda path: path.name)
+def test_every_spec_file_in_the_repository_is_valid(path):
+    spec = om.load_spec(path)
+    assert spec.name == path.stem and build_tasks(spec)
 
 
 def test_a_spec_file_that_is_not_yaml_or_missing_is_a_one_line_error(tmp_path):

@@ -257,26 +257,44 @@ def fit_power_curve(rows: Sequence[Mapping[str, Any]], cause: str, target: float
 def _logistic(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     """Fit expit(a + b (x - mean x)) by maximum likelihood; return (a, b) on x itself.
 
-    b is bounded to [0, MAX_SLOPE] and a small ridge keeps the fit finite.
+    Newton steps with a halving line search; b is kept in [0, MAX_SLOPE] and a small ridge
+    keeps the fit finite when every data set agrees. The outcomes are counted per distinct x
+    first (a few run counts), so a fit costs microseconds and the bootstrap is cheap.
     """
-    from scipy.optimize import minimize
     from scipy.special import expit, log_expit
 
     centre = float(x.mean())
-    xc = x - centre
+    levels, index = np.unique(x, return_inverse=True)
+    trials = np.bincount(index).astype(float)
+    successes = np.bincount(index, weights=y)
+    design = np.stack([np.ones_like(levels), levels - centre], axis=1)
 
     def loss(theta: np.ndarray) -> float:
-        eta = theta[0] + theta[1] * xc
-        return float(-(y * log_expit(eta) + (1 - y) * log_expit(-eta)).sum()
+        eta = design @ theta
+        return float(-(successes * log_expit(eta) + (trials - successes) * log_expit(-eta)).sum()
                      + RIDGE * (theta @ theta))
 
-    def gradient(theta: np.ndarray) -> np.ndarray:
-        residual = expit(theta[0] + theta[1] * xc) - y
-        return np.array([residual.sum(), residual @ xc]) + 2 * RIDGE * theta
-
-    fitted = minimize(loss, np.zeros(2), jac=gradient, method='L-BFGS-B',
-                      bounds=[(-50, 50), (0, MAX_SLOPE)])
-    a, b = (float(v) for v in fitted.x)
+    theta = np.zeros(2)
+    current = loss(theta)
+    for _ in range(100):
+        p = expit(design @ theta)
+        gradient = design.T @ (trials * p - successes) + 2 * RIDGE * theta
+        hessian = (design.T * (trials * p * (1 - p))) @ design + 2 * RIDGE * np.eye(2)
+        step = np.linalg.solve(hessian, gradient)
+        for _ in range(40):
+            trial = theta - step
+            trial[1] = min(max(trial[1], 0.0), MAX_SLOPE)
+            value = loss(trial)
+            if value <= current:
+                break
+            step = step / 2
+        else:
+            break
+        done = abs(current - value) < 1e-12
+        theta, current = trial, value
+        if done:
+            break
+    a, b = float(theta[0]), float(theta[1])
     return a - b * centre, b
 
 

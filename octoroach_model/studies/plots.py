@@ -67,7 +67,7 @@ def _false_positive(plt, summary):
                                 for c in cells])
     axis.set_xlabel('run count of the null data sets')
     axis.set_ylabel('share of null data sets with a cause named')
-    axis.set_ylim(0, max(0.2, max(c['interval_95'][1] for c in cells) * 1.1))
+    axis.set_ylim(-0.01, max(0.2, max(c['interval_95'][1] for c in cells) * 1.1))
     axis.set_title("False positives: a cause named on data from the paper's model")
     axis.legend(loc='upper right', fontsize=8)
     return figure
@@ -134,10 +134,11 @@ def _estimation_error(plt, summary):
     axis.plot(positions, [100 * e['median_relative_error'] for e in entries], 'k_',
               markersize=14, label='median relative error (bias)')
     axis.axhline(0, color='grey', linewidth=0.8)
-    axis.set_xticks(positions, [f'{e["arm"]}\n{e["cause"] if "+" in e["arm"] else ""}\n'
-                                f'{_runs_label(e["runs"])}, {e["named"]} named'
-                                for e in entries], rotation=60, ha='right', fontsize=7)
-    axis.set_ylabel('error of the main parameter, % of the true size')
+    axis.set_xticks(positions, [
+        f'{e["arm"]}\n' + (f'{e["cause"]}\n' if e['arm'].count('=') > 1 else '')
+        + f'{_runs_label(e["runs"])}, {e["named"]} named' for e in entries],
+        rotation=60, ha='right', fontsize=7)
+    axis.set_ylabel('error of the main parameter, %')
     axis.set_xlabel('arm (cause = size), run count, data sets where the cause was named')
     axis.set_title('Estimation error where the true cause was named')
     axis.legend(fontsize=8)
