@@ -48,6 +48,7 @@ def measure_scale(workers: tuple[int, ...] = (1, 2)) -> dict[int, dict]:
 
 
 def print_scale(results: dict[int, dict]) -> None:
+    """Print the README's scale table and the cluster figures derived from it."""
     one, two = results[1], results[2]
     per_data_set = one['wall_s'] / one['tasks']
     speed_up = one['wall_s'] / two['wall_s']
@@ -63,7 +64,9 @@ def print_scale(results: dict[int, dict]) -> None:
     print(f'\nspeed-up with 2 workers: {speed_up:.2f} (efficiency {efficiency:.0%} per worker)')
     print(f'one data set on one worker: {per_data_set:.1f} s')
     print(f'a {CLUSTER_CORES}-core cluster at this efficiency: about {per_hour:,.0f} data sets '
-          f'per hour ({CLUSTER_CORES} x {efficiency:.2f} x 3600 s / {per_data_set:.1f} s)')
+          f'per hour ({CLUSTER_CORES} x {efficiency:.2f} x 3600 s / {per_data_set:.1f} s); '
+          f'the 200 data sets of studies/false_positives.yaml in about '
+          f'{200 / per_hour * 60:.0f} min (their runs vary: 150-1000)')
 
 
 def run_studies(names: list[str], workers: int | None, scheduler: str | None) -> None:
@@ -89,12 +92,14 @@ def _rate(entry: dict) -> str:
 
 
 def _error(value: float | None) -> str:
-    return '-' if value is None else f'{100 * value:.0f} %'
+    return '-' if value is None else f'{100 * value:.1f} %'
 
 
-def _wall(name: str) -> str:
+def _wall(name: str, summary: dict) -> str:
+    """Return the study's wall time: as this script measured it, else the summary's."""
     path = OUT / name / 'bench_wall_time_s.txt'
-    return f'{float(path.read_text()) / 60:.0f} min' if path.exists() else 'unknown'
+    seconds = float(path.read_text()) if path.exists() else summary['timing']['wall_time_s']
+    return f'{seconds / 60:.1f} min' if seconds is not None else 'unknown (resumed)'
 
 
 def print_tables(names: list[str]) -> None:
@@ -107,7 +112,7 @@ def print_tables(names: list[str]) -> None:
         summary = json.loads(path.read_text())
         command = (f'python -m octoroach_model study studies/{name}.yaml '
                    f'--out out/studies/{name}')
-        print(f'\n### {name} (`{command}`, wall time {_wall(name)} on this machine)\n')
+        print(f'\n### {name} (`{command}`, wall time {_wall(name, summary)} on this machine)\n')
         counts = summary['status']['counts']
         if set(counts) - {'ok'}:
             print(f'data sets without a diagnosis: {counts}\n')

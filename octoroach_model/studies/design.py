@@ -4,8 +4,9 @@ Seeding (docs/studies.md): replicate r of a study with seed S owns
 `np.random.SeedSequence([S, r])`, whose children draw, in a fixed order, the robot, the data
 seed, the damage and the signs of signed causes. Every arm and run count of replicate r uses
 the same robot and the same data seed (common random numbers): the data sets of one replicate
-differ only by the effects put into them, and a smaller run count is the first runs of a
-larger one. Nothing depends on where or in which order tasks run.
+differ only by the effects put into them, and (for the paper's model and most causes) a
+smaller run count is the first runs of a larger one. Nothing depends on where or in which
+order tasks run.
 """
 from __future__ import annotations
 

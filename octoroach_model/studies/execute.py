@@ -72,6 +72,9 @@ def check_where(client: Any | None, scheduler: str | None, workers: int | None) 
     """Check that the choice of where to run is coherent (before any work starts)."""
     if client is not None and scheduler:
         raise ParameterError('give a Dask client or a scheduler address, not both')
+    if (client is not None or scheduler) and workers is not None:
+        raise ParameterError('with a Dask client or scheduler the cluster has its own workers; '
+                             'leave --workers out')
     if workers is not None and workers < 0:
         raise ParameterError(f'workers must be 0 (in this process) or more, got {workers}')
 
@@ -86,6 +89,7 @@ def where_to_run(client: Any | None = None, scheduler: str | None = None,
     """
     check_where(client, scheduler, workers)
     if client is not None:
+        check_workers(client)
         return contextlib.nullcontext(client)
     if workers == 0 and not scheduler:
         return contextlib.nullcontext(None)

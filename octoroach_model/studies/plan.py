@@ -7,7 +7,8 @@ How it decides (docs/studies.md, "How plan decides"):
    (a limit that shrinks as 1 / sqrt(runs)). Only a starting point: the answer comes from 3.
 2. Coarse grid: n0 / 4, n0 / 2, n0, 2 n0 (within [min_runs, max_runs]); at each, `replicates`
    data sets with the effect at `size` are diagnosed. Replicate r uses the same seed at every
-   run count (common random numbers: a smaller data set is the first runs of a larger one).
+   run count (common random numbers: for most causes a smaller data set is the first runs of
+   a larger one).
 3. Fit: power(n) = 1 / (1 + exp(-(a + b ln n))) by maximum likelihood over every diagnosed
    data set; the answer is the n where the fit reaches the requested power, and its 95 %
    interval comes from refitting on replicates drawn with replacement (bootstrap).
