@@ -35,7 +35,7 @@ from octoroach_model.model import EFFECT_PARAMETERS
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import check_where, CONNECT_TIMEOUT_S, run_tasks, where_to_run
 from octoroach_model.studies.spec import (
-    Arm, nominal_robot, parse_spec, robot_spec, RobotSpec, StudySpec)
+    Arm, diagnosis_min_runs, nominal_robot, parse_spec, robot_spec, RobotSpec, StudySpec)
 from octoroach_model.studies.summary import wilson
 from octoroach_model.studies.table import write_table
 
@@ -106,11 +106,10 @@ def plan_runs(cause: str, size: float, *, power: float = 0.8,
     other parameters; `diagnosis` overrides DiagnosisSettings as in a study spec. Where tasks
     run: as in `run_study`. With `out`, writes plan.json, table.csv and power_curve.png there.
     """
-    from octoroach_model.diagnosis.diagnose import MIN_RUNS
-
     started = time.perf_counter()
     say = progress or (lambda fraction, message: None)
-    min_runs = max(MIN_RUNS, min_runs or MIN_RUNS)
+    fewest = diagnosis_min_runs()
+    min_runs = max(fewest, min_runs or fewest)
     base = _base_spec(cause, size, robot, parameters, replicates, seed, diagnosis,
                       min_runs, max_runs, power)
     if run_counts is not None:
