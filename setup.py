@@ -6,7 +6,7 @@ from setuptools import find_packages, setup
 PACKAGE = 'octoroach_model'
 # every executable X has octoroach_model.cli.X_main; keep in step with cli.py
 EXECUTABLES = ('simulator', 'recorder', 'validator', 'replay', 'simulate', 'validate',
-               'diagnose', 'repair', 'convert')
+               'diagnose', 'repair', 'convert', 'study', 'plan')
 
 setup(
     name=PACKAGE,

@@ -63,6 +63,14 @@ def convert_main(argv: list[str] | None = None) -> int:
     return _command_main('convert', argv)
 
 
+def study_main(argv: list[str] | None = None) -> int:
+    return _command_main('study', argv)
+
+
+def plan_main(argv: list[str] | None = None) -> int:
+    return _command_main('plan', argv)
+
+
 def usage() -> str:
     """What `python -m octoroach_model --help` prints."""
     offline = _offline()
