@@ -6,7 +6,7 @@ from setuptools import find_packages, setup
 PACKAGE = 'octoroach_model'
 # every executable X has octoroach_model.cli.X_main; keep in step with cli.py
 EXECUTABLES = ('simulator', 'recorder', 'validator', 'replay', 'simulate', 'validate',
-               'diagnose')
+               'diagnose', 'repair', 'convert', 'study', 'plan')
 
 setup(
     name=PACKAGE,
@@ -15,7 +15,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
         (f'share/{PACKAGE}', ['package.xml']),
-        (f'share/{PACKAGE}/config', glob('config/*.yaml')),
+        (f'share/{PACKAGE}/config', glob('config/*.yaml')),     # Table II, params files
+        (f'share/{PACKAGE}/launch', glob('launch/*.launch.xml')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import argparse
 import os
+from pathlib import Path
 import re
 import signal
 import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+from pathlib import Path
 import re
 import signal
 import subprocess
@@ -24,7 +25,6 @@ import sys
 import tempfile
 import threading
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -144,7 +144,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--samples', type=int, default=50, help='calls per kind and state')
     parser.add_argument('--runs', type=int, default=200, help='model runs in the data set')
-    parser.add_argument('--grid-points', type=int, default=41)
+    parser.add_argument('--grid-points', type=int, default=101,
+                        help='search grid per spread: the job must outlast the samples')
     parser.add_argument('--pause-s', type=float, default=0.02, help='pause between calls')
     args = parser.parse_args()
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 BENCHMARKS = ['bench_model.py', 'bench_diagnose.py', 'bench_nodes.py',
-              'bench_validator_busy.py', 'bench_bag_memory.py']
+              'bench_validator_busy.py', 'bench_bag_memory.py', 'bench_studies.py']
 
 
 def main() -> int:

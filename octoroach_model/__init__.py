@@ -22,6 +22,8 @@ _LAZY = {
     'write_report': 'octoroach_model.diagnosis', 'load_measured': 'octoroach_model.recordings',
     'read_runs': 'octoroach_model.recordings', 'write_paths_bag': 'octoroach_model.recordings',
     'save_dataset': 'octoroach_model.recordings', 'load_dataset': 'octoroach_model.recordings',
+    'run_study': 'octoroach_model.studies', 'plan_runs': 'octoroach_model.studies',
+    'load_spec': 'octoroach_model.studies',
 }
 __all__ += sorted(_LAZY)
 

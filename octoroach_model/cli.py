@@ -55,6 +55,22 @@ def diagnose_main(argv: list[str] | None = None) -> int:
     return _command_main('diagnose', argv)
 
 
+def repair_main(argv: list[str] | None = None) -> int:
+    return _command_main('repair', argv)
+
+
+def convert_main(argv: list[str] | None = None) -> int:
+    return _command_main('convert', argv)
+
+
+def study_main(argv: list[str] | None = None) -> int:
+    return _command_main('study', argv)
+
+
+def plan_main(argv: list[str] | None = None) -> int:
+    return _command_main('plan', argv)
+
+
 def usage() -> str:
     """What `python -m octoroach_model --help` prints."""
     offline = _offline()

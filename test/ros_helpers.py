@@ -12,15 +12,19 @@ log file (no pipe to fill up); `NodeProcess.log` is what a failing assertion sho
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 import itertools
+import json
 import os
+from pathlib import Path
 import re
 import signal
 import subprocess
 import sys
+import threading
 import time
-from collections.abc import Callable
-from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -178,3 +182,223 @@ def call_trigger(service: str, domain: int, timeout: float = 20.0) -> tuple[bool
         node.destroy_node()
         rclpy.try_shutdown(context=context)
         context.destroy()
+
+
+# -- a client in its own context ------------------------------------------------------------
+
+
+class Client:
+    """Service calls and subscriptions from a node of this test, spun on its own thread.
+
+    `domain`: the ROS domain of the nodes to talk to (NodeSet.domain for node processes);
+    default this process's own.
+    """
+
+    def __init__(self, domain: int | None = None) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        self.context = Context()
+        rclpy.init(args=[], context=self.context,
+                   domain_id=int(os.environ['ROS_DOMAIN_ID']) if domain is None else domain)
+        self.node = Node('validator_test_client', context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._clients: dict[str, Any] = {}
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        from rclpy.executors import ExternalShutdownException
+
+        try:
+            self.executor.spin()
+        except ExternalShutdownException:
+            pass
+
+    def client(self, srv_type: Any, name: str, timeout: float = 20.0) -> Any:
+        if name not in self._clients:
+            client = self.node.create_client(srv_type, name)
+            if not client.wait_for_service(timeout_sec=timeout):
+                seen = sorted(n for n, _ in self.node.get_service_names_and_types())
+                raise AssertionError(f'service {name} did not appear within {timeout:g} s '
+                                     f'(ROS_DOMAIN_ID {os.environ.get("ROS_DOMAIN_ID")}; '
+                                     f'services seen: {seen})')
+            self._clients[name] = client
+        return self._clients[name]
+
+    def start(self, srv_type: Any, name: str, request: Any = None) -> Call:
+        """Send a request; the Call records when the answer arrived."""
+        client = self.client(srv_type, name)
+        call = Call(time.perf_counter())
+        call.future = client.call_async(request or srv_type.Request())
+        call.future.add_done_callback(call.arrived)
+        return call
+
+    def call(self, srv_type: Any, name: str, request: Any = None,
+             timeout: float = 60.0) -> tuple[Any, float]:
+        """(response, seconds from request to answer)."""
+        call = self.start(srv_type, name, request)
+        return call.wait(timeout), call.seconds
+
+    def trigger(self, name: str, timeout: float = 60.0) -> tuple[bool, dict, float]:
+        """(success, parsed JSON message, seconds) of a Trigger call."""
+        from std_srvs.srv import Trigger
+
+        response, seconds = self.call(Trigger, name, timeout=timeout)
+        return response.success, json.loads(response.message), seconds
+
+    def get(self, node: str, name: str) -> tuple[Any, float]:
+        from rcl_interfaces.srv import GetParameters
+        from rclpy.parameter import Parameter
+
+        response, seconds = self.call(GetParameters, f'/{node}/get_parameters',
+                                      GetParameters.Request(names=[name]))
+        return Parameter.from_parameter_msg(_msg(name, response.values[0])).value, seconds
+
+    def set(self, node: str, name: str, value: Any) -> tuple[Any, float]:
+        """(SetParametersResult, seconds)."""
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        request = SetParameters.Request(
+            parameters=[Parameter(name, value=value).to_parameter_msg()])
+        response, seconds = self.call(SetParameters, f'/{node}/set_parameters', request)
+        return response.results[0], seconds
+
+    def latched(self, topic: str, timeout: float = 10.0) -> Any:
+        """First message of a transient_local topic, subscribing only now."""
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        got: list[Any] = []
+        arrived = threading.Event()
+        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+        def keep(msg: Any) -> None:
+            got.append(msg)
+            arrived.set()
+
+        subscription = self.node.create_subscription(DiagnosticArray, topic, keep, qos)
+        try:
+            assert arrived.wait(timeout), f'nothing latched on {topic} within {timeout:g} s'
+            return got[0]
+        finally:
+            self.node.destroy_subscription(subscription)
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown()
+        self._thread.join(timeout=5)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self.context.destroy()
+
+
+def _msg(name: str, value: Any) -> Any:
+    from rcl_interfaces.msg import Parameter as ParameterMsg
+
+    return ParameterMsg(name=name, value=value)
+
+
+class Call:
+    """One request in flight."""
+
+    def __init__(self, sent: float) -> None:
+        self.sent = sent
+        self.answered: float | None = None
+        self.future: Any = None
+        self._event = threading.Event()
+
+    def arrived(self, future: Any) -> None:
+        self.answered = time.perf_counter()
+        self._event.set()
+
+    @property
+    def seconds(self) -> float:
+        assert self.answered is not None
+        return self.answered - self.sent
+
+    def done(self) -> bool:
+        return self._event.is_set()
+
+    def wait(self, timeout: float) -> Any:
+        assert self._event.wait(timeout), f'no answer within {timeout:g} s'
+        return self.future.result()
+
+
+# -- launch files ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class LaunchedNode:
+    """One <node> of a launch file as the command line `ros2 launch` would start it."""
+
+    executable: str
+    name: str
+    arguments: tuple[str, ...]  # '--ros-args' and the node's ROS arguments
+
+    def start(self, nodes: NodeSet) -> NodeProcess:
+        """Start it as `python -m octoroach_model EXECUTABLE --ros-args ...` in `nodes`."""
+        return nodes.start(self.executable, *self.arguments)
+
+
+_SUBSTITUTION = re.compile(r'\$\((var|find-pkg-share) ([A-Za-z0-9_]+)\)')
+
+
+def read_launch_file(path: Path, share: Path, package: str = 'octoroach_model',
+                     **arguments: str) -> list[LaunchedNode]:
+    """The nodes of an XML launch file, with the parameters files and remappings it names.
+
+    `share` stands for `$(find-pkg-share PACKAGE)` (the checkout: its config/ and launch/ are
+    laid out as in share/PACKAGE); launch arguments take their defaults unless given. Only the
+    subset of the launch XML format that this package uses is understood (arg, node with
+    param from=..., param name=/value=, remap; substitutions var and find-pkg-share); anything
+    else fails the test, so the launch file cannot say more than the test checks. As
+    launch_ros does, name/value parameters come after the parameters files and win.
+    """
+    import xml.etree.ElementTree as ElementTree
+
+    root = ElementTree.parse(path).getroot()
+    assert root.tag == 'launch', f'{path}: root element is {root.tag}, not launch'
+    values: dict[str, str] = {}
+
+    def substitute(text: str) -> str:
+        def one(match: re.Match[str]) -> str:
+            kind, name = match.groups()
+            if kind == 'var':
+                assert name in values, f'{path}: $(var {name}) is not a declared <arg>'
+                return values[name]
+            assert name == package, f'{path}: $(find-pkg-share {name}) is another package'
+            return str(share)
+        return _SUBSTITUTION.sub(one, text)
+
+    launched = []
+    for element in root:
+        if element.tag == 'arg':
+            name = element.attrib['name']
+            values[name] = arguments.get(name, element.attrib.get('default', ''))
+            continue
+        assert element.tag == 'node', f'{path}: <{element.tag}> is not understood here'
+        assert set(element.attrib) <= {'pkg', 'exec', 'name', 'output'}, element.attrib
+        assert element.attrib['pkg'] == package, element.attrib
+        files: list[str] = []
+        rules: list[str] = []
+        for child in element:
+            if child.tag == 'param' and 'from' in child.attrib:
+                files += ['--params-file', substitute(child.attrib['from'])]
+            elif child.tag == 'param':
+                rules += ['-p', f'{child.attrib["name"]}:={substitute(child.attrib["value"])}']
+            elif child.tag == 'remap':
+                rules += ['-r', f'{substitute(child.attrib["from"])}:='
+                                f'{substitute(child.attrib["to"])}']
+            else:
+                raise AssertionError(f'{path}: <{child.tag}> in a node is not understood here')
+        name = element.attrib.get('name', element.attrib['exec'])
+        launched.append(LaunchedNode(
+            element.attrib['exec'], name,
+            ('--ros-args', '-r', f'__node:={name}', *files, *rules)))
+    return launched

@@ -5,10 +5,10 @@ one executor; the process-level behaviour (exit codes, one-line errors) goes thr
 """
 from __future__ import annotations
 
-import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+import math
+import time
 
 import numpy as np
 import pytest
@@ -17,7 +17,7 @@ pytest.importorskip('rclpy')
 
 from rclpy.parameter import Parameter  # noqa: E402
 
-from octoroach_model.nodes import common, simulator  # noqa: E402
+from octoroach_model.nodes import common, messages, simulator  # noqa: E402
 from octoroach_model.nodes.simulator import RunSettings, Simulator  # noqa: E402
 
 FAST = [Parameter('rate', value=100.0), Parameter('pause_s', value=0.5),
@@ -105,7 +105,7 @@ def test_runs_are_published_as_vicon_transforms_with_a_marker_before_each(ros):
         poses = runs[index]
         assert len(poses) == 51  # 1 cycle at 2 Hz = 0.5 s at 100 Hz, both ends
         expected = node.settings.simulate(node.settings.run_seed(index)).poses[0]
-        got = np.array([common.transform_to_pose(msg) for msg in poses])
+        got = np.array([messages.transform_to_pose(msg) for msg in poses])
         np.testing.assert_allclose(got[:, :2], expected[:, :2], atol=1e-12)
         turn = np.angle(np.exp(1j * (got[:, 2] - expected[:, 2])))
         np.testing.assert_allclose(turn, 0.0, atol=1e-9)
@@ -130,7 +130,7 @@ def test_start_pose_and_seed_reach_the_model(ros):
     node = Simulator(context=context, parameter_overrides=overrides)
     executor.add_node(node)
     spin_until(executor, lambda: len(listener.markers()) >= 2, 10.0, 'two run markers')
-    first = common.transform_to_pose(listener.runs()[0][0])
+    first = messages.transform_to_pose(listener.runs()[0][0])
     assert first == pytest.approx((1.5, -2.0, 0.0), abs=1e-12)
     assert node.settings.run_seed(0) == RunSettings.from_values(
         common.current_values(node, simulator.simulator_specs())).run_seed(0)
@@ -196,21 +196,27 @@ def test_topic_names_follow_the_recordings_convention():
     assert simulator.pose_topic('r_3', 'r_3') == recordings.pose_topic('r_3')
 
 
-def test_encoded_transforms_deserialize_to_the_same_messages():
+def test_messages_round_trip_poses_through_serialized_transforms():
     from geometry_msgs.msg import TransformStamped
     from rclpy.serialization import deserialize_message, serialize_message
 
     poses = np.array([[1.5, -2.25, math.pi / 2], [0.1, 0.2, -3.0], [0.0, 0.0, 7.0]])
-    for frame, child in [('a', 'b'), ('vicon/world', 'vicon/octoroach/octoroach'),
-                         ('ab', 'abcdefg'), ('abc', 'x' * 13), ('', '')]:
-        rows = common.encode_transforms(poses, frame, child)
-        for row, pose in zip(rows, poses):
-            row = row.copy()
-            row[common.STAMP] = np.frombuffer(common.stamp_bytes(1_700_000_000_123_456_789),
-                                              np.uint8)
-            expected = common.pose_to_transform(pose, 1_700_000_000_123_456_789, frame, child)
-            assert deserialize_message(row.tobytes(), TransformStamped) == expected
-            assert len(row) == len(serialize_message(expected))
+    stamp_ns = 1_700_000_000_123_456_789
+    [rows] = messages.planar_rows(poses)
+    template = messages.transform_message('vicon/world', 'vicon/octoroach/octoroach')
+    for row, pose in zip(rows, poses):
+        filled = messages.fill_transform(template, row, stamp_ns)
+        expected = messages.pose_to_transform(pose, stamp_ns, 'vicon/world',
+                                              'vicon/octoroach/octoroach')
+        back = deserialize_message(serialize_message(filled), TransformStamped)
+        assert back == expected
+        assert (back.header.stamp.sec, back.header.stamp.nanosec) == (1_700_000_000, 123_456_789)
+        x, y, heading = messages.transform_to_pose(back)
+        assert (x, y) == (pose[0], pose[1])
+        assert math.isclose(math.remainder(heading - pose[2], 2 * math.pi), 0.0, abs_tol=1e-12)
+        q = back.transform.rotation
+        assert (q.x, q.y) == (0.0, 0.0)
+        assert math.isclose(q.z ** 2 + q.w ** 2, 1.0, rel_tol=1e-12)
 
 
 def test_help_lists_every_parameter_with_range_and_unit_without_starting_ros(capsys):

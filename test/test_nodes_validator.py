@@ -8,16 +8,15 @@ so that n x k fits them (epsilon = delta = 0.3 gives n = 11; k = 4 uses 44 runs)
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
+from dataclasses import fields, replace
 import json
-import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
-from dataclasses import fields, replace
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -26,19 +25,18 @@ pytest.importorskip('rclpy')
 
 import rclpy  # noqa: E402
 from rclpy.context import Context  # noqa: E402
-from rclpy.executors import (  # noqa: E402
-    ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
-from rclpy.node import Node  # noqa: E402
+from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 import octoroach_model as om  # noqa: E402
+from octoroach_model import validation_jobs  # noqa: E402
 from octoroach_model.nodes import validator  # noqa: E402
 from octoroach_model.recordings import save_dataset  # noqa: E402
 
-from ros_helpers import REPO, NodeSet, ros_env, wait_until  # noqa: E402
+from ros_helpers import Client, NodeSet, REPO, ros_env, wait_until  # noqa: E402
 
 SMALL = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 5}     # n = 11, 44 runs
-LONG = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 41, 'nominal': 'table2'}
+LONG = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 101, 'nominal': 'table2'}
 QUICK_DIAGNOSIS = {'moment_runs': 80, 'mean_path_runs': 60, 'score_runs': 150, 'bootstrap': 10,
                    'workers': 1,
                    'validate_models': False}
@@ -61,141 +59,6 @@ def overrides(values: dict[str, Any]) -> list[str]:
         text = json.dumps(value) if isinstance(value, list) else str(value)
         rules += ['-p', f'{name}:={text}']
     return rules
-
-
-# -- a client in its own context ------------------------------------------------------------
-
-class Client:
-    """Service calls and subscriptions from a node of this test, spun on its own thread.
-
-    `domain`: the ROS domain of the nodes to talk to (NodeSet.domain for node processes);
-    default this process's own.
-    """
-
-    def __init__(self, domain: int | None = None) -> None:
-        self.context = Context()
-        rclpy.init(args=[], context=self.context,
-                   domain_id=int(os.environ['ROS_DOMAIN_ID']) if domain is None else domain)
-        self.node = Node('validator_test_client', context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._clients: dict[str, Any] = {}
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except ExternalShutdownException:
-            pass
-
-    def client(self, srv_type: Any, name: str, timeout: float = 20.0) -> Any:
-        if name not in self._clients:
-            client = self.node.create_client(srv_type, name)
-            if not client.wait_for_service(timeout_sec=timeout):
-                seen = sorted(n for n, _ in self.node.get_service_names_and_types())
-                raise AssertionError(f'service {name} did not appear within {timeout:g} s '
-                                     f'(ROS_DOMAIN_ID {os.environ.get("ROS_DOMAIN_ID")}; '
-                                     f'services seen: {seen})')
-            self._clients[name] = client
-        return self._clients[name]
-
-    def start(self, srv_type: Any, name: str, request: Any = None) -> Call:
-        """Send a request; the Call records when the answer arrived."""
-        client = self.client(srv_type, name)
-        call = Call(time.perf_counter())
-        call.future = client.call_async(request or srv_type.Request())
-        call.future.add_done_callback(call.arrived)
-        return call
-
-    def call(self, srv_type: Any, name: str, request: Any = None,
-             timeout: float = 60.0) -> tuple[Any, float]:
-        """(response, seconds from request to answer)."""
-        call = self.start(srv_type, name, request)
-        return call.wait(timeout), call.seconds
-
-    def trigger(self, name: str, timeout: float = 60.0) -> tuple[bool, dict, float]:
-        """(success, parsed JSON message, seconds) of a Trigger call."""
-        from std_srvs.srv import Trigger
-
-        response, seconds = self.call(Trigger, name, timeout=timeout)
-        return response.success, json.loads(response.message), seconds
-
-    def get(self, node: str, name: str) -> tuple[Any, float]:
-        from rcl_interfaces.srv import GetParameters
-
-        response, seconds = self.call(GetParameters, f'/{node}/get_parameters',
-                                      GetParameters.Request(names=[name]))
-        return Parameter.from_parameter_msg(_msg(name, response.values[0])).value, seconds
-
-    def set(self, node: str, name: str, value: Any) -> tuple[Any, float]:
-        """(SetParametersResult, seconds)."""
-        from rcl_interfaces.srv import SetParameters
-
-        request = SetParameters.Request(
-            parameters=[Parameter(name, value=value).to_parameter_msg()])
-        response, seconds = self.call(SetParameters, f'/{node}/set_parameters', request)
-        return response.results[0], seconds
-
-    def latched(self, topic: str, timeout: float = 10.0) -> Any:
-        """First message of a transient_local topic, subscribing only now."""
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-        got: list[Any] = []
-        arrived = threading.Event()
-        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-        def keep(msg: Any) -> None:
-            got.append(msg)
-            arrived.set()
-
-        subscription = self.node.create_subscription(DiagnosticArray, topic, keep, qos)
-        try:
-            assert arrived.wait(timeout), f'nothing latched on {topic} within {timeout:g} s'
-            return got[0]
-        finally:
-            self.node.destroy_subscription(subscription)
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self._thread.join(timeout=5)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-        self.context.destroy()
-
-
-def _msg(name: str, value: Any) -> Any:
-    from rcl_interfaces.msg import Parameter as ParameterMsg
-
-    return ParameterMsg(name=name, value=value)
-
-
-class Call:
-    """One request in flight."""
-
-    def __init__(self, sent: float) -> None:
-        self.sent = sent
-        self.answered: float | None = None
-        self.future: Any = None
-        self._event = threading.Event()
-
-    def arrived(self, future: Any) -> None:
-        self.answered = time.perf_counter()
-        self._event.set()
-
-    @property
-    def seconds(self) -> float:
-        assert self.answered is not None
-        return self.answered - self.sent
-
-    def done(self) -> bool:
-        return self._event.is_set()
-
-    def wait(self, timeout: float) -> Any:
-        assert self._event.wait(timeout), f'no answer within {timeout:g} s'
-        return self.future.result()
 
 
 @pytest.fixture
@@ -288,8 +151,8 @@ def test_validate_answers_json_and_latches_the_statistics(start_node, client, da
 
 def test_a_fixed_point_is_evaluated_and_a_half_set_pair_is_refused(start_node, client, data60):
     start_node(bags=[str(data60)], nominal='table2', **SMALL)
-    assert client.set('validator', 'sigma1', 0.12)[0].successful   # one at a time, as ros2
-                                                                    # param set does
+    # one at a time, as `ros2 param set` does
+    assert client.set('validator', 'sigma1', 0.12)[0].successful
     ok, answer, _ = client.trigger('/validator/validate')
     assert not ok and 'set both >= 0' in answer['error']
 
@@ -399,14 +262,15 @@ def test_diagnose_answers_the_report_with_its_cause_without_blocking(
         start_node, client, tmp_path, monkeypatch):
     from octoroach_model.diagnosis import DiagnosisSettings
 
-    def quick(job: validator.Job) -> DiagnosisSettings:
+    def quick(job: validation_jobs.Job) -> DiagnosisSettings:
         """The library's diagnosis with fewer model runs, so the test stays short."""
         names = {f.name for f in fields(DiagnosisSettings)}
         return replace(DiagnosisSettings(seed=job.settings.seed),
                        **{k: v for k, v in QUICK_DIAGNOSIS.items() if k in names})
 
-    monkeypatch.setattr(validator, 'diagnosis_settings', quick)
-    data = dataset(tmp_path, 80, seed=3)
+    monkeypatch.setattr(validation_jobs, 'diagnosis_settings', quick)
+    effect = {'initial_pose_error': {'heading_std_deg': 6.0, 'position_std_cm': 0.3}}
+    data = save_dataset(tmp_path / 'runs80.npz', om.simulate(80, seed=3, effects=effect))
     node = start_node(bags=[str(data)], report_dir=str(tmp_path / 'report')).node
 
     from std_srvs.srv import Trigger
@@ -418,15 +282,21 @@ def test_diagnose_answers_the_report_with_its_cause_without_blocking(
     response = call.wait(timeout=300)
 
     report = json.loads(response.message)
-    if not response.success and 'NotImplementedError' in report.get('error', ''):
-        pytest.skip(f'diagnose is not implemented yet: {report["error"]}')
     assert response.success, report
-    assert report['paths'] == 80
-    assert isinstance(report['cause'], str) and report['cause']
-    assert not any(key.startswith('_') for key in report)
-    files = report['report_files']    # written, or why not
-    if 'error' not in files:
-        assert (tmp_path / 'report' / 'report.json').is_file(), files
+    assert report['paths'] == 80 and report['sources'] == [str(data)]
+    assert report['cause'] == 'initial_pose_error'
+    assert [c['cause'] for c in report['causes']] == ['initial_pose_error']
+    assert isinstance(report['adequate'], bool) and isinstance(report['unexplained'], list)
+    assert (tmp_path / 'report' / 'report.json').is_file(), report['report_files']
+    # the named causes are latched on ~/violation beside the last validation's statistics
+    array = client.latched('/validator/violation')
+    [status] = [s for s in array.status if s.name == validator.DIAGNOSIS_STATUS_NAME]
+    values = {kv.key: kv.value for kv in status.values}
+    assert values['cause_1'] == 'initial_pose_error' and values['causes'] == '1'
+    assert float(values['cause_1.heading_std_deg']) == \
+        report['causes'][0]['parameters']['heading_std_deg']
+    assert values['cause_1.interval'].startswith('heading_std_deg [')
+    assert status.level == status.WARN and 'initial_pose_error' in status.message
 
 
 def test_help_lists_parameters_services_and_topic_without_starting_ros(capsys):
@@ -451,3 +321,83 @@ def test_bad_start_up_input_is_one_error_line(rule, words):
     lines = done.stderr.strip().splitlines()
     assert lines[-1].startswith('error: ') and words in lines[-1], done.stderr
     assert 'Traceback' not in done.stderr
+
+
+def test_a_bag_growing_inside_its_directory_changes_the_stamps_the_directory_does_not(
+        tmp_path):
+    """Why the validator once kept answering with 3 runs while 50 were on disk: it watched
+    the bag directory, whose time stamp a recorder appending to the .mcap never changes."""
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    data = bag / 'bag_0.mcap'
+    data.write_bytes(b'\x89MCAP0\r\n')
+    directory_before, stamps_before = bag.stat().st_mtime_ns, validation_jobs.source_stamps(
+        [str(bag)])
+
+    with data.open('ab') as stream:       # what a recorder's flush does
+        stream.write(bytes(4096))
+
+    assert bag.stat().st_mtime_ns == directory_before
+    stamps = validation_jobs.source_stamps([str(bag)])
+    assert stamps != stamps_before and stamps[0][2] == 4096 + 8
+    (bag / 'metadata.yaml').write_text('rosbag2_bagfile_information: {}\n')   # bag closed
+    assert len(validation_jobs.source_stamps([str(bag)])) == 2
+
+
+def test_a_bag_being_recorded_is_validated_as_it_grows(tmp_path, client_on):
+    """Recorder, simulator and validator at once: each call sees the runs on disk by then."""
+    bag = tmp_path / 'live'
+    fast = {'nominal': 'table2', 'sigma1': 0.12, 'sigma2': 0.15, 'epsilon': 0.5,
+            'delta': 0.5, 'k': 2, 'min_duration_s': 0.45}   # n = 3: 6 runs of 0.5 s
+    with NodeSet(tmp_path) as nodes:
+        recorder = nodes.start('recorder', '-o', str(bag), '--topics', '/vicon/*',
+                               '/*/run_start')
+        recorder.wait_for_log('recording .* to')
+        nodes.start('simulator', '--ros-args', '-p', 'robots:=2', '-p', 'cycles:=1',
+                    '-p', 'pause_s:=0.5', '-p', 'runs:=30', '-p', 'seed:=5',
+                    '-p', 'wait_subscribers:=1', '-p', 'wait_timeout_s:=60.0')
+        node = nodes.start('validator', '--ros-args',
+                           *overrides({'bags': [str(bag)], **fast}))
+        client = client_on(nodes.domain)
+        node.wait_for_log('ready')
+
+        counts: list[int] = []
+        deadline = time.monotonic() + 90
+        while len(set(counts)) < 3 and time.monotonic() < deadline:
+            ok, answer, _ = client.trigger('/validator/validate')
+            assert not (bag / 'metadata.yaml').exists(), 'the bag was closed: not live'
+            if ok:
+                counts.append(answer['paths_available'])
+            else:   # too early: nothing recorded yet, or too few runs
+                assert not counts, f'{answer}\n{nodes.logs()}'
+            time.sleep(1.0)
+
+        assert len(set(counts)) >= 3, f'run counts seen: {counts}\n{nodes.logs()}'
+        assert counts == sorted(counts), counts
+        assert node.stop(signal.SIGINT) == 0, node.log
+        assert recorder.stop(signal.SIGINT) == 0, recorder.log
+
+
+def test_call_prints_the_answer_of_a_running_validator(start_node, data60, capsys):
+    node = start_node(nominal='table2', **SMALL)
+
+    assert validator.main(['--call', 'validate']) == 1          # no bags yet
+    out, err = capsys.readouterr()
+    assert 'bags' in json.loads(out)['error']
+    assert err.startswith('error: /validator/validate: no measured runs') and \
+        err.count('\n') == 1, err
+
+    node.node.set_parameters([Parameter('bags', value=[str(data60)])])
+    assert validator.main(['--call', 'validate']) == 0
+    out, err = capsys.readouterr()
+    result = json.loads(out)
+    assert (result['n'], result['k'], result['paths_available']) == (11, 4, 60)
+    assert err == ''
+
+
+def test_call_without_a_validator_says_so_in_one_line(capsys):
+    assert validator.main(['--call', 'diagnose', '--node', '/nobody', '--timeout', '1.0']) == 1
+    out, err = capsys.readouterr()
+    assert out == '' and err.startswith('error: no service /nobody/diagnose within 1 s'), err
+    assert validator.main(['--timeout', '1.0']) == 2
+    assert capsys.readouterr().err == 'error: --node and --timeout go with --call\n'

@@ -2,21 +2,26 @@
 
 Runs colcon from the venv on the checkout, into a temporary build/install/log base so the
 tree is left alone, then looks at the install space: executables in lib/<package>, the ament
-index marker, package.xml and the Table II config in share/<package>; and runs one installed
+index marker, package.xml, the Table II config, the nodes' params files and the launch file in
+share/<package> (every file the launch file names resolves there); and runs one installed
 executable against the installed copy (AMENT_PREFIX_PATH, PYTHONPATH) to see it find them.
 """
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+
+from ros_helpers import read_launch_file
 
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE = 'octoroach_model'
 EXECUTABLES = ('simulator', 'recorder', 'validator', 'replay')
+PARAMS_FILES = tuple(f'config/{name}.yaml' for name in EXECUTABLES)
+LAUNCH_FILES = ('launch/octoroach.launch.xml',)
 
 
 def test_colcon_build_installs_executables_index_and_share_files(tmp_path):
@@ -39,7 +44,14 @@ def test_colcon_build_installs_executables_index_and_share_files(tmp_path):
         assert executable.is_file() and os.access(executable, os.X_OK), executable
     assert (prefix / 'share/ament_index/resource_index/packages' / PACKAGE).is_file()
     assert (prefix / 'share' / PACKAGE / 'package.xml').is_file()
-    assert (prefix / 'share' / PACKAGE / 'config/table2.yaml').is_file()
+    share = prefix / 'share' / PACKAGE
+    for name in ('config/table2.yaml', *PARAMS_FILES, *LAUNCH_FILES):
+        assert (share / name).is_file(), name
+        assert (share / name).read_bytes() == (REPO / name).read_bytes(), name
+    for node in read_launch_file(share / LAUNCH_FILES[0], share):
+        assert node.executable in EXECUTABLES, node
+        named = [Path(arg) for arg in node.arguments if arg.startswith(str(share))]
+        assert named and all(path.is_file() for path in named), node
 
     site = next(prefix.glob('lib/python3*/site-packages'))
     run_env = dict(env, AMENT_PREFIX_PATH=str(prefix), PYTHONPATH=str(site))

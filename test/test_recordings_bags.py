@@ -3,32 +3,32 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-import pytest
-import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+import numpy as np
+import pytest
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
+import yaml
 
 from octoroach_model.errors import BagError, DataError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import (
+    bag_topics,
     DEFAULT_MARKER_TOPIC,
     DEFAULT_POSE_TOPIC,
-    MARKER_TYPE,
-    POSE_STAMPED,
-    TRANSFORM_STAMPED,
-    PoseBagWriter,
-    bag_topics,
     heading_to_quaternion,
     iter_pose_samples,
     load_measured,
     marker_topic,
+    MARKER_TYPE,
+    POSE_STAMPED,
     pose_topic,
+    PoseBagWriter,
     quaternion_to_heading,
     read_runs,
     subject_of,
+    TRANSFORM_STAMPED,
     write_paths_bag,
 )
 
@@ -108,7 +108,7 @@ def test_rosbags_reader_reads_the_bag(bag: Path, paths: Paths) -> None:
 def test_mcap_reader_decodes_the_bag_with_its_message_definitions(bag: Path,
                                                                   paths: Paths) -> None:
     counts: dict[str, int] = {}
-    with (bag / 'runs.mcap').open('rb') as stream:
+    with (bag / 'runs_0.mcap').open('rb') as stream:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])
         summary = reader.get_summary()
         schema_names = {schema.name for schema in summary.schemas.values()}
@@ -168,16 +168,16 @@ def test_pose_stamped_bags_are_read_like_transform_stamped(tmp_path: Path,
 
 
 def test_a_bare_mcap_file_is_accepted(bag: Path, paths: Paths) -> None:
-    run_set = read_runs(bag / 'runs.mcap')
+    run_set = read_runs(bag / 'runs_0.mcap')
     assert len(run_set.runs) == paths.n_paths
 
 
 def test_several_bags_in_one_call_give_all_their_runs(tmp_path: Path, paths: Paths) -> None:
     first = write_paths_bag(tmp_path / 'first', paths)
     second = write_paths_bag(tmp_path / 'second', paths.subset(slice(0, 2)), marker_topic=None)
-    run_set = read_runs([first, second / 'second.mcap'])
+    run_set = read_runs([first, second / 'second_0.mcap'])
     assert len(run_set.runs) == paths.n_paths + 2
-    assert run_set.runs[-1].source.startswith(str(second / 'second.mcap'))
+    assert run_set.runs[-1].source.startswith(str(second / 'second_0.mcap'))
 
 
 def test_a_folder_of_bags_and_data_sets_expands_to_all_of_them(tmp_path: Path,

@@ -3,20 +3,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hypothesis import given, HealthCheck, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
 
 from octoroach_model.errors import BagError, DataError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import (
     DEFAULT_POSE_TOPIC,
-    PoseBagWriter,
     iter_pose_samples,
     load_measured,
+    PoseBagWriter,
     read_runs,
     write_paths_bag,
 )
@@ -38,7 +38,7 @@ def wavy_paths(n_runs: int = 10, duration_s: float = 5.0) -> Paths:
 
 def write_stream(path: Path, stamps_ns: np.ndarray, poses: np.ndarray,
                  marker_at: list[int] | None = None) -> Path:
-    """Writes samples in the given (arrival) order; a marker precedes each index in marker_at."""
+    """Write samples in the given (arrival) order; a marker precedes each index in marker_at."""
     log_times = START_NS + np.arange(len(stamps_ns)) * PERIOD_NS  # receive clock: monotonic
     with PoseBagWriter(path, marker_topic='/octoroach/run_start' if marker_at else None) as bag:
         edges = sorted(set(marker_at or []) | {0, len(stamps_ns)})
@@ -50,7 +50,7 @@ def write_stream(path: Path, stamps_ns: np.ndarray, poses: np.ndarray,
 
 
 def clean_stream(n_runs: int = 3, samples: int = 100) -> tuple[np.ndarray, np.ndarray, list]:
-    """Runs of `samples` at 50 Hz with 1.5 s between them: stamps, poses, run start indices."""
+    """Make runs of `samples` at 50 Hz 1.5 s apart: stamps, poses, run start indices."""
     stamps, poses, starts = [], [], []
     for run in range(n_runs):
         starts.append(run * samples)
@@ -126,12 +126,22 @@ def test_an_explicit_topic_that_is_absent_is_a_bag_error(bag: Path) -> None:
         read_runs(bag, topic='/vicon/other/other')
 
 
-def test_a_sqlite3_bag_is_refused_with_the_reason(tmp_path: Path) -> None:
+def test_a_sqlite3_bag_without_a_pose_topic_lists_its_topics(tmp_path: Path) -> None:
     with Writer(tmp_path / 'old', version=9) as writer:
         writer.add_connection('/chatter', 'std_msgs/msg/String',
                               typestore=get_typestore(Stores.ROS2_JAZZY))
-    with pytest.raises(BagError, match=r"old: storage 'sqlite3' is not supported"):
+    with pytest.raises(BagError, match=r'old: no pose topic .*it has /chatter '
+                                       r'\[std_msgs/msg/String\]'):
         read_runs(tmp_path / 'old')
+
+
+def test_an_unknown_storage_plugin_is_refused_with_the_reason(tmp_path: Path) -> None:
+    bag = write_paths_bag(tmp_path / 'odd', wavy_paths(1, 1.0))
+    text = (bag / 'metadata.yaml').read_text()
+    text = text.replace('storage_identifier: mcap', 'storage_identifier: leveldb')
+    (bag / 'metadata.yaml').write_text(text)
+    with pytest.raises(BagError, match=r"odd: storage 'leveldb' is not supported"):
+        read_runs(bag)
 
 
 def test_a_bag_whose_samples_are_all_unusable_is_a_data_error(tmp_path: Path) -> None:
@@ -145,7 +155,7 @@ def test_a_bag_whose_samples_are_all_unusable_is_a_data_error(tmp_path: Path) ->
 
 def test_a_truncated_mcap_gives_the_runs_before_the_cut(bag: Path, truth: Paths,
                                                         tmp_path: Path) -> None:
-    data = (bag / 'runs.mcap').read_bytes()
+    data = (bag / 'runs_0.mcap').read_bytes()
     cut = tmp_path / 'cut.mcap'
     cut.write_bytes(data[:int(0.6 * len(data))])
     run_set = read_runs(cut)
@@ -161,7 +171,7 @@ def test_a_truncated_mcap_gives_the_runs_before_the_cut(bag: Path, truth: Paths,
 @pytest.mark.parametrize('fraction', [0.0001, 0.02, 0.3, 0.97, 0.9999])
 def test_a_cut_at_any_byte_is_read_without_an_exception(bag: Path, tmp_path: Path,
                                                         fraction: float) -> None:
-    data = (bag / 'runs.mcap').read_bytes()
+    data = (bag / 'runs_0.mcap').read_bytes()
     cut = tmp_path / 'cut.mcap'
     cut.write_bytes(data[:max(8, int(fraction * len(data)))])
     try:
@@ -176,7 +186,7 @@ def test_a_bag_without_metadata_yaml_is_read_from_its_mcap_files(bag: Path, trut
                                                                  tmp_path: Path) -> None:
     killed = tmp_path / 'killed'
     killed.mkdir()
-    data = (bag / 'runs.mcap').read_bytes()
+    data = (bag / 'runs_0.mcap').read_bytes()
     (killed / 'killed_0.mcap').write_bytes(data[:int(0.8 * len(data))])
     run_set = read_runs(killed)
     assert 0 < len(run_set.runs) < truth.n_paths

@@ -17,6 +17,10 @@ OFFLINE: dict[str, str] = {
     'simulate': 'writes N model runs to a bag',
     'validate': "the paper's validation of measured runs, as JSON",
     'diagnose': 'what the model gets wrong, the causes, the extended model and its gain',
+    'repair': 'makes a bag left by a killed recorder complete (footer, index, metadata.yaml)',
+    'convert': 'turns /tf, Odometry, ROS 1, sqlite3 bags and mocap files into a standard bag',
+    'study': 'how well the diagnosis does over many simulated data sets (on Dask)',
+    'plan': 'how many runs an experiment needs to detect a given effect',
 }
 
 

@@ -12,8 +12,12 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from octoroach_model.errors import ParameterError
+
+if TYPE_CHECKING:
+    from octoroach_model.recordings.options import ReadOptions
 
 EXIT_OK = 0
 EXIT_ERROR = 1
@@ -105,10 +109,31 @@ def new_output(path: Path, option: str, *, directory_ok: bool = False) -> Path:
 
 
 def add_input_arguments(parser: argparse.ArgumentParser) -> None:
-    """The measured runs: bags, .mcap files or data sets, and how to split them."""
+    """The measured runs: bags, motion-capture files or data sets, and how to split them."""
     parser.add_argument('bags', nargs='+', type=Path, metavar='BAG',
-                        help='bag directories, .mcap files or .npz data sets')
-    parser.add_argument('--topic', default=None,
-                        help='pose topic (default: the VICON one, or the only pose topic)')
+                        help='rosbag2 bags (MCAP or sqlite3), .mcap files, ROS 1 .bag files, '
+                        'Vicon .csv exports, .c3d files or .npz data sets (docs/formats.md)')
+    add_pose_arguments(parser)
     parser.add_argument('--gap-s', type=finite_float, default=0.5,
                         help='a pause longer than this (s) splits runs where there is no marker')
+
+
+def add_pose_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where the robot's pose is in an input (ReadOptions)."""
+    parser.add_argument('--topic', default=None,
+                        help='pose topic (default: the VICON one, or the only pose topic)')
+    parser.add_argument('--frame', default=None, metavar='CHILD_FRAME',
+                        help='/tf bags: the child frame to follow (default: the only moving '
+                        'one)')
+    parser.add_argument('--subject', default=None, metavar='NAME',
+                        help='Vicon CSV / C3D: the subject or object (default: the only one)')
+    parser.add_argument('--forward-axis', choices=('x', 'y', '-x', '-y'), default='x',
+                        help="the body axis the robot walks along; heading = that axis's yaw")
+
+
+def read_options(args: argparse.Namespace) -> ReadOptions:
+    """The ReadOptions of parsed pose arguments."""
+    from octoroach_model.recordings.options import ReadOptions
+
+    return ReadOptions(topic=args.topic, frame=args.frame, subject=args.subject,
+                       forward_axis=args.forward_axis)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from octoroach_model.commands.common import (
     OneLineParser, add_input_arguments, new_output, nonnegative_int, positive_int,
-    progress_printer)
+    progress_printer, read_options)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
         from octoroach_model.errors import ParameterError
         raise ParameterError(f'--out {args.out} is a directory that is not empty; '
                              f'choose a new or empty one')
-    measured = load_measured(args.bags, topic=args.topic, gap_s=args.gap_s)
+    measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s)
     report = diagnose(measured, DiagnosisSettings(seed=args.seed, workers=args.workers),
                       progress=progress_printer('diagnose'))
     report = replace(report, sources=tuple(str(path) for path in args.bags))

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from octoroach_model.commands.common import (
     OneLineParser, add_input_arguments, finite_float, nonnegative_int, positive_int,
-    progress_printer)
+    progress_printer, read_options)
 from octoroach_model.errors import ParameterError
 
 
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
                                   k=args.k, gamma=args.gamma, seed=args.seed,
                                   sigma1_max=args.sigma1_max, sigma2_max=args.sigma2_max,
                                   grid_points=args.grid_points)
-    measured = load_measured(args.bags, topic=args.topic, gap_s=args.gap_s)
+    measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s)
     sigmas = None if args.sigma1 is None else (args.sigma1, args.sigma2)
     result = validate_measured(measured, settings, nominal=args.nominal, draws=args.draws,
                                sigmas=sigmas, sources=[str(path) for path in args.bags],

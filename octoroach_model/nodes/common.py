@@ -1,29 +1,22 @@
-"""What every node shares: parameters with ranges, VICON message conversion, spin and shutdown.
+"""What every node shares: parameters with ranges, the command line, spin and shutdown, QoS.
 
 Parameters are declared from `ParamSpec` tables, so the same table gives the ROS descriptors
 (description, FloatingPointRange / IntegerRange), the checks in the set-parameters callbacks and
-the `--help` text, and the three cannot drift apart.
-
-Heading <-> quaternion follows the VICON convention of the contract: the child frame's yaw is
-the heading, unit quaternion (0, 0, sin(h/2), cos(h/2)).
+the `--help` text, and the three cannot drift apart. Message conversion is in `messages`.
 """
 from __future__ import annotations
 
 import argparse
-import math
-import struct
-import sys
-import textwrap
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, NoReturn
-
-import numpy as np
+import math
+import sys
+import textwrap
+from typing import Any, NoReturn, TYPE_CHECKING
 
 from octoroach_model.errors import OctoroachError, ParameterError
 
 if TYPE_CHECKING:
-    from geometry_msgs.msg import TransformStamped
     from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
     from rclpy.node import Node
     from rclpy.parameter import Parameter
@@ -48,7 +41,8 @@ class ParamSpec:
     """One ROS parameter: default, description, unit and allowed values.
 
     The type is the default's type (bool, int, float, str or list of str); `low`/`high` give an
-    inclusive range for numbers, `choices` the allowed strings.
+    inclusive range for numbers, `choices` the allowed strings. `preset` marks a default that
+    came from a command-line flag (`with_defaults`): it wins over --ros-args and params files.
     """
 
     name: str
@@ -59,6 +53,7 @@ class ParamSpec:
     high: float | None = None
     choices: tuple[str, ...] = ()
     read_only: bool = False
+    preset: bool = False
 
     @property
     def kind(self) -> str:
@@ -75,7 +70,7 @@ class ParamSpec:
         return 'string array'
 
     def range_text(self) -> str:
-        """Allowed values for humans: '[lo, hi]', 'a | b', or ''."""
+        """Return the allowed values for humans: '[lo, hi]', 'a | b', or ''."""
         if self.choices:
             return ' | '.join(self.choices)
         if self.low is not None and self.high is not None:
@@ -83,7 +78,7 @@ class ParamSpec:
         return ''
 
     def descriptor(self) -> ParameterDescriptor:
-        """The ROS descriptor: type, description with unit, range, read-only flag."""
+        """Build the ROS descriptor: type, description with unit, range, read-only flag."""
         from rcl_interfaces.msg import (
             FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType)
 
@@ -142,10 +137,14 @@ def _number(value: float) -> str:
 
 def with_defaults(specs: Sequence[ParamSpec], defaults: dict[str, Any] | None
                   ) -> list[ParamSpec]:
-    """The specs with some defaults replaced (command-line flags that preset a parameter)."""
+    """Return the specs with some defaults replaced by command-line flags.
+
+    A flag is the most specific thing a user says, so its value wins over the same parameter
+    in --ros-args or in a params file (which may well hold the parameter's plain default).
+    """
     defaults = defaults or {}
-    return [replace(spec, default=defaults[spec.name]) if spec.name in defaults else spec
-            for spec in specs]
+    return [replace(spec, default=defaults[spec.name], preset=True) if spec.name in defaults
+            else spec for spec in specs]
 
 
 def declare_parameters(node: Node, specs: Sequence[ParamSpec]) -> dict[str, ParamValue]:
@@ -158,12 +157,11 @@ def declare_parameters(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Para
 
     for spec in specs:
         try:
-            node.declare_parameter(spec.name, spec.default, spec.descriptor())
+            node.declare_parameter(spec.name, spec.default, spec.descriptor(),
+                                   ignore_override=spec.preset)
         except ParameterException as error:
-            # The rejected override, to say why in our words; rclpy's text as a fallback.
-            override = getattr(node, '_parameter_overrides', {}).get(spec.name)
-            reason = spec.check(_plain(override.value if override is not None
-                                       else spec.default))
+            reason = (spec.check(spec.default) if spec.preset
+                      else rejected_override(node, spec.name, spec.check))
             raise ParameterError(reason or f'parameter {spec.name}: {error}') from None
     values = current_values(node, specs)
     reason = check_values(specs, values)
@@ -172,13 +170,33 @@ def declare_parameters(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Para
     return values
 
 
+def rejected_override(node: Node, name: str,
+                      check: Callable[[ParamValue], str | None]) -> str | None:
+    """Why the override of `name` (--ros-args, params file) was refused, in our words.
+
+    rclpy refuses an override of the wrong type or range without handing back the value. To
+    read it through the public API, the parameter is declared once more without type or range
+    (dynamic typing), read, and undeclared again; `check` then says what is wrong with it.
+    None when there is no override to read.
+    """
+    from rcl_interfaces.msg import ParameterDescriptor
+    from rclpy.exceptions import ParameterException
+
+    try:
+        value = node.declare_parameter(name, None, ParameterDescriptor(dynamic_typing=True)).value
+        node.undeclare_parameter(name)
+    except ParameterException:
+        return None
+    return None if value is None else check(_plain(value))
+
+
 def current_values(node: Node, specs: Iterable[ParamSpec]) -> dict[str, ParamValue]:
     """Name -> value of the declared parameters in `specs`."""
     return {spec.name: _plain(node.get_parameter(spec.name).value) for spec in specs}
 
 
 def _plain(value: Any) -> ParamValue:
-    """rclpy hands string arrays back as lists or array-likes; make them lists."""
+    """Make string arrays plain lists (rclpy hands them back as lists or array-likes)."""
     if isinstance(value, (bool, int, float, str)):
         return value
     return [str(v) for v in value]
@@ -198,7 +216,7 @@ def set_parameters_callback(
         node: Node, specs: Sequence[ParamSpec],
         check_all: Callable[[dict[str, ParamValue]], str | None] | None = None,
 ) -> Callable[[list[Parameter]], SetParametersResult]:
-    """A callback for `add_on_set_parameters_callback`: ranges, choices, then `check_all`.
+    """Make a callback for `add_on_set_parameters_callback`: ranges, choices, `check_all`.
 
     `check_all` sees every value as it would be after the change (for checks across
     parameters) and returns a reason to reject, or None.
@@ -389,77 +407,3 @@ def vicon_qos(depth: int = VICON_QOS_DEPTH) -> QoSProfile:
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)
-
-
-# -- poses and messages ---------------------------------------------------------------------
-
-def heading_to_quaternion(heading: np.ndarray | float) -> np.ndarray:
-    """(..., 4) unit quaternions x, y, z, w of a rotation by `heading` about +z."""
-    half = np.asarray(heading, dtype=float) / 2.0
-    zeros = np.zeros_like(half)
-    return np.stack([zeros, zeros, np.sin(half), np.cos(half)], axis=-1)
-
-
-def quaternion_to_heading(x: float, y: float, z: float, w: float) -> float:
-    """Yaw (rad) of a quaternion (ZYX convention), i.e. the child frame's heading."""
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-def pose_to_transform(pose: Sequence[float], stamp_ns: int, frame_id: str,
-                      child_frame_id: str) -> TransformStamped:
-    """TransformStamped of a planar pose (x [m], y [m], heading [rad]) at `stamp_ns`."""
-    from geometry_msgs.msg import TransformStamped
-
-    msg = TransformStamped()
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
-    msg.header.frame_id = frame_id
-    msg.child_frame_id = child_frame_id
-    msg.transform.translation.x = float(pose[0])
-    msg.transform.translation.y = float(pose[1])
-    q = heading_to_quaternion(float(pose[2]))
-    rotation = msg.transform.rotation
-    rotation.x, rotation.y, rotation.z, rotation.w = (float(v) for v in q)
-    return msg
-
-
-def transform_to_pose(msg: TransformStamped) -> tuple[float, float, float]:
-    """(x [m], y [m], heading [rad]) of a TransformStamped (or a PoseStamped)."""
-    if hasattr(msg, 'transform'):
-        position, rotation = msg.transform.translation, msg.transform.rotation
-    else:
-        position, rotation = msg.pose.position, msg.pose.orientation
-    heading = quaternion_to_heading(rotation.x, rotation.y, rotation.z, rotation.w)
-    return float(position.x), float(position.y), heading
-
-
-STAMP = slice(4, 12)  # where header.stamp (int32 sec, uint32 nanosec) sits in the CDR bytes
-
-
-def stamp_bytes(stamp_ns: int) -> bytes:
-    """header.stamp as little-endian CDR: int32 sec, uint32 nanosec."""
-    sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
-    return struct.pack('<iI', sec, nanosec)
-
-
-def encode_transforms(poses: np.ndarray, frame_id: str, child_frame_id: str) -> np.ndarray:
-    """(T, L) uint8: serialized TransformStamped (CDR, little endian) of each planar pose.
-
-    Encodes a whole run in a few array operations so the publisher only patches in the stamp
-    (bytes STAMP) and hands the row to `publish` (raw). The layout is the XCDR1 one of
-    geometry_msgs/msg/TransformStamped: stamp, frame_id, child_frame_id, then 7 float64
-    aligned to 8 (translation x y z, rotation x y z w).
-    """
-    poses = np.asarray(poses, dtype=float)
-    head = bytearray(b'\x00\x01\x00\x00') + bytes(8)  # encapsulation + stamp placeholder
-    for name in (frame_id, child_frame_id):
-        head += bytes(-(len(head) - 4) % 4)
-        data = name.encode() + b'\x00'
-        head += struct.pack('<I', len(data)) + data
-    head += bytes(-(len(head) - 4) % 8)
-    values = np.zeros((len(poses), 7))
-    values[:, 0:2] = poses[:, 0:2]
-    values[:, 3:7] = heading_to_quaternion(poses[:, 2])
-    rows = np.empty((len(poses), len(head) + 56), dtype=np.uint8)
-    rows[:, :len(head)] = np.frombuffer(bytes(head), dtype=np.uint8)
-    rows[:, len(head):] = values.astype('<f8').view(np.uint8).reshape(len(poses), 56)
-    return rows

@@ -1,64 +1,70 @@
 """recorder: VICON topics to a rosbag2 MCAP bag, and the bag to a multisample data set.
 
-Messages are taken raw (serialized CDR, as in demo_nodes_py's listener_serialized) and handed
-to rosbags' Writer unchanged, so message definitions, type hashes (RIHS01), metadata.yaml and
-the publishers' offered QoS profiles are written as rosbag2 writes them.
-
-Why the extra machinery around the Writer:
-
-- Arrival order is what splits runs (a run marker cuts its stream where it was received), but
-  an executor may hand over two topics' messages out of order when it falls behind. Messages
-  are therefore held for REORDER_WINDOW_S and written sorted by their middleware reception
-  time (also their log time).
-- rosbags closes an MCAP chunk only at 1 MiB; a recorder killed with SIGKILL would lose it.
-  Every `flush_period_s` the open chunk is closed and the file flushed, so a killed recorder
-  leaves an .mcap without summary that `read_runs` reads up to the last flush.
+ROS glue only: messages are taken raw (serialized CDR, as in demo_nodes_py's
+listener_serialized) with their middleware reception time, and handed to the bag layer's
+`Recording` unchanged: it writes them in reception order into a crash-safe rosbag2 Jazzy bag
+(message definitions, RIHS01 type hashes, the publishers' offered QoS, metadata.yaml) and
+flushes it every `flush_period_s`. A recorder killed with SIGKILL leaves a bag that the
+package reads up to the last flush and that `repair` makes complete.
 """
 from __future__ import annotations
 
-import fnmatch
-import functools
-import importlib
-import sys
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
+import fnmatch
+import functools
+import importlib
 from pathlib import Path
+import sys
+import time
 from typing import Any
 
-from octoroach_model.errors import BagError, DataError, OctoroachError
+from octoroach_model.errors import DataError, OctoroachError
 from octoroach_model.nodes.common import (
-    ParamSpec, UsageError, declare_parameters, fail, node_parser, run_node,
+    declare_parameters,
+    fail,
+    node_parser,
+    ParamSpec,
+    run_node,
+    set_parameters_callback,
+    split_ros_args,
+    UsageError,
+    vicon_qos,
     with_defaults,
-    set_parameters_callback, split_ros_args, vicon_qos)
+)
 
 SUMMARY = ('ROS node: records VICON pose topics (TransformStamped or PoseStamped) and run '
-           'markers to a rosbag2 MCAP bag directory, flushed every second; on exit (SIGINT, '
-           'SIGTERM) it closes the bag and, if `dataset` is set, turns it into a multisample '
-           'data set (.npz); the ~/export service does that on demand.')
+           'markers to a rosbag2 MCAP bag directory (ROS 2 Jazzy layout), flushed every '
+           'second; on exit (SIGINT, SIGTERM) it closes the bag and, if `dataset` is set, '
+           'turns it into a multisample data set (.npz); the ~/export service does that on '
+           'demand.')
 NOTES = """
 Topics are subscribed when they appear in the ROS graph, with the type they are published
 with; entries of `topics` may be fnmatch patterns ('/vicon/*'). The data set holds the runs
 as read_runs splits them (run markers, else gaps longer than gap_s), resampled at
 export_rate_hz over their common duration. Log time in the bag = middleware reception time.
 A recorder killed with SIGKILL leaves an .mcap without metadata.yaml that the package's
-readers still read, up to about one flush period before the kill.
+readers still read, up to about one flush period before the kill; `python -m octoroach_model
+repair BAG` (ros2 run octoroach_model repair BAG) makes it a complete bag for any tool.
 """
 TOPICS = (
     ('subscribes', '`topics`', 'TransformStamped / PoseStamped / UInt32 (raw CDR)'),
     ('service', '~/export', 'std_srvs/srv/Trigger: write the data set now'),
 )
-REORDER_WINDOW_S = 0.2
 DRAIN_PERIOD_S = 0.1
 DISCOVERY_PERIOD_S = 0.2
 MAX_TAKEN_PER_CALLBACK = 1000  # then let timers (flush, drain) run
 
 
 def recorder_specs() -> list[ParamSpec]:
-    """The recorder's parameters."""
+    """List the recorder's parameters."""
     from octoroach_model.recordings import (
-        DEFAULT_GAP_S, DEFAULT_MARKER_TOPIC, DEFAULT_POSE_TOPIC, DEFAULT_RATE_HZ)
+        DEFAULT_GAP_S,
+        DEFAULT_MARKER_TOPIC,
+        DEFAULT_POSE_TOPIC,
+        DEFAULT_RATE_HZ,
+    )
 
     return [
         ParamSpec('output', '', 'bag directory to create; empty: ./octoroach_YYYYmmdd_HHMMSS',
@@ -83,93 +89,25 @@ def default_output() -> str:
     return datetime.now().strftime('octoroach_%Y%m%d_%H%M%S')
 
 
-class BagRecorder:
-    """A rosbags MCAP Writer that orders messages by reception and flushes on request."""
+def qos_profile_of(profile: Any) -> Any:
+    """Turn an rclpy QoSProfile (as discovery reports it) into the bag's QosProfile."""
+    from octoroach_model.recordings.qos import (
+        DURABILITY,
+        HISTORY,
+        LIVELINESS,
+        QosProfile,
+        RELIABILITY,
+    )
 
-    def __init__(self, path: Path) -> None:
-        from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
-        from rosbags.typesys import Stores, get_typestore
-
-        self.path = path
-        self.typestore = get_typestore(Stores.ROS2_JAZZY)
-        try:
-            self._writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
-            self._writer.open()
-        except (WriterError, OSError) as error:
-            raise BagError(f'cannot create bag {path}: {error}') from None
-        storage = self._writer.storage
-        if not all(hasattr(storage, name) for name in ('close_chunk', 'chunk', 'bio')):
-            self._writer.abort()
-            raise BagError('this rosbags version cannot flush MCAP chunks (need 0.11)')
-        self._storage = storage
-        self._pending: list[tuple[int, int, Any, bytes]] = []
-        self._serial = 0
-        self.written = 0
-        self.per_topic: dict[str, int] = {}
-        self.closed = False
-
-    def knows(self, msgtype: str) -> bool:
-        """Whether the bag can describe `msgtype` (definition and hash)."""
-        return msgtype in self.typestore.fielddefs
-
-    def add_topic(self, topic: str, msgtype: str, offered_qos: Sequence[Any]) -> Any:
-        """A new connection (rosbags) for `topic` with the publishers' QoS profiles."""
-        self.per_topic.setdefault(topic, 0)
-        return self._writer.add_connection(topic, msgtype, typestore=self.typestore,
-                                           offered_qos_profiles=list(offered_qos))
-
-    def push(self, connection: Any, received_ns: int, data: bytes) -> None:
-        """Queue one message; written by `drain` in reception order."""
-        self._serial += 1
-        self._pending.append((received_ns, self._serial, connection, data))
-
-    def drain(self, older_than_ns: int | None = None) -> None:
-        """Write queued messages received before `older_than_ns` (None: all), oldest first."""
-        if not self._pending:
-            return
-        self._pending.sort(key=lambda item: (item[0], item[1]))
-        cut = len(self._pending)
-        if older_than_ns is not None:
-            cut = next((i for i, item in enumerate(self._pending) if item[0] >= older_than_ns),
-                       len(self._pending))
-        for received_ns, _, connection, data in self._pending[:cut]:
-            self._writer.write(connection, received_ns, data)
-            self.per_topic[connection.topic] += 1
-        self.written += cut
-        del self._pending[:cut]
-
-    def flush(self) -> None:
-        """Close the open MCAP chunk and push the file to the OS (survives SIGKILL)."""
-        if self._storage.chunk.bio.tell():
-            self._storage.close_chunk()
-        self._storage.bio.flush()
-
-    def close(self) -> None:
-        """Write what is queued, the MCAP summary and metadata.yaml."""
-        if self.closed:
-            return
-        self.drain()
-        self._writer.close()
-        self.closed = True
-
-
-def _bag_qos(profile: Any) -> Any:
-    """rclpy QoSProfile -> rosbags Qos (the enums share rmw's numbering)."""
-    from rosbags.interfaces import (
-        Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime)
-
-    def span(duration: Any) -> Any:
-        nanoseconds = int(duration.nanoseconds)
-        if nanoseconds >= (2**31 - 1) * 10**9:  # rmw's "infinite", as rosbag2 writes it
-            return QosTime(2**31 - 1, 2**32 - 1)
-        return QosTime(*divmod(nanoseconds, 10**9))
-
-    return Qos(QosHistory(int(profile.history)), int(profile.depth),
-               QosReliability(int(profile.reliability)),
-               QosDurability(int(profile.durability)), span(profile.deadline),
-               span(profile.lifespan), QosLiveliness(int(profile.liveliness)),
-               span(profile.liveliness_lease_duration),
-               bool(profile.avoid_ros_namespace_conventions))
+    return QosProfile(
+        history=HISTORY.get(int(profile.history), 'unknown'), depth=int(profile.depth),
+        reliability=RELIABILITY.get(int(profile.reliability), 'unknown'),
+        durability=DURABILITY.get(int(profile.durability), 'unknown'),
+        deadline_ns=int(profile.deadline.nanoseconds),
+        lifespan_ns=int(profile.lifespan.nanoseconds),
+        liveliness=LIVELINESS.get(int(profile.liveliness), 'unknown'),
+        liveliness_lease_duration_ns=int(profile.liveliness_lease_duration.nanoseconds),
+        avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions))
 
 
 def _message_class(msgtype: str) -> Any:
@@ -182,7 +120,7 @@ def _message_class(msgtype: str) -> Any:
 
 
 def export_dataset(bag: Path, dataset: str, gap_s: float, rate_hz: float) -> str:
-    """Runs of `bag` (read_runs) resampled into data set `dataset`; a one-line summary."""
+    """Resample the runs of `bag` (read_runs) into data set `dataset`; say what was written."""
     from octoroach_model.recordings import read_runs, save_dataset
 
     paths = read_runs([bag], gap_s=gap_s).to_paths(rate_hz=rate_hz)
@@ -197,6 +135,7 @@ class _Recorded:
     topic: str
     msgtype: str
     offered: list[Any]
+    type_hash: str = ''
     subscription: Any = None
 
 
@@ -215,13 +154,18 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
         values = declare_parameters(self, self._specs)
         self.add_on_set_parameters_callback(set_parameters_callback(self, self._specs))
         self._patterns = [self._resolve(topic) for topic in values['topics']]
+        from octoroach_model.recordings.recording import Recording, REORDER_WINDOW_S
+
         output = Path(values['output'] or default_output())
-        self._bag = BagRecorder(output)
+        self._reorder_ns = int(REORDER_WINDOW_S * 1e9)
+        self._bag = Recording(output, flush_period_s=float(values['flush_period_s']))
         self._recording: dict[str, _Recorded] = {}
         self._connections: dict[tuple[str, str], Any] = {}
         self._refused: set[str] = set()
         self._logged = 0
         self.get_logger().info(f'recording {", ".join(self._patterns)} to {output}')
+        self.get_logger().info(f'if this recorder dies, make the bag complete with: '
+                               f'python -m octoroach_model repair {output}')
         self._discover()
         self.create_timer(DISCOVERY_PERIOD_S, self._discover)
         self.create_timer(DRAIN_PERIOD_S, self._drain)
@@ -287,7 +231,10 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
         qos = vicon_qos(int(self.get_parameter('qos_depth').value))
         if any(profile.reliability == ReliabilityPolicy.BEST_EFFORT for profile in offered):
             qos.reliability = ReliabilityPolicy.BEST_EFFORT  # else we would match none of them
-        recorded = _Recorded(topic, msgtype, [_bag_qos(p) for p in offered])
+        hashes = {str(info.topic_type_hash) for info in self.get_publishers_info_by_topic(topic)
+                  if info.topic_type == msgtype and str(info.topic_type_hash).startswith('RIHS')}
+        recorded = _Recorded(topic, msgtype, [qos_profile_of(p) for p in offered],
+                             hashes.pop() if len(hashes) == 1 else '')
         recorded.subscription = self.create_subscription(
             _message_class(msgtype), topic, functools.partial(self._on_message, recorded), qos,
             raw=True)
@@ -295,13 +242,15 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
         self.get_logger().info(f'recording {topic} [{msgtype}]')
 
     def _connection(self, recorded: _Recorded) -> Any:
-        """The bag connection of a topic and type, made at its first message (so a type that
-        never delivers leaves no trace in the bag)."""
+        """Get the bag channel of a topic and type, made at its first message.
+
+        So a type that never delivers leaves no trace in the bag.
+        """
         key = (recorded.topic, recorded.msgtype)
         connection = self._connections.get(key)
         if connection is None:
             connection = self._connections[key] = self._bag.add_topic(
-                recorded.topic, recorded.msgtype, recorded.offered)
+                recorded.topic, recorded.msgtype, recorded.offered, recorded.type_hash)
         return connection
 
     def _on_message(self, recorded: _Recorded, data: bytes, info: dict[str, Any]) -> None:
@@ -323,7 +272,8 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
                 push(connection, int(info.get('received_timestamp') or time.time_ns()), data)
 
     def _drain(self) -> None:
-        self._bag.drain(time.time_ns() - int(REORDER_WINDOW_S * 1e9))
+        self._bag.drain(time.time_ns() - self._reorder_ns)
+        self._bag.flush_if_due()
 
     def _flush(self) -> None:
         self._drain()
@@ -341,6 +291,7 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
         for parameter in parameters:
             if parameter.name == 'flush_period_s':
                 self._flush_timer.timer_period_ns = int(parameter.value * 1e9)
+                self._bag.flush_period_s = float(parameter.value)
             elif parameter.name == 'log_period_s':
                 self._log_timer.timer_period_ns = int(parameter.value * 1e9)
 
@@ -379,7 +330,7 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """`recorder [-o BAG] [--dataset FILE] [--topics T ...] [--ros-args ...]`."""
+    """Run `recorder [-o BAG] [--dataset FILE] [--topics T ...] [--ros-args ...]`."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)

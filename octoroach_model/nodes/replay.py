@@ -1,47 +1,60 @@
-"""replay: a recorded bag published again on its topics with its recorded timing.
+"""replay: a recorded bag published again on its topics with its recorded timing and QoS.
 
-What `ros2 bag play` does on a full ROS install, for this package's bags on a PyPI-only one:
-every message goes out as the recorded CDR bytes (raw publish, recorded type, nothing
-rewritten, header stamps included) at its log time divided by `rate`. Publishing runs in its
-own thread, paced by a monotonic clock, while the executor serves parameters; the node exits
-when the bag is done (unless `loop`). Before the first message it waits (bounded) for
+What `ros2 bag play` does on a full ROS install, for rosbag2 bags (MCAP or sqlite3) on a
+PyPI-only one; ROS glue only, the bag is read by the bag layer's `BagReader`. Every message
+goes out as the recorded CDR bytes (raw publish, recorded type, nothing rewritten, header
+stamps included) at its log time divided by `rate`, streamed from the file in recorded order.
+Each topic is published with the QoS its publishers offered when it was recorded
+(reliability, durability and depth from the bag's metadata, see `recordings.replay_profile`)
+unless the `reliability`, `durability` or `qos_depth` parameters override it. Publishing runs
+in its own thread, paced by a monotonic clock, while the executor serves parameters; the node
+exits when the bag is done (unless `loop`). Before the first message it waits (bounded) for
 subscribers on every topic, and before exiting until every reliable message is acknowledged,
 so a recorder listening gets every message.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 import importlib
-import struct
+from pathlib import Path
 import sys
 import threading
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from octoroach_model.errors import BagError, OctoroachError
 from octoroach_model.nodes.common import (
-    ParamSpec, UsageError, declare_parameters, fail, node_parser, run_node,
+    declare_parameters,
+    fail,
+    node_parser,
+    ParamSpec,
+    run_node,
+    set_parameters_callback,
+    split_ros_args,
+    UsageError,
     with_defaults,
-    set_parameters_callback, split_ros_args, vicon_qos)
+)
 
-SUMMARY = ('ROS node: publishes every message of a rosbag2 MCAP bag (directory or .mcap file) '
-           'on its recorded topics with the recorded types (raw CDR, nothing rewritten) and the '
-           'recorded timing divided by --rate; exits when done unless --loop.')
+SUMMARY = ('ROS node: publishes every message of a rosbag2 bag (MCAP directory or file, or '
+           'sqlite3 directory) on its recorded topics with the recorded types (raw CDR, '
+           'nothing rewritten), the recorded QoS and the recorded timing divided by --rate; '
+           'exits when done unless --loop.')
 NOTES = """
-Publisher QoS: reliable, volatile, keep_last qos_depth. A bag cut short by a killed recorder
-(no metadata.yaml, no MCAP summary) plays up to the damage. Example: python -m
+Publisher QoS per topic: as recorded (reliability and durability of the publishers' offered
+profiles; depth where the recording knows it, else 1000), unless overridden with
+reliability, durability or qos_depth. A bag cut short by a killed recorder (no metadata.yaml,
+no MCAP summary) plays up to the damage. ROS 1 bags: `convert` them first. Example: python -m
 octoroach_model replay runs_bag --rate 10 --wait-subscribers 1
 """
-TOPICS = (('publishes', 'each topic of the bag', 'its recorded type, raw CDR'),)
+TOPICS = (('publishes', 'each topic of the bag', 'its recorded type, raw CDR, recorded QoS'),)
 WAIT_POLL_S = 0.01
 MIN_SLEEP_S = 2e-4  # shorter waits cost more than they are worth: send at once
 ACK_TIMEOUT_S = 5.0
+FALLBACK_DEPTH = 1000
 
 
 def replay_specs() -> list[ParamSpec]:
-    """The replay node's parameters."""
+    """List the replay node's parameters."""
     return [
         ParamSpec('bag', '', 'bag directory or .mcap file to play', read_only=True),
         ParamSpec('rate', 1.0, 'speed factor: recorded intervals are divided by it', '',
@@ -51,73 +64,33 @@ def replay_specs() -> list[ParamSpec]:
                   'many subscribers', '', 0, 1000),
         ParamSpec('wait_timeout_s', 10.0, 'longest wait for wait_subscribers, then start',
                   's', 0.0, 3600.0),
-        ParamSpec('qos_depth', 1000, 'history depth of the publishers', '', 1, 100_000,
-                  read_only=True),
+        ParamSpec('reliability', '', "publishers' reliability; empty: as recorded",
+                  choices=('', 'reliable', 'best_effort'), read_only=True),
+        ParamSpec('durability', '', "publishers' durability; empty: as recorded",
+                  choices=('', 'volatile', 'transient_local'), read_only=True),
+        ParamSpec('qos_depth', 0, f'history depth of the publishers; 0: as recorded (else '
+                  f'{FALLBACK_DEPTH})', '', 0, 100_000, read_only=True),
     ]
-
-
-@dataclass
-class BagMessages:
-    """All messages of a bag in log-time order: topic index, log time (ns), CDR bytes."""
-
-    topics: list[tuple[str, str]] = field(default_factory=list)  # (topic, type)
-    log_ns: list[int] = field(default_factory=list)
-    topic_index: list[int] = field(default_factory=list)
-    data: list[bytes] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
-
-    def __len__(self) -> int:
-        return len(self.log_ns)
-
-
-def read_bag_messages(source: str | Path) -> BagMessages:
-    """Every message of a bag directory or .mcap file; a cut file is read up to the damage."""
-    from mcap.exceptions import McapError
-    from mcap.records import Channel, DataEnd, Message, Schema
-    from mcap.stream_reader import StreamReader
-
-    from octoroach_model.recordings import bag_files
-
-    bag = bag_files(source)
-    found = BagMessages(notes=list(bag.notes))
-    index: dict[tuple[str, str], int] = {}
-    stamped: list[tuple[int, int, int, bytes]] = []  # log time, serial, topic index, data
-    for path in bag.files:
-        schemas: dict[int, str] = {}
-        channels: dict[int, int] = {}
-        try:
-            with path.open('rb') as stream:
-                for record in StreamReader(stream).records:
-                    if isinstance(record, Message):
-                        if record.channel_id in channels:
-                            stamped.append((record.log_time, len(stamped),
-                                            channels[record.channel_id], record.data))
-                    elif isinstance(record, Channel):
-                        key = (record.topic, schemas.get(record.schema_id, ''))
-                        if record.message_encoding == 'cdr' and key[1].count('/') == 2:
-                            channels[record.id] = index.setdefault(key, len(index))
-                    elif isinstance(record, Schema):
-                        schemas[record.id] = record.name
-                    elif isinstance(record, DataEnd):
-                        break
-        except (McapError, EOFError, struct.error, ValueError) as error:
-            found.notes.append(f'{path}: cut short ({type(error).__name__}); played up to it')
-        except OSError as error:
-            raise BagError(f'{path}: cannot read: {error.strerror or error}') from None
-    stamped.sort(key=lambda item: (item[0], item[1]))
-    found.topics = sorted(index, key=index.__getitem__)
-    found.log_ns = [item[0] for item in stamped]
-    found.topic_index = [item[2] for item in stamped]
-    found.data = [item[3] for item in stamped]
-    return found
 
 
 def _message_class(msgtype: str) -> Any:
     package, _, name = msgtype.split('/')
     try:
         return getattr(importlib.import_module(f'{package}.msg'), name)
-    except (ImportError, AttributeError):
+    except (ImportError, AttributeError, ValueError):
         return None
+
+
+def rclpy_qos(profile: Any) -> Any:
+    """Turn the bag layer's QosProfile (keep_last, reliability, durability) into rclpy's."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(
+        depth=int(profile.depth),
+        reliability=ReliabilityPolicy.BEST_EFFORT if profile.reliability == 'best_effort'
+        else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if profile.durability == 'transient_local'
+        else DurabilityPolicy.VOLATILE)
 
 
 try:  # the node class needs rclpy; --help does not
@@ -137,22 +110,9 @@ class Replay(Node):  # type: ignore[misc,valid-type]
         self.add_on_set_parameters_callback(set_parameters_callback(self, self._specs))
         if not values['bag']:
             raise UsageError('no bag given (BAG argument or -p bag:=PATH)')
-        self._bag = read_bag_messages(values['bag'])
-        for note in self._bag.notes:
-            self.get_logger().warning(note)
-        if not len(self._bag):
-            raise BagError(f'{values["bag"]}: no messages to play')
-        qos = vicon_qos(int(values['qos_depth']))
-        self._outputs: list[Any] = []
-        for topic, msgtype in self._bag.topics:
-            message_class = _message_class(msgtype)
-            if message_class is None:
-                self.get_logger().warning(f'not playing {topic}: type {msgtype} unknown here')
-                self._outputs.append(None)
-                continue
-            self._outputs.append(self.create_publisher(message_class, topic, qos))
-        if not any(self._outputs):
-            raise BagError(f'{values["bag"]}: no topic with a known message type')
+        self._source = str(values['bag'])
+        self._outputs = self._make_publishers(values)
+        self._notes_logged = False
         self.published = 0
         self._rate = float(values['rate'])
         self.add_post_set_parameters_callback(self._on_parameters_set)
@@ -160,6 +120,36 @@ class Replay(Node):  # type: ignore[misc,valid-type]
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._play, name='replay', daemon=True)
         self._thread.start()
+
+    def _make_publishers(self, values: dict[str, Any]) -> dict[str, Any]:
+        """One publisher per recorded topic of a known type, with its recorded QoS."""
+        from octoroach_model.recordings import BagReader, QosOverride, replay_profile
+
+        reader = BagReader(self._source)
+        if reader.storage == 'ros1':
+            raise BagError(f'{self._source}: a ROS 1 bag; `convert` it to a rosbag2 bag first')
+        topics = reader.topics()
+        override = QosOverride(str(values['reliability']), str(values['durability']),
+                               int(values['qos_depth']))
+        publishers: dict[str, Any] = {}
+        self.qos: dict[str, Any] = {}
+        for topic, info in sorted(topics.items()):
+            message_class = _message_class(info.msgtype)
+            if info.serialization_format != 'cdr' or message_class is None:
+                self.get_logger().warning(f'not playing {topic}: type {info.msgtype} '
+                                          f'({info.serialization_format}) unknown here')
+                continue
+            if info.count == 0:
+                continue
+            profile, note = replay_profile(info.offered_qos, override, FALLBACK_DEPTH)
+            self.qos[topic] = profile
+            publishers[topic] = self.create_publisher(message_class, topic, rclpy_qos(profile))
+            self.get_logger().info(
+                f'{topic} [{info.msgtype}]: {profile.reliability}, {profile.durability}, '
+                f'depth {profile.depth}' + (f' ({note})' if note else ''))
+        if not publishers:
+            raise BagError(f'{self._source}: no messages of a known type to play')
+        return publishers
 
     def _on_parameters_set(self, parameters: list[Any]) -> None:
         for parameter in parameters:
@@ -183,7 +173,7 @@ class Replay(Node):  # type: ignore[misc,valid-type]
             self._wait_acknowledged()
             if not self._stop.is_set():
                 self.get_logger().info(
-                    f'published {self.published} messages on {len(self._bag.topics)} topic(s) '
+                    f'published {self.published} messages on {len(self._outputs)} topic(s) '
                     f'in {played:.2f} s (all acknowledged after '
                     f'{time.monotonic() - started:.2f} s)')
         except Exception as error:  # noqa: BLE001 - shutting down under us ends the play
@@ -194,7 +184,7 @@ class Replay(Node):  # type: ignore[misc,valid-type]
             self.done.set_result(code)
 
     def _live(self) -> list[Any]:
-        return [pub for pub in self._outputs if pub is not None]
+        return list(self._outputs.values())
 
     def _wait_for_subscribers(self) -> None:
         wanted = int(self._value('wait_subscribers'))
@@ -210,21 +200,28 @@ class Replay(Node):  # type: ignore[misc,valid-type]
                 return
 
     def _play_once(self) -> None:
-        """One pass over the bag at `rate`; a rate change re-anchors the clock."""
-        bag, publishers, stop = self._bag, self._outputs, self._stop
+        """One pass over the bag at `rate`, streamed; a rate change re-anchors the clock."""
+        from octoroach_model.recordings import BagReader
+
+        notes: list[str] = []
+        reader = BagReader(self._source, notes)
+        publishers, stop = self._outputs, self._stop
         rate = self._rate
-        wall0, bag0 = time.monotonic(), bag.log_ns[0]
-        for log_ns, topic, data in zip(bag.log_ns, bag.topic_index, bag.data):
-            publisher = publishers[topic]
-            if publisher is None:
-                continue
+        wall0 = bag0 = None
+        for message in reader.messages(list(publishers)):
+            if wall0 is None:
+                wall0, bag0 = time.monotonic(), message.log_time_ns
             if self._rate != rate:
-                wall0, bag0, rate = time.monotonic(), log_ns, self._rate
-            delay = wall0 + (log_ns - bag0) / 1e9 / rate - time.monotonic()
+                wall0, bag0, rate = time.monotonic(), message.log_time_ns, self._rate
+            delay = wall0 + (message.log_time_ns - bag0) / 1e9 / rate - time.monotonic()
             if delay > MIN_SLEEP_S and stop.wait(delay) or stop.is_set():
                 return
-            publisher.publish(data)
+            publishers[message.topic].publish(message.data)
             self.published += 1
+        if not self._notes_logged:
+            self._notes_logged = True
+            for note in notes:
+                self.get_logger().warning(note)
 
     def _wait_acknowledged(self) -> None:
         from rclpy.duration import Duration
@@ -243,7 +240,7 @@ class Replay(Node):  # type: ignore[misc,valid-type]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """`replay BAG [--rate R] [--loop] [--wait-subscribers N] [--wait-timeout S]`."""
+    """Run `replay BAG [--rate R] [--loop] [--wait-subscribers N] [--reliability R] ...`."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)
@@ -257,6 +254,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                             help='subscribers to wait for on every topic (wait_subscribers)')
         parser.add_argument('--wait-timeout', type=float, metavar='S',
                             help='longest wait for them, seconds (wait_timeout_s)')
+        parser.add_argument('--reliability', choices=('reliable', 'best_effort'),
+                            help='override the recorded reliability (parameter reliability)')
+        parser.add_argument('--durability', choices=('volatile', 'transient_local'),
+                            help='override the recorded durability (parameter durability)')
+        parser.add_argument('--qos-depth', type=int, metavar='N',
+                            help='override the recorded history depth (parameter qos_depth)')
         args = parser.parse_args(own)
         if args.bag is not None and not Path(args.bag).exists():
             raise BagError(f'{args.bag}: no such bag (directory or .mcap file)')
@@ -265,6 +268,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (UsageError, OctoroachError) as error:
         return fail(str(error))
     flags = {'bag': args.bag, 'rate': args.rate, 'loop': args.loop,
-             'wait_subscribers': args.wait_subscribers, 'wait_timeout_s': args.wait_timeout}
+             'wait_subscribers': args.wait_subscribers, 'wait_timeout_s': args.wait_timeout,
+             'reliability': args.reliability, 'durability': args.durability,
+             'qos_depth': args.qos_depth}
     defaults = {name: value for name, value in flags.items() if value is not None}
     return run_node(lambda: Replay(defaults), ros, 'replay')

@@ -2,51 +2,52 @@
 
 Runs of `cycles` gait cycles follow one another, separated by a pause of `pause_s` with no
 poses; a run marker (std_msgs/msg/UInt32, data = run index) goes out one sample period before
-each run's first pose. Each run is drawn in one `simulate(...)` call during the pause before
-it, with the parameters in force then (drawn again at its start if they changed meanwhile),
-and encoded to CDR bytes in one go. A single steady (wall-rate) timer then sends, for all
-robots at once, the samples due on the run's schedule as raw bytes, with the header stamp
-patched in from the node clock (so use_sim_time is honoured). Python work per message is a
-copy and a publish call, so 50 robots at 50 Hz keep their rate; a late tick delays samples
-but never drops them.
+each run's first pose. Each run is drawn in one `RunSettings.simulate` call during the pause
+before it, with the parameters in force then (drawn again at its start if they changed
+meanwhile). A single steady (wall-rate) timer then sends, for all robots at once, the samples
+due on the run's schedule, each a TransformStamped stamped from the node clock (so
+use_sim_time is honoured): a late tick delays samples but never drops them. The run settings
+live in `octoroach_model.run_settings`, the message conversion in `messages`; this module is
+the ROS glue between them.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
 import math
-import re
-import secrets
 import sys
 import time
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
 from typing import Any
 
-import numpy as np
-
-from octoroach_model.errors import OctoroachError, ParameterError
+from octoroach_model.errors import OctoroachError
 from octoroach_model.nodes.common import (
-    STAMP, ParamSpec, ParamValue, UsageError, current_values, declare_parameters,
-    encode_transforms, fail, node_parser, run_node, set_parameters_callback, split_ros_args,
-    stamp_bytes, vicon_qos)
+    current_values, declare_parameters, fail, node_parser, ParamSpec, ParamValue, run_node,
+    set_parameters_callback, split_ros_args, UsageError, vicon_qos)
+from octoroach_model.nodes.messages import (
+    fill_transform, planar_rows, PlanarPose, run_marker, transform_message)
+from octoroach_model.run_settings import EFFECT_PREFIX, marker_topic, pose_topic, RunSettings
+
+__all__ = ['RunSettings', 'Simulator', 'main', 'marker_topic', 'pose_topic',
+           'simulator_specs']
 
 SUMMARY = ('ROS node: publishes model-generated VICON poses (geometry_msgs/msg/TransformStamped,'
            ' metres, unit quaternion, heading = yaw) at `rate` Hz, runs one after another with a'
            ' pause and a run marker between them. Every setting is a ROS parameter; changes are'
            ' checked when set and apply from the next run.')
 NOTES = """
-Effect parameters keep the contract's keys and units (heading_std_deg is in degrees,
+Effect parameters keep the causes' own keys and units (heading_std_deg is in degrees,
 position_std_cm in centimetres, ...); only the ones of the selected `effect` are used.
 With robots > 1 each robot i is subject SUBJECT_i (segment SEGMENT_i, or SUBJECT_i when
 segment is empty) on /vicon/SUBJECT_i/SEGMENT_i with markers on /SUBJECT_i/run_start; all
 robots start their runs together. QoS of every topic: reliable, volatile, keep_last 100.
+To lose no run, start the recorder first and set wait_subscribers to 1. Params file:
+config/simulator.yaml (share/octoroach_model/config when installed).
 Example: python -m octoroach_model simulator --ros-args -p robots:=3 -p sigma1:=0.2
 """
 TOPICS = (
     ('publishes', '/vicon/SUBJECT/SEGMENT', 'geometry_msgs/msg/TransformStamped, `rate` Hz'),
     ('publishes', '/SUBJECT/run_start', 'std_msgs/msg/UInt32 run index, before each run'),
 )
-NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
-FRAME = re.compile(r'^[A-Za-z0-9_/]+$')
 _EFFECT_UNITS = {'_deg_s': 'deg/s', '_cm_s': 'cm/s', '_deg': 'deg', '_cm': 'cm'}
 
 
@@ -55,13 +56,15 @@ def _effect_unit(key: str) -> str:
 
 
 def simulator_specs() -> list[ParamSpec]:
-    """The simulator's parameters; model defaults come from config/table2.yaml."""
+    """List the simulator's parameters; model defaults come from config/table2.yaml."""
     from octoroach_model.model import (
         DRAWS, EFFECT_NAMES, EFFECT_PARAMETERS, PARAMETER_RANGES, ModelParameters,
         nominal_sigmas)
+    from octoroach_model.model.simulate import DEFAULT_START_POSE
 
     nominal = ModelParameters.nominal()
     sigma1, sigma2 = nominal_sigmas()
+    start_x, start_y, start_heading = (float(v) for v in DEFAULT_START_POSE)
     specs = [
         ParamSpec('robots', 1, 'number of robots, each its own subject and topics', '',
                   1, 100),
@@ -74,7 +77,8 @@ def simulator_specs() -> list[ParamSpec]:
         ParamSpec('runs', 0, 'runs to publish, then exit (0: go on until stopped)', '',
                   0, 1_000_000),
         ParamSpec('wait_subscribers', 0, 'before the first run, wait until every pose and '
-                  'marker topic has this many subscribers', '', 0, 1000),
+                  'marker topic has this many subscribers (1: start a recorder first, lose '
+                  'nothing)', '', 0, 1000),
         ParamSpec('wait_timeout_s', 10.0, 'longest wait for wait_subscribers, then start',
                   's', 0.0, 3600.0),
         ParamSpec('cycles', 10, 'gait cycles per run', '', 1, 1000),
@@ -87,109 +91,18 @@ def simulator_specs() -> list[ParamSpec]:
                   choices=tuple(DRAWS)),
         ParamSpec('seed', -1, 'run k uses a seed derived from (seed, k); -1: fresh entropy',
                   '', -1, 2**31 - 1),
-        ParamSpec('start_x', 0.0, 'x at the start of every run', 'm', -1000.0, 1000.0),
-        ParamSpec('start_y', 0.0, 'y at the start of every run', 'm', -1000.0, 1000.0),
-        ParamSpec('start_heading', math.pi / 2, 'heading at the start (pi/2: along +y)',
+        ParamSpec('start_x', start_x, 'x at the start of every run', 'm', -1000.0, 1000.0),
+        ParamSpec('start_y', start_y, 'y at the start of every run', 'm', -1000.0, 1000.0),
+        ParamSpec('start_heading', start_heading, 'heading at the start (pi/2: along +y)',
                   'rad', -2 * math.pi, 2 * math.pi),
-        ParamSpec('effect', 'none', 'model extension (contract table) added to every run',
+        ParamSpec('effect', 'none', 'model extension: a cause (docs/ros.md) added to every run',
                   choices=('none', *EFFECT_NAMES)),
     ]
     for key, (low, high) in PARAMETER_RANGES.items():
         users = ', '.join(name for name, keys in EFFECT_PARAMETERS.items() if key in keys)
-        specs.append(ParamSpec(f'effect_params.{key}', 0.0, f'parameter of {users}',
+        specs.append(ParamSpec(f'{EFFECT_PREFIX}{key}', 0.0, f'parameter of {users}',
                                _effect_unit(key), float(low), float(high)))
     return specs
-
-
-@dataclass(frozen=True)
-class RunSettings:
-    """What one run needs, taken from the parameters in force when the run starts."""
-
-    robots: int
-    subject: str
-    segment: str
-    world_frame: str
-    rate: float
-    pause_s: float
-    cycles: int
-    sigma1: float
-    sigma2: float
-    stride_frequency: float
-    draws: str
-    seed: int
-    start_pose: tuple[float, float, float]
-    effect: str
-    effect_params: Mapping[str, float] = field(default_factory=dict)
-
-    @classmethod
-    def from_values(cls, values: Mapping[str, Any]) -> RunSettings:
-        """Settings from parameter values; ParameterError where they do not fit together."""
-        for key in ('subject', 'segment'):
-            if values[key] and not NAME.match(values[key]):
-                raise ParameterError(f'{key} {values[key]!r} must be a name: a letter, then '
-                                     'letters, digits or _')
-        if not values['subject']:
-            raise ParameterError('subject must not be empty')
-        if not FRAME.match(values['world_frame']):
-            raise ParameterError(f'world_frame {values["world_frame"]!r} must be a frame '
-                                 'name of letters, digits, _ and /')
-        settings = cls(
-            robots=int(values['robots']), subject=values['subject'],
-            segment=values['segment'], world_frame=values['world_frame'],
-            rate=float(values['rate']), pause_s=float(values['pause_s']),
-            cycles=int(values['cycles']), sigma1=float(values['sigma1']),
-            sigma2=float(values['sigma2']),
-            stride_frequency=float(values['stride_frequency']), draws=values['draws'],
-            seed=int(values['seed']),
-            start_pose=(float(values['start_x']), float(values['start_y']),
-                        float(values['start_heading'])),
-            effect=values['effect'],
-            effect_params={key[len('effect_params.'):]: float(value)
-                           for key, value in values.items()
-                           if key.startswith('effect_params.')})
-        from octoroach_model.model import check_effects
-
-        check_effects(settings.effects())
-        settings.model_parameters()
-        return settings
-
-    def subjects(self) -> list[tuple[str, str]]:
-        """(subject, segment) of each robot."""
-        if self.robots == 1:
-            return [(self.subject, self.segment or self.subject)]
-        return [(f'{self.subject}_{i}', f'{self.segment}_{i}' if self.segment
-                 else f'{self.subject}_{i}') for i in range(self.robots)]
-
-    def effects(self) -> dict[str, dict[str, float]] | None:
-        """{effect: {key: value}} for `simulate`, None without an effect."""
-        if self.effect == 'none':
-            return None
-        from octoroach_model.model import EFFECT_PARAMETERS
-
-        return {self.effect: {key: self.effect_params.get(key, 0.0)
-                              for key in EFFECT_PARAMETERS[self.effect]}}
-
-    def model_parameters(self) -> Any:
-        """Table II with this stride frequency and sample rate."""
-        from octoroach_model.model import ModelParameters
-
-        return replace(ModelParameters.nominal(), stride_frequency=self.stride_frequency,
-                       sample_rate=self.rate)
-
-    def run_seed(self, run_index: int) -> int:
-        """Seed of run `run_index`: derived from (seed, index), or fresh entropy."""
-        if self.seed < 0:
-            return secrets.randbits(63)
-        state = np.random.SeedSequence([self.seed, run_index]).generate_state(2, np.uint32)
-        return int(state[0]) << 31 | int(state[1]) >> 1
-
-    def simulate(self, seed: int) -> Any:
-        """One run per robot: Paths with poses (robots, T, 3)."""
-        from octoroach_model.model import simulate
-
-        return simulate(self.robots, seed=seed, sigma1=self.sigma1, sigma2=self.sigma2,
-                        cycles=self.cycles, parameters=self.model_parameters(),
-                        draws=self.draws, effects=self.effects(), start_pose=self.start_pose)
 
 
 def _reject_reason(values: dict[str, ParamValue]) -> str | None:
@@ -198,16 +111,6 @@ def _reject_reason(values: dict[str, ParamValue]) -> str | None:
     except OctoroachError as error:
         return str(error)
     return None
-
-
-def pose_topic(subject: str, segment: str) -> str:
-    """VICON topic of a subject's segment (vicon_bridge convention)."""
-    return f'/vicon/{subject}/{segment}'
-
-
-def marker_topic(subject: str) -> str:
-    """Run-marker topic of a subject."""
-    return f'/{subject}/run_start'
 
 
 try:  # the node class needs rclpy; --help and the settings above do not
@@ -220,9 +123,11 @@ except ImportError:  # pragma: no cover - rclpy missing: main() reports it
 
 @dataclass
 class _Robot:
+    """The publishers of one robot's subject."""
+
     subject: str
-    poses: Any  # rclpy Publisher of TransformStamped, fed raw CDR
-    marker: Any  # rclpy Publisher of UInt32
+    poses: Any   # rclpy Publisher of geometry_msgs/msg/TransformStamped
+    marker: Any  # rclpy Publisher of std_msgs/msg/UInt32
 
 
 @dataclass
@@ -233,7 +138,8 @@ class _PreparedRun:
     settings: RunSettings
     seed: int
     duration_s: float
-    frames: list[np.ndarray]  # per robot (T, L) CDR rows, stamps patched in when sent
+    samples: list[list[PlanarPose]]  # per robot, per sample: x, y, qz, qw
+    messages: list[Any]              # per robot, a TransformStamped filled at every sample
 
 
 class Simulator(Node):  # type: ignore[misc,valid-type]
@@ -254,7 +160,7 @@ class Simulator(Node):  # type: ignore[misc,valid-type]
             set_parameters_callback(self, self._specs, _reject_reason))
         self.done = Future()
         self._robots: list[_Robot] = []
-        self._frames: list[np.ndarray] = []
+        self._run: _PreparedRun | None = None
         self._next: _PreparedRun | None = None
         self._in_run = False
         self._sample = 0
@@ -303,38 +209,38 @@ class Simulator(Node):  # type: ignore[misc,valid-type]
             self._start_run()
 
     def _prepare(self) -> _PreparedRun:
-        """Draw and encode the next run with the parameters in force now."""
+        """Draw the next run with the parameters in force now."""
         values = current_values(self, self._specs)
         settings = RunSettings.from_values(values)
         seed = settings.run_seed(self._run_index)
         paths = settings.simulate(seed)
-        frames = [encode_transforms(paths.poses[i], settings.world_frame,
-                                    f'vicon/{subject}/{segment}')
-                  for i, (subject, segment) in enumerate(settings.subjects())]
-        return _PreparedRun(values, settings, seed, float(paths.t[-1]), frames)
+        messages = [transform_message(settings.world_frame, f'vicon/{subject}/{segment}')
+                    for subject, segment in settings.subjects()]
+        return _PreparedRun(values, settings, seed, float(paths.t[-1]),
+                            planar_rows(paths.poses), messages)
 
     def _publish_due(self) -> None:
-        """Send samples self._sample .. (due now) - 1 of every robot, raw, stamped."""
+        """Send samples self._sample .. (due now) - 1 of every robot, stamped."""
+        run = self._run
+        assert run is not None
         now_ns = self._steady.now().nanoseconds
         period_ns = 1e9 / self._settings.rate
-        due = min(len(self._frames[0]), int((now_ns - self._t0_ns) / period_ns + 0.1) + 1)
+        samples = len(run.samples[0])
+        due = min(samples, int((now_ns - self._t0_ns) / period_ns + 0.1) + 1)
         if due <= self._sample:
             return
         clock_ns = self.get_clock().now().nanoseconds
         for k in range(self._sample, due):
-            late_ns = now_ns - (self._t0_ns + round(k * period_ns))
-            stamp = np.frombuffer(stamp_bytes(clock_ns - late_ns), np.uint8)
-            for robot, frames in zip(self._robots, self._frames):
-                row = frames[k]
-                row[STAMP] = stamp
-                robot.poses.publish(row.tobytes())
+            stamp_ns = clock_ns - (now_ns - (self._t0_ns + round(k * period_ns)))
+            for robot, poses, message in zip(self._robots, run.samples, run.messages):
+                robot.poses.publish(fill_transform(message, poses[k], stamp_ns))
         self._published += (due - self._sample) * len(self._robots)
         self._sample = due
-        if due == len(self._frames[0]):
+        if due == samples:
             self._end_run()
 
     def _subscribers_ready(self) -> bool:
-        """Before the first run: are `wait_subscribers` subscribers matched on every topic?"""
+        """Tell whether run 0 may start: `wait_subscribers` matched on every topic, or timeout."""
         if self._waited:
             return True
         wanted = int(self.get_parameter('wait_subscribers').value)
@@ -352,8 +258,6 @@ class Simulator(Node):  # type: ignore[misc,valid-type]
 
     def _start_run(self) -> None:
         """Send the markers; the run's first sample goes at the next tick."""
-        from std_msgs.msg import UInt32
-
         if self._next is None or self._next.values != current_values(self, self._specs):
             self._next = self._prepare()  # parameters changed during the pause
         run, self._next = self._next, None
@@ -363,12 +267,12 @@ class Simulator(Node):  # type: ignore[misc,valid-type]
         if settings.rate != self._settings.rate:
             self._timer.timer_period_ns = round(1e9 / settings.rate)
         self._settings = settings
-        self._frames = run.frames
+        self._run = run
         for robot in self._robots:
-            robot.marker.publish(UInt32(data=self._run_index % 2**32))
+            robot.marker.publish(run_marker(self._run_index))
         self._t0_ns = self._steady.now().nanoseconds + self._timer.time_until_next_call()
         self.get_logger().info(
-            f'run {self._run_index}: {settings.robots} x {len(run.frames[0])} poses '
+            f'run {self._run_index}: {settings.robots} x {len(run.samples[0])} poses '
             f'({run.duration_s:.2f} s), seed {run.seed}, sigma1 {settings.sigma1:g} rad, '
             f'sigma2 {settings.sigma2:g} rad, draws {settings.draws}, effect {settings.effect}')
         self._in_run = True
@@ -406,7 +310,7 @@ class Simulator(Node):  # type: ignore[misc,valid-type]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """`simulator [--help] [--ros-args ...]`; returns the exit code."""
+    """Run `simulator [--help] [--ros-args ...]`; return the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)

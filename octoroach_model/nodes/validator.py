@@ -2,52 +2,60 @@
 
 A thin adapter. `~/validate` and `~/diagnose` (std_srvs/srv/Trigger) take the parameters in
 force at the call, hand the work to a worker thread and answer with the JSON result; the
-statistics of the last validation are latched on `~/violation`. The measured runs are loaded
-from the `bags` parameter at the first call and again whenever `bags`, `topic`, `gap_s` or
-the files themselves change; the nominal fit (eq. 9) is cached with them.
+statistics of the last validation are latched on `~/violation`. What a call does, without ROS,
+is `octoroach_model.validation_jobs`: the measured runs are read at the first call and again
+whenever `bags`, `topic`, `gap_s`, `min_duration_s` or the files behind them change, so a bag
+that a recorder is still writing is validated as it is at each call.
 
 Why a worker thread: a validation takes seconds to minutes, and the node must keep answering
 parameter requests meanwhile. The node spins a MultiThreadedExecutor; both services sit in a
 ReentrantCallbackGroup, so the first call's callback waits on its own executor thread while
 the other threads answer parameter requests and tell a second caller that the node is busy.
 One job (validation or diagnosis) runs at a time: both are CPU-bound.
+
+`validator --call validate` (or `diagnose`) is the client side: it calls the service of a
+running validator and prints the JSON answer, for machines without the `ros2` command.
 """
 from __future__ import annotations
 
-import json
-import math
-import os
-import sys
-import threading
-import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+import json
+import math
+import sys
+import threading
+import time
+from typing import Any
 
 from octoroach_model.errors import OctoroachError, ParameterError
+from octoroach_model.jsonio import dumps
 from octoroach_model.nodes.common import (
-    ParamSpec, ParamValue, UsageError, current_values, declare_parameters, fail, node_parser,
-    run_node, set_parameters_callback, split_ros_args)
-
-if TYPE_CHECKING:
-    from octoroach_model.paths import Paths
+    current_values, declare_parameters, fail, node_parser, ParamSpec, ParamValue,
+    rejected_override, run_node, set_parameters_callback, split_ros_args, UsageError)
+from octoroach_model.nodes.messages import (
+    diagnosis_fields, diagnosis_status, status_fields, validation_status, violation_array)
+from octoroach_model.validation_jobs import (
+    Cancelled, Job, Progress, run_diagnosis, run_validation, Workbench)
 
 SUMMARY = ("ROS node: the paper's probabilistic validation of the OctoRoACH model on measured "
            'runs, as a service. ~/validate fits the nominal model (eq. 9) to the runs named in '
            '`bags` and finds the widest (sigma1, sigma2) whose estimated probability of '
            'violation stays below rho (eq. 15), or with sigma1, sigma2 >= 0 only estimates it '
            'there; ~/diagnose runs the diagnosis (cause of the discrepancies). Answers are '
-           'JSON; the statistics of the last validation are latched on ~/violation.')
+           'JSON; the statistics of the last validation are latched on ~/violation. With '
+           '--call, calls the service of a running validator instead and prints its answer.')
 NOTES = """
 Each call uses the parameters in force when it starts; changes apply to the next call.
-Runs are (re)loaded at a call when `bags`, `topic`, `gap_s` or the files changed, so `bags`
-may name the data set (.npz) a recorder exports. A call answers success=true with the JSON
-result (its field `accepted` is the verdict) or success=false with {"error": "..."}; while a
-job runs, another call answers at once with {"error": "busy: ..."}. ~/violation is reliable,
+Runs are (re)read at a call when `bags`, `topic`, `gap_s`, `min_duration_s` or the files
+changed, so `bags` may name a bag a recorder is still writing (each call validates what is
+on disk then; set min_duration_s just under the run length to leave out the run in progress)
+or the data set (.npz) it exports. A call answers success=true with the JSON result (its
+field `accepted` is the verdict) or success=false with {"error": "..."}; while a job runs,
+another call answers at once with {"error": "busy: ..."}. ~/violation is reliable,
 transient_local (latched), depth 1. `bags` is a string array (to clear it from rclpy, give
-the type: Parameter('bags', Parameter.Type.STRING_ARRAY, [])).
+the type: Parameter('bags', Parameter.Type.STRING_ARRAY, [])). Params file:
+config/validator.yaml (share/octoroach_model/config when installed).
 Example: python -m octoroach_model validator --ros-args -p bags:=[bags/] -p k:=11
 """
 TOPICS = (
@@ -56,16 +64,19 @@ TOPICS = (
     ('publishes', '~/violation', 'diagnostic_msgs/msg/DiagnosticArray, latched, last result'),
 )
 STATUS_NAME = 'octoroach_model/validation'
+DIAGNOSIS_STATUS_NAME = 'octoroach_model/diagnosis'
 HARDWARE_ID = 'octoroach'
 EXECUTOR_THREADS = 4        # a waiting job callback, parameter services, busy answers
 PROGRESS_PERIOD_S = 2.0     # progress is logged at most this often
 POLL_S = 0.05               # how often a waiting callback looks for shutdown
+SERVICES = {'validate': 'validation', 'diagnose': 'diagnosis'}  # service -> job kind
+DISCOVERY_TIMEOUT_S = 30.0  # --call: longest wait for the service to appear
 
 BAGS = ParamSpec('bags', [], 'bag directories, .mcap files or .npz data sets to validate on')
 
 
 def validator_specs() -> list[ParamSpec]:
-    """Every parameter but `bags` (declared apart: rclpy cannot type an empty list)."""
+    """List every parameter but `bags` (declared apart: an empty list has no type)."""
     from octoroach_model.model import DRAWS
     from octoroach_model.recordings import DEFAULT_GAP_S
     from octoroach_model.validation import ValidationSettings
@@ -75,6 +86,8 @@ def validator_specs() -> list[ParamSpec]:
         ParamSpec('topic', '', 'pose topic in the bags; empty: the VICON one found there'),
         ParamSpec('gap_s', float(DEFAULT_GAP_S), 'a pause in the poses longer than this '
                   'splits runs (bags without run markers)', 's', 0.05, 60.0),
+        ParamSpec('min_duration_s', 0.0, 'runs shorter than this are left out (0: none; all '
+                  'runs are compared on their common duration)', 's', 0.0, 3600.0),
         ParamSpec('nominal', 'fit', 'nominal model: fitted to the runs (eq. 9) or Table II',
                   choices=('fit', 'table2')),
         ParamSpec('draws', DRAWS[0], 'model angles drawn at every stance or once per run',
@@ -106,54 +119,6 @@ def validator_specs() -> list[ParamSpec]:
     ]
 
 
-# -- what a call needs, from the parameter values -------------------------------------------
-
-@dataclass(frozen=True)
-class Job:
-    """One call's inputs, taken from the parameters when it starts."""
-
-    sources: tuple[str, ...]
-    topic: str | None
-    gap_s: float
-    nominal: str
-    draws: str
-    sigma1: float
-    sigma2: float
-    report_dir: str
-    settings: Any  # ValidationSettings
-
-    @classmethod
-    def from_values(cls, values: Mapping[str, Any]) -> Job:
-        """A job from parameter values; ParameterError where they do not fit together."""
-        from octoroach_model.validation import ValidationSettings
-
-        settings = ValidationSettings(
-            rho=values['rho'], epsilon=values['epsilon'], delta=values['delta'],
-            k=values['k'], gamma=values['gamma'], seed=values['seed'],
-            sigma1_max=values['sigma1_max'], sigma2_max=values['sigma2_max'],
-            grid_points=values['grid_points'], resolution_m=values['resolution_m'])
-        return cls(sources=tuple(values.get('bags', ())), topic=values['topic'] or None,
-                   gap_s=float(values['gap_s']), nominal=values['nominal'],
-                   draws=values['draws'], sigma1=float(values['sigma1']),
-                   sigma2=float(values['sigma2']), report_dir=values['report_dir'],
-                   settings=settings)
-
-    def sigmas(self) -> tuple[float, float] | None:
-        """The fixed point to evaluate, or None for the search (15)."""
-        if self.sigma1 < 0 and self.sigma2 < 0:
-            return None
-        if self.sigma1 < 0 or self.sigma2 < 0:
-            raise ParameterError(
-                f'sigma1 = {self.sigma1:g} and sigma2 = {self.sigma2:g} rad: set both >= 0 to '
-                'evaluate at a fixed point, or both negative to search')
-        return self.sigma1, self.sigma2
-
-    def require_sources(self) -> None:
-        if not self.sources:
-            raise ParameterError('no measured runs: set the parameter bags (bag directories, '
-                                 '.mcap files or .npz data sets)')
-
-
 def _reject_reason(values: dict[str, ParamValue]) -> str | None:
     try:
         Job.from_values(values)
@@ -170,150 +135,6 @@ def _bags_reason(value: Any) -> str | None:
     return None
 
 
-# -- the work: plain Python, no rclpy -------------------------------------------------------
-
-class Cancelled(Exception):
-    """Raised from the progress callback when the node shuts down during a job."""
-
-
-class Workbench:
-    """Measured runs, kept between calls and rebuilt when inputs change.
-
-    Only the running job uses it (one at a time), so it needs no lock.
-    """
-
-    def __init__(self) -> None:
-        self._measured_key: tuple | None = None
-        self._measured: Paths | None = None
-
-    def measured(self, job: Job) -> Paths:
-        """The runs of `job.sources`, from the cache when neither names nor files changed."""
-        from octoroach_model.recordings import load_measured
-
-        job.require_sources()
-        key = (job.sources, job.topic, job.gap_s, _file_stamps(job.sources))
-        if key != self._measured_key or self._measured is None:
-            self._measured = load_measured(list(job.sources), gap_s=job.gap_s, topic=job.topic)
-            self._measured_key = key
-        return self._measured
-
-
-def _file_stamps(sources: Sequence[str]) -> tuple:
-    """(path, mtime, size) of every input file, so rewritten or grown files are reloaded."""
-    from octoroach_model.recordings import expand_sources
-
-    try:
-        files = expand_sources(list(sources), suffixes=('.mcap', '.npz'))
-    except (OctoroachError, OSError):
-        return ()  # load_measured will say what is wrong
-    stamps = []
-    for path in files:
-        try:
-            stat = os.stat(path)
-        except OSError:
-            continue
-        stamps.append((str(path), stat.st_mtime_ns, stat.st_size))
-    return tuple(stamps)
-
-
-Progress = Callable[[float, str], None]
-
-
-def run_validation(job: Job, bench: Workbench, progress: Progress) -> dict:
-    """The offline `validate` command's chain (load, nominal, validate) as a JSON-ready dict."""
-    from octoroach_model.validation import validate_measured
-
-    progress(0.0, 'loading the measured runs')
-    measured = bench.measured(job)
-    progress(0.0, f'{measured.n_paths} runs loaded; nominal model: {job.nominal}')
-    result = validate_measured(measured, job.settings, nominal=job.nominal, draws=job.draws,
-                               sigmas=job.sigmas(), sources=list(job.sources),
-                               progress=progress)
-    return result.to_json()
-
-
-def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict:
-    """`diagnose` on the measured runs; report files too when `report_dir` is set."""
-    from dataclasses import replace
-
-    from octoroach_model.diagnosis import diagnose
-
-    progress(0.0, 'loading the measured runs')
-    measured = bench.measured(job)
-    report = diagnose(measured, diagnosis_settings(job), progress=progress)
-    report = replace(report, sources=tuple(job.sources))
-    result = report.to_json()
-    if job.report_dir:
-        try:
-            from octoroach_model.diagnosis import write_report
-
-            written = write_report(report, Path(job.report_dir), measured=measured,
-                                   plots=True)
-            result['report_files'] = {str(k): str(v) for k, v in dict(written or {}).items()}
-        except Cancelled:
-            raise
-        except Exception as error:  # noqa: BLE001 - the report is still worth returning
-            result['report_files'] = {'error': _one_line(error)}
-    return result
-
-
-def diagnosis_settings(job: Job) -> Any:
-    """DiagnosisSettings of a call: the library defaults with the node's seed."""
-    from octoroach_model.diagnosis import DiagnosisSettings
-
-    return DiagnosisSettings(seed=job.settings.seed)
-
-
-def status_fields(result: Mapping[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
-    """(accepted, message in words, key/value pairs) of a validation result."""
-    accepted = bool(result['accepted'])
-    where = (f"sigma1 = {result['sigma1']:.3f} rad, sigma2 = {result['sigma2']:.3f} rad "
-             f"(n = {result['n']}, k = {result['k']})")
-    if accepted:
-        message = (f"accepted: estimated violation {result['violation']:.3f} <= rho = "
-                   f"{result['rho']} at {where}")
-    elif result.get('mode') == 'search':
-        message = (f"rejected: no spread on the grid keeps the violation below rho = "
-                   f"{result['rho']}; at {where} it is {result['violation']:.3f}")
-    else:
-        message = (f"rejected: estimated violation {result['violation']:.3f} > rho = "
-                   f"{result['rho']} at {where}")
-    keys = ('n', 'k', 'sigma1', 'sigma2', 'violation', 'rho', 'epsilon', 'delta', 'gamma',
-            'seed', 'paths_used', 'paths_available', 'accepted', 'mode', 'duration_s',
-            'elapsed_s', 'started_at')
-    values = [(key, _text(result[key])) for key in keys if key in result]
-    return accepted, message, values
-
-
-def _text(value: Any) -> str:
-    if isinstance(value, bool):
-        return str(value).lower()
-    if isinstance(value, float):
-        return repr(value)
-    return str(value)
-
-
-def to_json(value: Any) -> str:
-    """Strict JSON (NaN and infinities become null; numpy values become numbers)."""
-    return json.dumps(_jsonable(value), allow_nan=False)
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, bool) or value is None or isinstance(value, (int, str)):
-        return value
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if hasattr(value, 'tolist'):          # numpy scalars and arrays
-        return _jsonable(value.tolist())
-    if isinstance(value, Path):
-        return str(value)
-    return str(value)
-
-
 def _one_line(error: BaseException) -> str:
     text = ' '.join(str(error).split())
     if isinstance(error, OctoroachError):
@@ -322,7 +143,8 @@ def _one_line(error: BaseException) -> str:
 
 
 def error_json(reason: str) -> str:
-    return json.dumps({'error': reason})
+    """Make the answer of a call that failed: {"error": reason}."""
+    return dumps({'error': reason})
 
 
 # -- the node -------------------------------------------------------------------------------
@@ -367,6 +189,7 @@ class Validator(Node):  # type: ignore[misc,valid-type]
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self._violation = self.create_publisher(DiagnosticArray, '~/violation', latched)
         self._bench = Workbench()
+        self._statuses: dict[str, Any] = {}
         self._lock = threading.Lock()
         self._running: _Running | None = None
         self._stop = threading.Event()
@@ -380,22 +203,22 @@ class Validator(Node):  # type: ignore[misc,valid-type]
     # parameters
 
     def _declare_bags(self) -> None:
+        """Declare `bags` typed as a string array (an empty default cannot carry the type)."""
         from rclpy.exceptions import ParameterException
         from rclpy.parameter import Parameter
 
         try:
             self.declare_parameter('bags', Parameter.Type.STRING_ARRAY, BAGS.descriptor())
         except ParameterException:
-            override = getattr(self, '_parameter_overrides', {}).get('bags')
-            shown = override.value if override is not None else '?'
-            raise ParameterError(f'bags must be a string array, e.g. -p "bags:=[a.npz, bags/]"'
-                                 f', got {shown!r}') from None
+            raise ParameterError(rejected_override(self, 'bags', _bags_reason)
+                                 or 'bags must be a string array, e.g. -p "bags:=[a.npz, '
+                                 'bags/]"') from None
         reason = _bags_reason(self.bags())
         if reason:
             raise ParameterError(reason)
 
     def bags(self) -> list[str]:
-        """The `bags` parameter; [] while unset (rclpy's typed parameter without a value)."""
+        """Return the `bags` parameter; [] while unset (a typed parameter without a value)."""
         from rclpy.exceptions import ParameterUninitializedException
 
         try:
@@ -420,10 +243,10 @@ class Validator(Node):  # type: ignore[misc,valid-type]
     # services
 
     def _on_validate(self, request: Any, response: Any) -> Any:
-        return self._serve('validation', run_validation, response)
+        return self._serve(SERVICES['validate'], run_validation, response)
 
     def _on_diagnose(self, request: Any, response: Any) -> Any:
-        return self._serve('diagnosis', run_diagnosis, response)
+        return self._serve(SERVICES['diagnose'], run_diagnosis, response)
 
     @property
     def running(self) -> str | None:
@@ -471,12 +294,11 @@ class Validator(Node):  # type: ignore[misc,valid-type]
             result = work(job, self._bench, self._progress(running.kind))
             elapsed = round(time.monotonic() - running.started, 3)
             result = {**result, 'started_at': running.started_at, 'elapsed_s': elapsed}
-            if running.kind == 'validation':
-                self._publish(result)
-            running.success, running.message = True, to_json(result)
-            logger.info(f'{running.kind} done in {elapsed:.1f} s'
-                        + (f": {status_fields(result)[1]}" if running.kind == 'validation'
-                           else f": cause {result.get('cause')}"))
+            self._publish(running.kind, result)
+            running.success, running.message = True, dumps(result)
+            outcome = (status_fields(result)[1] if running.kind == 'validation'
+                       else diagnosis_fields(result)[1])
+            logger.info(f'{running.kind} done in {elapsed:.1f} s: {outcome}')
         except Cancelled:
             running.message = error_json(f'{running.kind} cancelled: the node is shutting down')
         except OctoroachError as error:
@@ -507,17 +329,14 @@ class Validator(Node):  # type: ignore[misc,valid-type]
 
         return report
 
-    def _publish(self, result: Mapping[str, Any]) -> None:
-        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-
-        accepted, message, values = status_fields(result)
-        status = DiagnosticStatus(
-            level=DiagnosticStatus.OK if accepted else DiagnosticStatus.WARN,
-            name=STATUS_NAME, message=message, hardware_id=HARDWARE_ID,
-            values=[KeyValue(key=key, value=value) for key, value in values])
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = self.get_clock().now().to_msg()
-        self._violation.publish(array)
+    def _publish(self, kind: str, result: Mapping[str, Any]) -> None:
+        """Latch the newest validation and diagnosis statuses together on ~/violation."""
+        if kind == 'validation':
+            self._statuses[kind] = validation_status(result, STATUS_NAME, HARDWARE_ID)
+        else:
+            self._statuses[kind] = diagnosis_status(result, DIAGNOSIS_STATUS_NAME, HARDWARE_ID)
+        self._violation.publish(violation_array(list(self._statuses.values()),
+                                                self.get_clock().now().nanoseconds))
 
     def stop_jobs(self) -> None:
         """Ask a running job to stop at its next progress report; waiting callbacks return."""
@@ -530,17 +349,81 @@ class Validator(Node):  # type: ignore[misc,valid-type]
 
 # -- command line ---------------------------------------------------------------------------
 
+def call_service(service: str, node_name: str, timeout_s: float,
+                 ros_args: Sequence[str]) -> int:
+    """Call `~/<service>` of the validator `node_name` and print its JSON answer; exit code.
+
+    What `ros2 service call /validator/validate std_srvs/srv/Trigger` does on a full ROS
+    install, for machines with rclpy only: the answer goes to stdout, a failed call also
+    gives one `error:` line on stderr and exit code 1.
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node as ClientNode
+    from std_srvs.srv import Trigger
+
+    try:
+        rclpy.init(args=['validator', *ros_args])
+    except Exception as error:  # noqa: BLE001 - RCLError for malformed --ros-args
+        return fail(f'bad ROS arguments: {str(error).splitlines()[0]}')
+    name = f'{node_name.rstrip("/")}/{service}'
+    node = ClientNode('validator_call')
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        client = node.create_client(Trigger, name)
+        discovery_s = min(timeout_s, DISCOVERY_TIMEOUT_S)
+        if not client.wait_for_service(timeout_sec=discovery_s):
+            return fail(f'no service {name} within {discovery_s:g} s: is the validator '
+                        'running, on the same ROS_DOMAIN_ID?', 1)
+        future = client.call_async(Trigger.Request())
+        executor.spin_until_future_complete(future, timeout_sec=timeout_s)
+        if not future.done():
+            return fail(f'{name} did not answer within {timeout_s:g} s', 1)
+        response = future.result()
+    except KeyboardInterrupt:
+        return fail('interrupted', 130)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    sys.stdout.write(response.message + '\n')
+    if response.success:
+        return 0
+    try:
+        reason = json.loads(response.message).get('error', response.message)
+    except (ValueError, AttributeError):
+        reason = response.message
+    return fail(f'{name}: {reason}', 1)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """`validator [--help] [--ros-args ...]`; returns the exit code."""
+    """Run `validator [--help] [--call SERVICE] [--ros-args ...]`; return the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)
-        node_parser('validator', SUMMARY, [BAGS, *validator_specs()], TOPICS,
-                    NOTES).parse_args(own)
+        parser = node_parser('validator', SUMMARY, [BAGS, *validator_specs()], TOPICS, NOTES,
+                             '[--call {validate,diagnose} [--node NAME] [--timeout S]]')
+        parser.add_argument('--call', choices=tuple(SERVICES), metavar='SERVICE',
+                            help='call ~/SERVICE (validate or diagnose) of a running validator '
+                            'and print its JSON answer, instead of starting the node')
+        parser.add_argument('--node', default='/validator',
+                            help='--call: the validator node (default: /validator)')
+        parser.add_argument('--timeout', type=float, default=3600.0, metavar='S',
+                            help='--call: longest wait for the answer, seconds (for the service '
+                            f'to appear: at most {DISCOVERY_TIMEOUT_S:g}; default: 3600)')
+        args = parser.parse_args(own)
+        if args.call is None and (args.node != '/validator' or args.timeout != 3600.0):
+            raise UsageError('--node and --timeout go with --call')
+        if not (math.isfinite(args.timeout) and args.timeout > 0):
+            raise UsageError(f'--timeout must be a positive number of seconds, got '
+                             f'{args.timeout}')
     except SystemExit as stop:  # --help
         return int(stop.code or 0)
     except (UsageError, OctoroachError) as error:
         return fail(str(error))
+    if args.call is not None:
+        return call_service(args.call, args.node, args.timeout, ros)
     return run_node(Validator, ros, prog='validator', executor_threads=EXECUTOR_THREADS)
 
 

@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import json
 import os
-import zipfile
 from pathlib import Path
-from typing import Any, Union
+from typing import Union
+import zipfile
 
 import numpy as np
 
@@ -33,7 +33,7 @@ PathLike = Union[str, 'os.PathLike[str]']
 
 
 def save_dataset(path: PathLike, paths: Paths) -> Path:
-    """Writes `paths` as a data set file (format in the module docstring); returns its path.
+    """Write `paths` as a data set file (format in the module docstring); returns its path.
 
     Written to a temporary file first and then renamed, so a crash never leaves half a file.
     """
@@ -61,7 +61,7 @@ def save_dataset(path: PathLike, paths: Paths) -> Path:
 
 
 def is_dataset_file(path: PathLike) -> bool:
-    """True for a file that looks like a data set (an .npz / zip archive)."""
+    """Tell whether a file looks like a data set (an .npz / zip archive)."""
     candidate = Path(path)
     if not candidate.is_file():
         return False
@@ -72,7 +72,7 @@ def is_dataset_file(path: PathLike) -> bool:
 
 
 def load_dataset(path: PathLike) -> Paths:
-    """Reads a data set file; a file of any other kind raises DataError saying what is wrong."""
+    """Read a data set file; a file of any other kind raises DataError saying why."""
     source = Path(path)
     if not source.is_file():
         raise DataError(f'{source}: no such data set file')

@@ -39,6 +39,8 @@ from octoroach_model.recordings.bags import (
     iter_pose_samples,
 )
 from octoroach_model.recordings.dataset import is_dataset_file, load_dataset
+from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.recordings.sources import MEASURED_SUFFIXES
 
 DEFAULT_GAP_S = 0.5
 DEFAULT_RATE_HZ = 50.0
@@ -321,17 +323,19 @@ class _StreamSplitter:
 
 
 def read_runs(sources: Sources, *, topic: str | None = None, gap_s: float = DEFAULT_GAP_S,
-              use_markers: bool = True) -> RunSet:
-    """Runs of every pose stream in `sources` (bags, .mcap files or folders of them).
+              use_markers: bool = True, options: ReadOptions | None = None) -> RunSet:
+    """Runs of every pose stream in `sources` (bags, motion-capture files, folders of them).
 
-    Splitting, cleaning and what is noted: see the module docstring. Raises BagError for an
-    unreadable source and DataError when no run is left.
+    `options` says where the pose is (topic, /tf frame, subject, forward axis); `topic` is
+    the same as ``ReadOptions(topic=...)``. Splitting, cleaning and what is noted: see the
+    module docstring. Raises BagError for an unreadable source and DataError when no run is
+    left.
     """
     if not (np.isfinite(gap_s) and gap_s > 0):
         raise DataError(f'gap_s must be a positive number of seconds, got {gap_s}')
     notes: list[str] = []
     splitters: dict[tuple[str, str], _StreamSplitter] = {}
-    for chunk in iter_pose_samples(sources, topic=topic, notes=notes):
+    for chunk in iter_pose_samples(sources, topic=topic, notes=notes, options=options):
         key = (chunk.source, chunk.topic)
         splitter = splitters.get(key)
         if splitter is None:
@@ -350,15 +354,18 @@ def read_runs(sources: Sources, *, topic: str | None = None, gap_s: float = DEFA
 
 def load_measured(sources: Sources, *, rate_hz: float = DEFAULT_RATE_HZ,
                   gap_s: float = DEFAULT_GAP_S, topic: str | None = None,
-                  min_duration_s: float | None = None, use_markers: bool = True) -> Paths:
-    """Measured runs from bags and/or multisample data sets (.npz), on one common grid.
+                  min_duration_s: float | None = None, use_markers: bool = True,
+                  options: ReadOptions | None = None) -> Paths:
+    """Measured runs from bags, motion-capture files and/or data sets (.npz), on one grid.
 
-    Notes on everything skipped or repaired are in ``.info['notes']``.
+    `options` (and `topic`): where the pose is, see `read_runs`. Notes on everything
+    converted, skipped or repaired are in ``.info['notes']``.
     """
-    found = expand_sources(sources, suffixes=('.mcap', '.npz'))
+    found = expand_sources(sources, suffixes=MEASURED_SUFFIXES)
     datasets = [path for path in found if is_dataset_file(path)]
     bags = [path for path in found if not is_dataset_file(path)]
-    sets = [read_runs(bags, topic=topic, gap_s=gap_s, use_markers=use_markers)] if bags else []
+    sets = [read_runs(bags, topic=topic, gap_s=gap_s, use_markers=use_markers,
+                      options=options)] if bags else []
     sets += [RunSet.from_paths(load_dataset(path), source=str(path)) for path in datasets]
     paths = RunSet.combine(sets).to_paths(rate_hz, min_duration_s)
     paths.info['inputs'] = [str(Path(path)) for path in found]

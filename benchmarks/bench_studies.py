@@ -1,0 +1,187 @@
+"""What the diagnosis can do, measured by studies, and what a study costs to run.
+
+Two parts:
+
+- `--scale` (what `make bench` runs): studies/scale.yaml with 1 and with 2 local Dask workers;
+  prints the wall times, the speed-up, the cost of one data set, and the data sets per hour a
+  64-core cluster would diagnose, derived from these (64 workers at the measured per-worker
+  efficiency).
+- `--studies` (hours on this machine): runs the README's studies (false_positives, power,
+  limits, two_causes, wide_robots in studies/) into out/studies/NAME, resuming any that an
+  earlier call left unfinished, and prints the README tables from their summary.json. With
+  `--report-only` it prints the tables of the studies already in out/studies.
+
+Run: .venv/bin/python benchmarks/bench_studies.py [--scale] [--studies [NAME ...]]
+     [--workers N | --scheduler ADDRESS] [--report-only]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+import sys
+import tempfile
+import time
+
+REPO = Path(__file__).resolve().parents[1]
+SPECS = REPO / 'studies'
+OUT = REPO / 'out' / 'studies'
+README_STUDIES = ('false_positives', 'power', 'limits', 'two_causes', 'wide_robots')
+CLUSTER_CORES = 64
+
+
+def measure_scale(workers: tuple[int, ...] = (1, 2)) -> dict[int, dict]:
+    """Wall time of studies/scale.yaml with each number of local workers."""
+    import octoroach_model as om
+
+    results = {}
+    for count in workers:
+        with tempfile.TemporaryDirectory() as folder:
+            started = time.perf_counter()
+            result = om.run_study(SPECS / 'scale.yaml', Path(folder) / 'scale', workers=count,
+                                  plots=False)
+            total = time.perf_counter() - started
+        timing = result.summary['timing']
+        results[count] = {'tasks': result.rows, 'wall_s': timing['wall_time_s'],
+                          'with_start_s': total, 'median_task_s': timing['median_task_s']}
+    return results
+
+
+def print_scale(results: dict[int, dict]) -> None:
+    """Print the README's scale table and the cluster figures derived from it."""
+    one, two = results[1], results[2]
+    per_data_set = one['wall_s'] / one['tasks']
+    speed_up = one['wall_s'] / two['wall_s']
+    efficiency = speed_up / 2
+    per_hour = CLUSTER_CORES * efficiency * 3600 / per_data_set
+    print(f'studies/scale.yaml: {one["tasks"]} data sets of 500 runs (Table II robot)\n')
+    print('| local workers | wall time, s (cluster start-up) | per data set, s |')
+    print('| --- | --- | --- |')
+    for count, result in sorted(results.items()):
+        start_up = result['with_start_s'] - result['wall_s']
+        print(f'| {count} | {result["wall_s"]:.1f} ({start_up:.1f}) | '
+              f'{result["wall_s"] / result["tasks"]:.1f} |')
+    print(f'\nspeed-up with 2 workers: {speed_up:.2f} (efficiency {efficiency:.0%} per worker)')
+    print(f'one data set on one worker: {per_data_set:.1f} s')
+    print(f'a {CLUSTER_CORES}-core cluster at this efficiency: about {per_hour:,.0f} data sets '
+          f'per hour ({CLUSTER_CORES} x {efficiency:.2f} x 3600 s / {per_data_set:.1f} s); '
+          f'the 200 data sets of studies/false_positives.yaml in about '
+          f'{200 / per_hour * 60:.0f} min (their runs vary: 150-1000)')
+
+
+def run_studies(names: list[str], workers: int | None, scheduler: str | None) -> None:
+    """Run (or resume) each named study into out/studies/NAME."""
+    import octoroach_model as om
+    from octoroach_model.commands.study import ProgressBar
+
+    for name in names:
+        out = OUT / name
+        resume = (out / 'study.json').exists()
+        started = time.perf_counter()
+        om.run_study(SPECS / f'{name}.yaml', out, workers=workers, scheduler=scheduler,
+                     resume=resume, progress=ProgressBar(name))
+        elapsed = time.perf_counter() - started
+        (out / 'bench_wall_time_s.txt').write_text(f'{elapsed:.1f}\n')
+
+
+def _rate(entry: dict) -> str:
+    if entry.get('rate') is None:
+        return 'no data'
+    low, high = entry['interval_95']
+    return f'{entry["count"]}/{entry["data_sets"]} = {entry["rate"]:.0%} ({low:.0%}-{high:.0%})'
+
+
+def _error(value: float | None) -> str:
+    return '-' if value is None else f'{100 * value:.1f} %'
+
+
+def _wall(name: str, summary: dict) -> str:
+    """Return the study's wall time: as this script measured it, else the summary's."""
+    path = OUT / name / 'bench_wall_time_s.txt'
+    seconds = float(path.read_text()) if path.exists() else summary['timing']['wall_time_s']
+    return f'{seconds / 60:.1f} min' if seconds is not None else 'unknown (resumed)'
+
+
+def print_tables(names: list[str]) -> None:
+    """Print the README tables of every study of `names` found in out/studies."""
+    for name in names:
+        path = OUT / name / 'summary.json'
+        if not path.exists():
+            print(f'\n{name}: no summary in {path.parent} (run --studies {name})')
+            continue
+        summary = json.loads(path.read_text())
+        command = (f'python -m octoroach_model study studies/{name}.yaml '
+                   f'--out out/studies/{name}')
+        print(f'\n### {name} (`{command}`, wall time {_wall(name, summary)} on this machine)\n')
+        counts = summary['status']['counts']
+        if set(counts) - {'ok'}:
+            print(f'data sets without a diagnosis: {counts}\n')
+        fp = summary['false_positive']
+        if fp['data_sets']:
+            print('| null data sets | any cause named (95 % interval) | causes named |')
+            print('| --- | --- | --- |')
+            named = ', '.join(f'{k} {v}' for k, v in fp['causes_named'].items()) or 'none'
+            print(f'| {fp["data_sets"]} | {_rate(fp)} | {named} |\n')
+        if summary['power']:
+            errors = {(e['arm'], e['runs']): e for e in summary['estimation']}
+            print('| cause | size | data sets | named (95 % interval) | median abs. rel. error |'
+                  ' median rel. error |')
+            print('| --- | --- | --- | --- | --- | --- |')
+            for entry in summary['power']:
+                sign = '+-' if entry['sign'] == 'both' else ''
+                arm = f'{entry["cause"]}={sign}{entry["size"]:g}'
+                error = errors.get((arm, entry['runs']), {})
+                print(f'| {entry["cause"]} | {entry["parameter"]} = {sign}{entry["size"]:g} | '
+                      f'{entry["data_sets"]} | {_rate(entry)} | '
+                      f'{_error(error.get("median_abs_relative_error"))} | '
+                      f'{_error(error.get("median_relative_error"))} |')
+            print()
+        if summary['power_at_limit_multiples']:
+            limits = {(e['cause'], e['runs']): e for e in summary['detection_limits']}
+            print('| cause | median reported limit | named at 1x the limit | at 2x |')
+            print('| --- | --- | --- | --- |')
+            entries = summary['power_at_limit_multiples']
+            for cause in dict.fromkeys(e['cause'] for e in entries):
+                mine = {e['limit_multiple']: e for e in entries if e['cause'] == cause}
+                limit = limits.get((cause, mine[min(mine)]['runs']), {})
+                median = limit.get('median_limit')
+                shown = f'{limit["parameter"]} = {median:.3g}' if median is not None else '-'
+                print(f'| {cause} | {shown} | {_rate(mine.get(1.0, {}))} | '
+                      f'{_rate(mine.get(2.0, {}))} |')
+            print()
+        if summary['two_cause_recovery']:
+            print('| causes | data sets | both named (95 % interval) | each named |')
+            print('| --- | --- | --- | --- |')
+            for entry in summary['two_cause_recovery']:
+                each = ', '.join(f'{cause} {_rate(rate)}'
+                                 for cause, rate in entry['each_named'].items())
+                print(f'| {entry["arm"]} | {entry["data_sets"]} | {_rate(entry)} | {each} |')
+            print()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--scale', action='store_true', help='1 vs 2 local workers')
+    parser.add_argument('--studies', nargs='*', default=None, metavar='NAME',
+                        help=f'run the README studies (default all: {", ".join(README_STUDIES)})')
+    parser.add_argument('--report-only', action='store_true',
+                        help='print the tables of the studies in out/studies, run nothing')
+    parser.add_argument('--workers', type=int, default=None)
+    parser.add_argument('--scheduler', default=None)
+    args = parser.parse_args(argv)
+    names = list(args.studies or README_STUDIES) if args.studies is not None else []
+    if args.report_only:
+        print_tables(names or list(README_STUDIES))
+        return 0
+    if not args.scale and args.studies is None:
+        args.scale = True
+    if args.scale:
+        print_scale(measure_scale())
+    if names:
+        run_studies(names, args.workers, args.scheduler)
+        print_tables(names)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,105 @@
+"""`plan`: how many runs an experiment needs to detect a cause of a given size."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+import sys
+
+from octoroach_model.commands.common import (
+    finite_float, nonnegative_int, OneLineParser, positive_int, Progress)
+from octoroach_model.commands.simulate import OrderedEffectAction
+from octoroach_model.commands.study import add_where_arguments
+from octoroach_model.errors import ParameterError
+
+
+def parser() -> argparse.ArgumentParser:
+    """Build the `plan` command line."""
+    from octoroach_model.model import EFFECT_NAMES
+
+    result = OneLineParser(
+        prog='plan', description='How many runs to record: the number of runs with which the '
+        'diagnosis names CAUSE at SIZE with the requested power on a robot (default Table II, '
+        '10 cycles at 50 Hz), and the power curve it came from. Data sets are simulated and '
+        'diagnosed as tasks on Dask, like a study; docs/studies.md says how plan decides. '
+        'Prints the answer as JSON; with --out also plan.json, table.csv and power_curve.png.')
+    result.add_argument('--cause', required=True, choices=EFFECT_NAMES,
+                        help='the cause to detect')
+    result.add_argument('--size', type=finite_float, required=True,
+                        help="size of the cause's main parameter in its unit (e.g. "
+                        'yaw_rate_std_deg_s for persistent_turning)')
+    result.add_argument('--power', type=finite_float, default=0.8,
+                        help='probability of naming the cause')
+    result.add_argument('--param', action=OrderedEffectAction, dest='effect_param',
+                        metavar='KEY=VALUE', help='another parameter of the cause (e.g. '
+                        'position_std_cm=0.3 for initial_pose_error); repeatable')
+    robot = result.add_argument_group('robot (default Table II)')
+    robot.add_argument('--cycles', type=finite_float, default=10.0, help='gait cycles per run')
+    robot.add_argument('--stride-frequency-hz', type=finite_float, default=None,
+                       help='gait cycles per second (default Table II: 2)')
+    robot.add_argument('--sample-rate-hz', type=finite_float, default=None,
+                       help='motion-capture rate (default 50)')
+    robot.add_argument('--leg-length-cm', type=finite_float, default=None,
+                       help='leg length l (default 2.1)')
+    robot.add_argument('--touchdown-deg', type=finite_float, nargs=4, default=None,
+                       metavar=('PHI1', 'PHI2', 'PHI3', 'PHI4'),
+                       help='touchdown angles (default Table II)')
+    robot.add_argument('--spread-scale', type=finite_float, default=None,
+                       help="multiple of Table III's angle spreads (default 1)")
+    search = result.add_argument_group('search')
+    search.add_argument('--replicates', type=positive_int, default=6,
+                        help='data sets per run count (more on a cluster: tighter intervals)')
+    search.add_argument('--runs', type=positive_int, nargs='+', default=None, metavar='N',
+                        help="start from these run counts instead of the pilot's guess")
+    search.add_argument('--max-runs', type=positive_int, default=2000,
+                        help='the largest run count tried')
+    search.add_argument('--seed', type=nonnegative_int, default=0,
+                        help='seed of every data set and of the bootstrap')
+    add_where_arguments(result)
+    result.add_argument('--out', type=Path, default=None, metavar='DIR',
+                        help='also write plan.json, table.csv and power_curve.png here')
+    return result
+
+
+def robot_values(args: argparse.Namespace) -> dict:
+    """Return the robot keys given on the command line (the rest stay Table II)."""
+    values: dict = {'cycles': args.cycles}
+    for key, option in (('stride_frequency_hz', 'stride_frequency_hz'),
+                        ('sample_rate_hz', 'sample_rate_hz'), ('leg_length_cm', 'leg_length_cm'),
+                        ('spread_scale', 'spread_scale')):
+        if getattr(args, option) is not None:
+            values[key] = getattr(args, option)
+    if args.touchdown_deg is not None:
+        values['touchdown_angles_deg'] = list(args.touchdown_deg)
+    return values
+
+
+def progress_lines() -> Progress:
+    """One stderr line per diagnosed data set, with the time since the start."""
+    import time
+
+    started = time.monotonic()
+
+    def report(fraction: float, message: str) -> None:
+        sys.stderr.write(f'[plan {time.monotonic() - started:7.1f}s] {message}\n')
+        sys.stderr.flush()
+    return report
+
+
+def run(args: argparse.Namespace) -> int:
+    """Plan; prints the answer (JSON) and, with --out, where the files are."""
+    from octoroach_model.commands.simulate import parse_effects
+    from octoroach_model.jsonio import dumps
+    from octoroach_model.studies import plan_runs
+
+    pairs = [('effect', args.cause)] + list(getattr(args, 'effect_pairs', None) or [])
+    parameters = parse_effects(pairs)[args.cause]
+    if args.size <= 0:
+        raise ParameterError(f'--size must be positive (a magnitude), got {args.size:g}')
+    result = plan_runs(args.cause, args.size, power=args.power, robot=robot_values(args),
+                       parameters=parameters, replicates=args.replicates, run_counts=args.runs,
+                       max_runs=args.max_runs, seed=args.seed, scheduler=args.scheduler,
+                       workers=args.workers, progress=progress_lines(), out=args.out,
+                       connect_timeout_s=args.connect_timeout_s)
+    sys.stderr.write(f'plan: {result.statement}\n')
+    print(dumps(result, indent=2))
+    return 0

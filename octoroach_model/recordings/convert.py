@@ -1,0 +1,167 @@
+"""Convert: any pose input into the package's standard bag.
+
+The standard bag is what `simulate` writes: `TransformStamped` on ``/vicon/S/S`` (frame
+``vicon/world`` -> ``vicon/S/S``, metres, the heading as the yaw of a unit quaternion) with a
+`UInt32` run marker on ``/S/run_start`` before each run. Every sample of the input's pose
+stream is copied as it is (stamps, log times, arrival order; non-finite poses are dropped); the
+input's own run markers are kept, and where it has none a marker is put wherever a run starts
+by the reader's rule (the first sample, and every jump in the stamps longer than `gap_s`).
+Conversion streams: one chunk of samples at a time is in memory.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+import shutil
+from typing import NamedTuple
+
+import numpy as np
+
+from octoroach_model.errors import BagError, DataError
+from octoroach_model.recordings.bags import DEFAULT_CHUNK_SIZE, iter_source_pose_chunks, PoseChunk
+from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.recordings.pose_writer import PoseBagWriter
+from octoroach_model.recordings.sources import expand_sources, PathLike
+from octoroach_model.recordings.vicon import (
+    child_frame,
+    DEFAULT_SUBJECT,
+    DEFAULT_WORLD_FRAME,
+    marker_topic,
+    pose_topic,
+    subject_of,
+)
+
+DEFAULT_GAP_S = 0.5  # as the run splitter's default (runs.DEFAULT_GAP_S)
+
+
+class ConvertReport(NamedTuple):
+    """What `convert_to_bag` wrote, and the notes on what it read and converted."""
+
+    bag: Path
+    subject: str
+    inputs: tuple[str, ...]
+    samples: int
+    markers: int
+    dropped: int
+    notes: tuple[str, ...]
+
+
+@dataclass
+class _StreamState:
+    """Where one input stream is: last stamp, markers still to place."""
+
+    label: str
+    has_markers: bool
+    last_stamp: int | None = None
+    pending_markers: list[tuple[int, int]] = field(default_factory=list)  # sequence, log time
+
+
+def convert_to_bag(inputs: Sequence[PathLike] | PathLike, out: PathLike, *,
+                   options: ReadOptions | None = None, subject: str | None = None,
+                   gap_s: float = DEFAULT_GAP_S,
+                   chunk_size: int = DEFAULT_CHUNK_SIZE) -> ConvertReport:
+    """Write the pose stream of every input into one new standard bag at `out`.
+
+    Each input must hold one pose stream (choose with `options`: topic, /tf frame, subject).
+    The output subject is `subject`, else the input's (``/vicon/S/S``), else 'octoroach'.
+    Inputs are written one after another. On any error the partial output is removed; the
+    inputs are only read.
+    """
+    options = options or ReadOptions()
+    if not (np.isfinite(gap_s) and gap_s > 0):
+        raise DataError(f'gap_s must be a positive number of seconds, got {gap_s}')
+    target = Path(out)
+    if target.exists():
+        raise BagError(f'{target}: exists already; choose a new path')
+    paths = expand_sources([inputs] if isinstance(inputs, (str, Path)) else list(inputs))
+    notes: list[str] = []
+    try:
+        return _convert(paths, target, options, subject, int(round(gap_s * 1e9)), notes,
+                        max(1, int(chunk_size)))
+    except BaseException:
+        shutil.rmtree(target, ignore_errors=True)
+        raise
+
+
+def _convert(paths: list[Path], target: Path, options: ReadOptions, subject: str | None,
+             gap_ns: int, notes: list[str], chunk_size: int) -> ConvertReport:
+    chunks = (chunk for path in paths
+              for chunk in iter_source_pose_chunks(path, options, notes, chunk_size))
+    first = next(chunks, None)
+    if first is None:
+        raise BagError(f'{", ".join(map(str, paths))}: no pose stream')
+    name = subject or options.subject or subject_of(first.topic.split(':')[-1]) \
+        or DEFAULT_SUBJECT
+    counts = {'samples': 0, 'markers': 0, 'dropped': 0}
+    streams: dict[str, _StreamState] = {}
+    custom = {'octoroach_model.converted_from': ', '.join(map(str, paths))}
+    with PoseBagWriter(target, topic=pose_topic(name), world_frame=DEFAULT_WORLD_FRAME,
+                       child_frame=child_frame(name), marker_topic=marker_topic(name),
+                       custom_data=custom) as writer:
+        for chunk in _with_first(first, chunks):
+            state = streams.get(chunk.source)
+            if state is None:
+                state = streams[chunk.source] = _StreamState(chunk.topic,
+                                                             bool(chunk.marker_topic))
+            elif state.label != chunk.topic:
+                raise BagError(f'{chunk.source}: several pose streams ({state.label}, '
+                               f'{chunk.topic}); choose one with --topic or --frame')
+            _write_chunk(writer, chunk, state, gap_ns, counts)
+    notes.append(f'{target}: {counts["samples"]} poses written as TransformStamped on '
+                 f'{pose_topic(name)} ({DEFAULT_WORLD_FRAME} -> {child_frame(name)}, metres, '
+                 f'heading as the yaw of the child frame), {counts["markers"]} run markers on '
+                 f'{marker_topic(name)}')
+    if counts['dropped']:
+        notes.append(f'{target}: {counts["dropped"]} non-finite pose(s) dropped')
+    return ConvertReport(target, name, tuple(map(str, paths)), counts['samples'],
+                         counts['markers'], counts['dropped'], tuple(notes))
+
+
+def _with_first(first: PoseChunk, rest: Iterator[PoseChunk]) -> Iterator[PoseChunk]:
+    yield first
+    yield from rest
+
+
+def _write_chunk(writer: PoseBagWriter, chunk: PoseChunk, state: _StreamState, gap_ns: int,
+                 counts: dict[str, int]) -> None:
+    """Write a chunk's finite samples with the run markers that go before them."""
+    poses = chunk.poses
+    finite = np.isfinite(poses).all(axis=1)
+    counts['dropped'] += int((~finite).sum())
+    sequence, stamps, logs = chunk.sequence[finite], chunk.stamp_ns[finite], \
+        chunk.log_time_ns[finite]
+    poses = poses[finite]
+    if state.has_markers:
+        state.pending_markers += list(zip(chunk.marker_sequence.tolist(),
+                                          chunk.marker_log_time_ns.tolist()))
+        starts: dict[int, list[int]] = {}
+        kept: list[tuple[int, int]] = []
+        for marker_sequence, log_time in state.pending_markers:
+            position = int(np.searchsorted(sequence, marker_sequence, side='right'))
+            if position < len(sequence):
+                starts.setdefault(position, []).append(log_time)
+            else:
+                kept.append((marker_sequence, log_time))
+        state.pending_markers = kept if not chunk.is_last else []
+    else:
+        starts = {}
+        if len(stamps):
+            before = np.empty_like(stamps)
+            before[1:] = stamps[:-1]
+            before[0] = stamps[0] if state.last_stamp is None else state.last_stamp
+            new_run = np.abs(stamps - before) > gap_ns
+            new_run[0] |= state.last_stamp is None
+            starts = {int(i): [int(logs[i])] for i in np.flatnonzero(new_run)}
+    if len(stamps):
+        state.last_stamp = int(stamps[-1])
+    edges = sorted(starts) + [len(stamps)]
+    low = 0
+    for edge in edges:
+        if edge > low:
+            writer.write_poses(stamps[low:edge], poses[low:edge], log_time_ns=logs[low:edge])
+            counts['samples'] += edge - low
+        for log_time in starts.get(edge, []):
+            writer.write_marker(counts['markers'], log_time)
+            counts['markers'] += 1
+        low = edge

@@ -1,0 +1,166 @@
+"""QoS profiles as rosbag2 (Jazzy) stores them, and the profile a replay offers.
+
+A bag keeps, per topic, the QoS profiles its publishers offered when it was recorded: in
+metadata.yaml (``offered_qos_profiles``: a list of mappings, metadata version 9) and in each
+MCAP channel's metadata (the same list as YAML text). Jazzy writes policies by name
+(``keep_last``, ``reliable``, ...) and an infinite duration as RMW_DURATION_INFINITE, i.e.
+``{sec: 9223372036, nsec: 854775807}``. Older bags wrote policies as numbers (version 8 and
+before) and Foxy-era "infinite" values such as ``{sec: 2147483647, nsec: 4294967295}``; both are
+read and normalised here, as rosbag2 does.
+
+Plain data only (no rclpy): the nodes turn a `QosProfile` into an rclpy one.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import yaml
+
+from octoroach_model.errors import BagError
+
+INFINITE_NS = 2**63 - 1  # RMW_DURATION_INFINITE
+# "Infinite" as Foxy's Fast DDS and Connext reported it; rosbag2 reads both as infinite.
+# (Cyclone's Foxy value equals RMW_DURATION_INFINITE already.)
+_FOXY_INFINITE = {(2**31 - 1, 2**32 - 1), (2**31 - 1, 2**31 - 1)}
+
+# rmw's numbering (rclpy's enums share it) -> the names rosbag2 writes since version 9
+HISTORY = {0: 'system_default', 1: 'keep_last', 2: 'keep_all', 3: 'unknown'}
+RELIABILITY = {0: 'system_default', 1: 'reliable', 2: 'best_effort', 3: 'unknown',
+               4: 'best_available'}
+DURABILITY = {0: 'system_default', 1: 'transient_local', 2: 'volatile', 3: 'unknown',
+              4: 'best_available'}
+LIVELINESS = {0: 'system_default', 1: 'automatic', 3: 'manual_by_topic', 4: 'unknown',
+              5: 'best_available'}
+_POLICIES = {'history': HISTORY, 'reliability': RELIABILITY, 'durability': DURABILITY,
+             'liveliness': LIVELINESS}
+_DURATIONS = ('deadline', 'lifespan', 'liveliness_lease_duration')
+
+
+@dataclass(frozen=True)
+class QosProfile:
+    """One offered QoS profile; policies by rosbag2's names, durations in ns."""
+
+    history: str = 'keep_last'
+    depth: int = 10
+    reliability: str = 'reliable'
+    durability: str = 'volatile'
+    deadline_ns: int = INFINITE_NS
+    lifespan_ns: int = INFINITE_NS
+    liveliness: str = 'automatic'
+    liveliness_lease_duration_ns: int = INFINITE_NS
+    avoid_ros_namespace_conventions: bool = False
+
+    def to_rosbag2(self) -> dict[str, Any]:
+        """Give the mapping rosbag2 Jazzy writes (metadata version 9), keys in its order."""
+        def span(nanoseconds: int) -> dict[str, int]:
+            sec, nsec = divmod(int(nanoseconds), 10**9)
+            return {'sec': sec, 'nsec': nsec}
+
+        return {
+            'history': self.history,
+            'depth': int(self.depth),
+            'reliability': self.reliability,
+            'durability': self.durability,
+            'deadline': span(self.deadline_ns),
+            'lifespan': span(self.lifespan_ns),
+            'liveliness': self.liveliness,
+            'liveliness_lease_duration': span(self.liveliness_lease_duration_ns),
+            'avoid_ros_namespace_conventions': bool(self.avoid_ros_namespace_conventions),
+        }
+
+    @classmethod
+    def from_rosbag2(cls, entry: Mapping[str, Any]) -> QosProfile:
+        """Read a profile from metadata.yaml or channel metadata, of any metadata version."""
+        try:
+            values: dict[str, Any] = {}
+            for key, names in _POLICIES.items():
+                value = entry[key]
+                values[key] = names.get(value, 'unknown') if isinstance(value, int) \
+                    else str(value).lower()
+            for key in _DURATIONS:
+                sec, nsec = int(entry[key]['sec']), int(entry[key]['nsec'])
+                infinite = (sec, nsec) in _FOXY_INFINITE or sec * 10**9 + nsec >= INFINITE_NS
+                values[f'{key}_ns'] = INFINITE_NS if infinite else sec * 10**9 + nsec
+            return cls(depth=int(entry['depth']),
+                       avoid_ros_namespace_conventions=bool(
+                           entry.get('avoid_ros_namespace_conventions', False)),
+                       **values)
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
+            raise BagError(f'unreadable QoS profile ({type(error).__name__}: {error})') from None
+
+    @property
+    def keeps_last(self) -> bool:
+        """True when the depth means something (history keep_last and depth > 0)."""
+        return self.history == 'keep_last' and self.depth > 0
+
+
+def dump_profiles(profiles: Iterable[QosProfile]) -> str:
+    """YAML text of a list of profiles, as rosbag2 puts it in MCAP channel metadata."""
+    entries = [profile.to_rosbag2() for profile in profiles]
+    if not entries:
+        return ''
+    return yaml.safe_dump(entries, sort_keys=False, default_flow_style=False)
+
+
+def load_profiles(value: str | Sequence[Mapping[str, Any]] | None) -> tuple[QosProfile, ...]:
+    """Profiles from YAML text (channel metadata, old metadata.yaml) or a parsed list."""
+    if not value:
+        return ()
+    if isinstance(value, str):
+        try:
+            value = yaml.safe_load(value)
+        except yaml.YAMLError:
+            raise BagError('offered_qos_profiles is not valid YAML') from None
+        if not value:
+            return ()
+    if not isinstance(value, Sequence):
+        raise BagError('offered_qos_profiles is not a list')
+    return tuple(QosProfile.from_rosbag2(entry) for entry in value)
+
+
+@dataclass(frozen=True)
+class QosOverride:
+    """What a user forces on a replay; empty / 0 keeps what the bag recorded."""
+
+    reliability: str = ''
+    durability: str = ''
+    depth: int = 0
+
+
+def replay_profile(offered: Sequence[QosProfile], override: QosOverride = QosOverride(),
+                   fallback_depth: int = 1000) -> tuple[QosProfile, str]:
+    """Choose the profile to publish a recorded topic with, and say when it is not as recorded.
+
+    As ``ros2 bag play`` does: the recorded offer when every publisher offered the same
+    reliability, durability and liveliness; otherwise the most widely matched choice
+    (best_effort only if some publisher offered it, volatile unless all were transient_local).
+    The depth is the recorded one where the recording knows it (DDS discovery does not carry
+    depth, so live recordings usually store ``history: unknown, depth: 0``), else
+    `fallback_depth`. Deadline, lifespan and liveliness are left at the defaults (they do not
+    change which subscribers match a publisher that leaves them unset).
+    """
+    note = ''
+    if not offered:
+        chosen = QosProfile(history='keep_last', depth=fallback_depth)
+        note = 'no recorded QoS: reliable, volatile'
+    else:
+        reliabilities = {profile.reliability for profile in offered}
+        durabilities = {profile.durability for profile in offered}
+        reliability = 'best_effort' if 'best_effort' in reliabilities else 'reliable'
+        durability = 'transient_local' if durabilities == {'transient_local'} else 'volatile'
+        if len(reliabilities) > 1 or len(durabilities) > 1:
+            note = (f'publishers offered {"/".join(sorted(reliabilities))} and '
+                    f'{"/".join(sorted(durabilities))}: {reliability}, {durability}')
+        depths = [profile.depth for profile in offered if profile.keeps_last]
+        depth = max(depths) if depths else fallback_depth
+        chosen = QosProfile(history='keep_last', depth=depth, reliability=reliability,
+                            durability=durability)
+    if override.reliability:
+        chosen = replace(chosen, reliability=override.reliability)
+    if override.durability:
+        chosen = replace(chosen, durability=override.durability)
+    if override.depth:
+        chosen = replace(chosen, depth=int(override.depth))
+    return chosen, note

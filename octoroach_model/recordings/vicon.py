@@ -1,0 +1,79 @@
+"""The VICON convention of the package: topic and frame names, message types, heading.
+
+- pose topic of subject S: ``/vicon/S/S``, `geometry_msgs/msg/TransformStamped` (PoseStamped
+  is read too), header frame ``vicon/world``, child frame ``vicon/S/S``; metres; the child
+  frame's yaw is the heading, z = 0 (the vicon_bridge convention).
+- run marker of subject S: ``/S/run_start``, `std_msgs/msg/UInt32`, data = run index, written
+  at the start time of each run just before its first pose.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+DEFAULT_SUBJECT = 'octoroach'
+DEFAULT_POSE_TOPIC = '/vicon/octoroach/octoroach'
+DEFAULT_WORLD_FRAME = 'vicon/world'
+DEFAULT_CHILD_FRAME = 'vicon/octoroach/octoroach'
+DEFAULT_MARKER_TOPIC = '/octoroach/run_start'
+DEFAULT_START_TIME_NS = 1_700_000_000 * 10**9
+
+TRANSFORM_STAMPED = 'geometry_msgs/msg/TransformStamped'
+POSE_STAMPED = 'geometry_msgs/msg/PoseStamped'
+POSE_TYPES = (TRANSFORM_STAMPED, POSE_STAMPED)
+MARKER_TYPE = 'std_msgs/msg/UInt32'
+TF_MESSAGE = 'tf2_msgs/msg/TFMessage'
+ODOMETRY = 'nav_msgs/msg/Odometry'
+TF_TOPIC = '/tf'
+TF_STATIC_TOPIC = '/tf_static'
+
+
+def pose_topic(subject: str) -> str:
+    """Name the VICON pose topic of `subject` (vicon_bridge naming)."""
+    return f'/vicon/{subject}/{subject}'
+
+
+def child_frame(subject: str) -> str:
+    """Name the VICON child frame of `subject`."""
+    return f'vicon/{subject}/{subject}'
+
+
+def marker_topic(subject: str) -> str:
+    """Name the run-marker topic of `subject`."""
+    return f'/{subject}/run_start'
+
+
+def subject_of(name: str) -> str | None:
+    """Find the subject S of a ``/vicon/S/S`` topic or ``vicon/S/S`` frame, else None."""
+    parts = name.strip('/').split('/')
+    if len(parts) == 3 and parts[0] == 'vicon' and parts[1] == parts[2] and parts[1]:
+        return parts[1]
+    return None
+
+
+def heading_to_quaternion(heading: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(x, y, z, w) of the unit quaternion that turns the world frame by `heading` about z."""
+    half = 0.5 * np.asarray(heading, dtype=float)
+    zeros = np.zeros_like(half)
+    with np.errstate(invalid='ignore'):  # a non-finite heading gives a NaN quaternion
+        return zeros, zeros.copy(), np.sin(half), np.cos(half)
+
+
+def quaternion_to_heading(qx: np.ndarray, qy: np.ndarray, qz: np.ndarray,
+                          qw: np.ndarray) -> np.ndarray:
+    """Yaw in (-pi, pi] of any quaternion; non-unit ones are normalised first.
+
+    A zero or non-finite quaternion gives NaN, so that sample is dropped downstream.
+    """
+    qx, qy, qz, qw = (np.asarray(q, dtype=float) for q in (qx, qy, qz, qw))
+    with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
+        norm = np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+        usable = np.isfinite(norm) & (norm > 0.0)
+        norm = np.where(usable, norm, 1.0)
+        qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
+        yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    return np.where(usable, yaw, np.nan)
+
+
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Angles folded into (-pi, pi]."""
+    return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)

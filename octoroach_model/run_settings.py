@@ -1,0 +1,121 @@
+"""What one live run of the model needs, from plain parameter values (no ROS here).
+
+The simulator node turns its ROS parameters into a `RunSettings` at the start of every run;
+the run itself (`RunSettings.simulate`) and its seed (`RunSettings.run_seed`) come from here,
+so a test or a benchmark can rebuild any run the node published from the same values.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+import re
+import secrets
+from typing import Any
+
+import numpy as np
+
+from octoroach_model.errors import ParameterError
+from octoroach_model.model import check_effects, EFFECT_PARAMETERS, ModelParameters, simulate
+from octoroach_model.paths import Paths
+
+__all__ = ['EFFECT_PREFIX', 'RunSettings', 'marker_topic', 'pose_topic']
+
+NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+FRAME = re.compile(r'^[A-Za-z0-9_/]+$')
+EFFECT_PREFIX = 'effect_params.'  # effect parameter = EFFECT_PREFIX + the cause's key
+
+
+def pose_topic(subject: str, segment: str) -> str:
+    """Return the VICON topic of a subject's segment (vicon_bridge convention)."""
+    return f'/vicon/{subject}/{segment}'
+
+
+def marker_topic(subject: str) -> str:
+    """Return the run-marker topic of a subject."""
+    return f'/{subject}/run_start'
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """The settings of one run of every robot, taken when the run starts.
+
+    Lengths in metres, angles in radians, rates in Hz; `effect_params` keep the causes'
+    own keys and units (`heading_std_deg`, `position_std_cm`, ...).
+    """
+
+    robots: int
+    subject: str
+    segment: str
+    world_frame: str
+    rate: float
+    pause_s: float
+    cycles: int
+    sigma1: float
+    sigma2: float
+    stride_frequency: float
+    draws: str
+    seed: int
+    start_pose: tuple[float, float, float]
+    effect: str
+    effect_params: Mapping[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, Any]) -> RunSettings:
+        """Make settings from parameter values; ParameterError where they do not fit."""
+        for key in ('subject', 'segment'):
+            if values[key] and not NAME.match(values[key]):
+                raise ParameterError(f'{key} {values[key]!r} must be a name: a letter, then '
+                                     'letters, digits or _')
+        if not values['subject']:
+            raise ParameterError('subject must not be empty')
+        if not FRAME.match(values['world_frame']):
+            raise ParameterError(f'world_frame {values["world_frame"]!r} must be a frame '
+                                 'name of letters, digits, _ and /')
+        settings = cls(
+            robots=int(values['robots']), subject=values['subject'],
+            segment=values['segment'], world_frame=values['world_frame'],
+            rate=float(values['rate']), pause_s=float(values['pause_s']),
+            cycles=int(values['cycles']), sigma1=float(values['sigma1']),
+            sigma2=float(values['sigma2']),
+            stride_frequency=float(values['stride_frequency']), draws=values['draws'],
+            seed=int(values['seed']),
+            start_pose=(float(values['start_x']), float(values['start_y']),
+                        float(values['start_heading'])),
+            effect=values['effect'],
+            effect_params={key[len(EFFECT_PREFIX):]: float(value)
+                           for key, value in values.items() if key.startswith(EFFECT_PREFIX)})
+        check_effects(settings.effects())
+        settings.model_parameters()  # ParameterError where rate or frequency cannot be used
+        return settings
+
+    def subjects(self) -> list[tuple[str, str]]:
+        """Return (subject, segment) of each robot."""
+        if self.robots == 1:
+            return [(self.subject, self.segment or self.subject)]
+        return [(f'{self.subject}_{i}', f'{self.segment}_{i}' if self.segment
+                 else f'{self.subject}_{i}') for i in range(self.robots)]
+
+    def effects(self) -> dict[str, dict[str, float]] | None:
+        """Return {effect: {key: value}} for `simulate`, None without an effect."""
+        if self.effect == 'none':
+            return None
+        return {self.effect: {key: self.effect_params.get(key, 0.0)
+                              for key in EFFECT_PARAMETERS[self.effect]}}
+
+    def model_parameters(self) -> ModelParameters:
+        """Return Table II with this stride frequency and sample rate."""
+        return replace(ModelParameters.nominal(), stride_frequency=self.stride_frequency,
+                       sample_rate=self.rate)
+
+    def run_seed(self, run_index: int) -> int:
+        """Return the seed of run `run_index`: from (seed, index), or fresh entropy (seed < 0)."""
+        if self.seed < 0:
+            return secrets.randbits(63)
+        state = np.random.SeedSequence([self.seed, run_index]).generate_state(2, np.uint32)
+        return int(state[0]) << 31 | int(state[1]) >> 1
+
+    def simulate(self, seed: int) -> Paths:
+        """Draw one run per robot: Paths with poses (robots, T, 3)."""
+        return simulate(self.robots, seed=seed, sigma1=self.sigma1, sigma2=self.sigma2,
+                        cycles=self.cycles, parameters=self.model_parameters(),
+                        draws=self.draws, effects=self.effects(), start_pose=self.start_pose)

@@ -1,0 +1,430 @@
+"""`plan_runs`: how many runs an experiment needs to detect a cause of a given size.
+
+How it decides (docs/studies.md, "How plan decides"):
+
+1. Pilot: one data set of the paper's model on the robot (PILOT_RUNS runs) is diagnosed; the
+   detection limit L it reports for the cause gives a first guess n0 = PILOT_RUNS (L / size)^2
+   (a limit that shrinks as 1 / sqrt(runs)). Only a starting point: the answer comes from 3.
+2. Coarse grid: n0 / 4, n0 / 2, n0, 2 n0 (within [min_runs, max_runs]); at each, `replicates`
+   data sets with the effect at `size` are diagnosed. Replicate r uses the same seed at every
+   run count (common random numbers: for most causes a smaller data set is the first runs of
+   a larger one).
+3. Fit: power(n) = 1 / (1 + exp(-(a + b ln n))) by maximum likelihood over every diagnosed
+   data set; the answer is the n where the fit reaches the requested power, and its 95 %
+   interval comes from refitting on replicates drawn with replacement (bootstrap).
+4. Refine: if the answer lies beyond the grid, the grid grows by doubling (or halving) up to
+   max_runs (down to min_runs); otherwise one more run count at the answer is diagnosed and
+   the fit repeated. At most MAX_ROUNDS rounds after the coarse grid.
+
+The observed share at every run count is reported with its Wilson interval beside the fit.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+import math
+from pathlib import Path
+import time
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from octoroach_model.errors import ParameterError
+from octoroach_model.jsonio import dumps
+from octoroach_model.model import EFFECT_PARAMETERS
+from octoroach_model.studies.design import build_tasks
+from octoroach_model.studies.execute import check_where, CONNECT_TIMEOUT_S, run_tasks, where_to_run
+from octoroach_model.studies.spec import (
+    Arm, diagnosis_min_runs, nominal_robot, parse_spec, robot_spec, RobotSpec, StudySpec)
+from octoroach_model.studies.summary import wilson
+from octoroach_model.studies.table import write_table
+
+PILOT_RUNS = 200
+MAX_ROUNDS = 3
+BOOTSTRAP = 400
+MAX_SLOPE = 20.0            # per unit of ln(runs): power 10 % -> 90 % over at least x1.25 runs
+RIDGE = 1e-3                # keeps the fit finite when every data set agrees
+HUGE = 1e300                # stands for an infinite run count inside percentiles
+Progress = Callable[[float, str], None]
+
+
+class PowerPoint(NamedTuple):
+    """Observed power at one run count: named in `named` of `data_sets`, Wilson interval."""
+
+    runs: int
+    named: int
+    data_sets: int
+    power: float
+    interval_95: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """The answer of `plan_runs` and the curve it came from (docs/studies.md)."""
+
+    cause: str
+    parameter: str
+    size: float
+    power: float
+    runs_needed: int | None
+    runs_needed_interval_95: tuple[float | None, float | None]
+    status: str                   # found, at_min_runs, above_max_runs
+    statement: str
+    curve: tuple[PowerPoint, ...]
+    fit: dict
+    pilot: dict
+    robot: dict
+    replicates: int
+    seed: int
+    elapsed_s: float
+    rows: tuple[dict, ...] = field(default=(), metadata={'json': False}, repr=False)
+
+    def to_json(self) -> dict:
+        from octoroach_model.jsonio import fields_jsonable
+
+        plain = fields_jsonable(self)
+        plain['curve'] = [point._asdict() for point in self.curve]
+        return plain
+
+
+def plan_runs(cause: str, size: float, *, power: float = 0.8,
+              robot: RobotSpec | Mapping[str, Any] | None = None,
+              parameters: Mapping[str, float] | None = None, replicates: int = 6,
+              run_counts: Sequence[int] | None = None, min_runs: int | None = None,
+              max_runs: int = 2000, rounds: int = MAX_ROUNDS, seed: int = 0,
+              diagnosis: Mapping[str, Any] | None = None, client: Any | None = None,
+              scheduler: str | None = None, workers: int | None = None,
+              progress: Progress | None = None, out: str | Path | None = None,
+              connect_timeout_s: float = CONNECT_TIMEOUT_S) -> PlanResult:
+    """Find the number of runs needed to name `cause` at `size` with probability `power`.
+
+    `size` is the cause's main parameter, in its unit; `robot` defaults to Table II (10
+    cycles at 50 Hz).
+
+    `run_counts` skips the pilot and starts from these counts; `rounds` bounds the refinement
+    rounds after the coarse grid; `parameters` sets the cause's
+    other parameters; `diagnosis` overrides DiagnosisSettings as in a study spec. Where tasks
+    run: as in `run_study`. With `out`, writes plan.json, table.csv and power_curve.png there.
+    """
+    started = time.perf_counter()
+    say = progress or (lambda fraction, message: None)
+    fewest = diagnosis_min_runs()
+    min_runs = max(fewest, min_runs or fewest)
+    base = _base_spec(cause, size, robot, parameters, replicates, seed, diagnosis,
+                      min_runs, max_runs, power)
+    if run_counts is not None:
+        run_counts = sorted({int(n) for n in run_counts})
+        if not run_counts or run_counts[0] < min_runs or run_counts[-1] > max_runs:
+            raise ParameterError(f'run counts must lie in [{min_runs}, {max_runs}], got '
+                                 f'{run_counts}')
+    check_where(client, scheduler, workers)
+    out_dir = _check_out(out)
+    rows: list[dict[str, Any]] = []
+    with where_to_run(client, scheduler, workers, connect_timeout_s) as where:
+        def run(spec: StudySpec, label: str) -> list[dict[str, Any]]:
+            tasks = build_tasks(spec)
+            new: list[dict[str, Any]] = []
+
+            def arrived(row: dict[str, Any]) -> None:
+                new.append(row)
+                say(len(new) / len(tasks), f'{label}: {row["key"]} {row["status"]} '
+                    f'(named: {row["named"] or "none"})')
+            say(0.0, f'{label}: {len(tasks)} data sets')
+            run_tasks(tasks, spec, client=where, done={}, on_row=arrived)
+            return new
+
+        pilot: dict[str, Any] = {}
+        if run_counts is None:
+            pilot = _pilot(base, run, min_runs, max_runs)
+            run_counts = _coarse_grid(pilot['guess_runs'], min_runs, max_runs)
+        counts = list(run_counts)
+        rows += run(_with_runs(base, counts), 'coarse grid')
+        for round_number in range(1, rounds + 1):
+            fit = fit_power_curve(rows, cause, power, seed=seed)
+            more = _next_counts(fit, sorted({row['runs'] for row in rows}), min_runs, max_runs)
+            if not more:
+                break
+            rows += run(_with_runs(base, more), f'refinement {round_number}')
+    fit = fit_power_curve(rows, cause, power, seed=seed)
+    result = _result(base, cause, size, power, rows, fit, pilot, seed, replicates,
+                     min_runs, max_runs, time.perf_counter() - started)
+    if out_dir is not None:
+        write_plan(result, out_dir)
+    return result
+
+
+def _base_spec(cause: str, size: float, robot: RobotSpec | Mapping[str, Any] | None,
+               parameters: Mapping[str, float] | None, replicates: int, seed: int,
+               diagnosis: Mapping[str, Any] | None, min_runs: int, max_runs: int,
+               power: float) -> StudySpec:
+    """Build the study behind the plan, checked like any spec (one cause at one size)."""
+    if not 0 < power < 1:
+        raise ParameterError(f'power must lie strictly between 0 and 1, got {power:g}')
+    if max_runs < min_runs:
+        raise ParameterError(f'max_runs {max_runs} is below the minimum of {min_runs} runs')
+    robot = robot if isinstance(robot, RobotSpec) else (
+        robot_spec(robot) if robot is not None else nominal_robot())
+    entry: dict[str, Any] = {'cause': cause, 'sizes': [size]}
+    if parameters:
+        entry['parameters'] = dict(parameters)
+    spec = parse_spec({'name': f'plan {cause}', 'seed': seed, 'replicates': replicates,
+                       'runs': [min_runs], 'causes': [entry],
+                       'diagnosis': dict(diagnosis or {})})
+    return StudySpec(spec.name, seed, replicates, spec.runs, robot, spec.arms,
+                     diagnosis=spec.diagnosis)
+
+
+def _with_runs(base: StudySpec, counts: Sequence[int]) -> StudySpec:
+    return StudySpec(base.name, base.seed, base.replicates, tuple(counts), base.robot,
+                     base.arms, diagnosis=base.diagnosis)
+
+
+def _pilot(base: StudySpec, run: Callable, min_runs: int, max_runs: int) -> dict[str, Any]:
+    """Diagnose one null data set; the limit it reports gives the first guess of runs."""
+    arm = base.arms[0]
+    pilot_runs = int(min(max(PILOT_RUNS, min_runs), max_runs))
+    spec = StudySpec(base.name, base.seed, 1, (pilot_runs,), base.robot, (Arm('null', 'none'),),
+                     diagnosis=base.diagnosis)
+    row = run(spec, 'pilot')[0]
+    limit = row.get(f'limit_{arm.cause}') if row['status'] == 'ok' else None
+    if limit is not None and math.isfinite(limit) and limit > 0:
+        guess = pilot_runs * (limit / arm.size) ** 2
+        how = (f'the pilot reported a detection limit of {limit:.4g}; runs scaled by '
+               f'(limit / size)^2')
+    else:
+        guess = pilot_runs * 4.0
+        how = 'the pilot reported no detection limit; starting at 4 x the pilot runs'
+    guess = float(min(max(guess, min_runs), max_runs))
+    return {'runs': pilot_runs, 'limit': limit, 'guess_runs': guess, 'how': how,
+            'status': row['status'], 'note': row['note']}
+
+
+def _coarse_grid(guess: float, min_runs: int, max_runs: int) -> list[int]:
+    """Return the run counts guess / 4 ... 2 guess within the bounds.
+
+    At least three counts where the bounds allow: a guess at a bound grows away from it by
+    doubling (or halving).
+    """
+    counts = {int(round(min(max(guess * factor, min_runs), max_runs)))
+              for factor in (0.25, 0.5, 1.0, 2.0)}
+    while len(counts) < 3 and max(counts) < max_runs:
+        counts.add(min(2 * max(counts), max_runs))
+    while len(counts) < 3 and min(counts) > min_runs:
+        counts.add(max(min(counts) // 2, min_runs))
+    return sorted(counts)
+
+
+class PowerFit(NamedTuple):
+    """The fit power(n) = expit(a + b ln n) and the n where it reaches the target.
+
+    `interval_95` is a bootstrap 95 % interval of that n (inf where a refit never reaches
+    the target).
+    """
+
+    intercept: float
+    slope: float
+    runs_at_target: float
+    interval_95: tuple[float, float]
+    counts: tuple[int, ...]
+
+
+def fit_power_curve(rows: Sequence[Mapping[str, Any]], cause: str, target: float,
+                    bootstrap: int = BOOTSTRAP, seed: int = 0) -> PowerFit:
+    """Fit named / not named against ln(runs) over `rows` (status ok only), logistically."""
+    usable = [row for row in rows if row['status'] == 'ok']
+    if not usable:
+        raise ParameterError('no data set of the plan could be diagnosed; see the rows')
+    x = np.log([row['runs'] for row in usable])
+    y = np.array([1.0 if row[f'named_{cause}'] else 0.0 for row in usable])
+    replicate = np.array([row['replicate'] for row in usable])
+    intercept, slope = _logistic(x, y)
+    crossing = _crossing(intercept, slope, target)
+    rng = np.random.default_rng(seed)
+    ids = np.unique(replicate)
+    members = {r: np.flatnonzero(replicate == r) for r in ids}
+    crossings = []
+    for _ in range(bootstrap):
+        pick = np.concatenate([members[r] for r in rng.choice(ids, len(ids))])
+        crossings.append(_crossing(*_logistic(x[pick], y[pick]), target))
+    # a refit that never reaches the target counts as an infinite run count
+    finite = np.minimum(np.array(crossings), HUGE)
+    low, high = (math.inf if value >= HUGE else float(value)
+                 for value in np.percentile(finite, [2.5, 97.5]))
+    counts = tuple(sorted({int(row['runs']) for row in usable}))
+    return PowerFit(intercept, slope, crossing, (low, high), counts)
+
+
+def _logistic(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Fit expit(a + b (x - mean x)) by maximum likelihood; return (a, b) on x itself.
+
+    Newton steps with a halving line search; b is kept in [0, MAX_SLOPE] and a small ridge
+    keeps the fit finite when every data set agrees. The outcomes are counted per distinct x
+    first (a few run counts), so a fit costs microseconds and the bootstrap is cheap.
+    """
+    from scipy.special import expit, log_expit
+
+    centre = float(x.mean())
+    levels, index = np.unique(x, return_inverse=True)
+    trials = np.bincount(index).astype(float)
+    successes = np.bincount(index, weights=y)
+    design = np.stack([np.ones_like(levels), levels - centre], axis=1)
+
+    def loss(theta: np.ndarray) -> float:
+        eta = design @ theta
+        return float(-(successes * log_expit(eta) + (trials - successes) * log_expit(-eta)).sum()
+                     + RIDGE * (theta @ theta))
+
+    theta = np.zeros(2)
+    current = loss(theta)
+    for _ in range(100):
+        p = expit(design @ theta)
+        gradient = design.T @ (trials * p - successes) + 2 * RIDGE * theta
+        hessian = (design.T * (trials * p * (1 - p))) @ design + 2 * RIDGE * np.eye(2)
+        step = np.linalg.solve(hessian, gradient)
+        for _ in range(40):
+            trial = theta - step
+            trial[1] = min(max(trial[1], 0.0), MAX_SLOPE)
+            value = loss(trial)
+            if value <= current:
+                break
+            step = step / 2
+        else:
+            break
+        done = abs(current - value) < 1e-12
+        theta, current = trial, value
+        if done:
+            break
+    a, b = float(theta[0]), float(theta[1])
+    return a - b * centre, b
+
+
+def _crossing(intercept: float, slope: float, target: float) -> float:
+    """Return the n where expit(a + b ln n) = target (inf if the fit never rises to it)."""
+    logit = math.log(target / (1 - target))
+    if slope <= 1e-9:
+        return math.inf if intercept < logit else 0.0
+    exponent = (logit - intercept) / slope
+    return math.exp(exponent) if exponent < 700 else math.inf
+
+
+def _next_counts(fit: PowerFit, counts: list[int], min_runs: int, max_runs: int) -> list[int]:
+    """Return the run counts of the next round ([] when the answer is pinned down).
+
+    The grid grows or shrinks toward the answer, or gains the answer itself; nothing is
+    added beyond the bounds.
+    """
+    answer = fit.runs_at_target
+    if answer > counts[-1]:
+        step = min(counts[-1] * 2, max_runs)
+        return [step] if step > counts[-1] else []
+    if answer < counts[0]:
+        step = max(counts[0] // 2, min_runs)
+        return [step] if step < counts[0] else []
+    near = int(round(answer))
+    if any(abs(near - n) <= 0.1 * n for n in counts):
+        return []
+    return [near]
+
+
+def _result(base: StudySpec, cause: str, size: float, power: float,
+            rows: list[dict[str, Any]], fit: PowerFit, pilot: dict[str, Any], seed: int,
+            replicates: int, min_runs: int, max_runs: int, elapsed_s: float) -> PlanResult:
+    parameter = EFFECT_PARAMETERS[cause][0]
+    curve = []
+    for runs in fit.counts:
+        group = [row for row in rows if row['runs'] == runs and row['status'] == 'ok']
+        rate = wilson(sum(bool(row[f'named_{cause}']) for row in group), len(group))
+        curve.append(PowerPoint(runs, rate.successes, rate.trials, rate.rate, rate.interval))
+    answer = fit.runs_at_target
+    what = f'{cause} with {parameter} = {size:g}'
+    if answer > max_runs or not math.isfinite(answer):
+        status, needed = 'above_max_runs', None
+        statement = (f'more than {max_runs} runs are needed to name {what} with '
+                     f'{power:.0%} power (at {fit.counts[-1]} runs: '
+                     f'{curve[-1].power:.0%} of {curve[-1].data_sets} data sets)')
+    elif answer <= min_runs:
+        status, needed = 'at_min_runs', min_runs
+        statement = (f'{min_runs} runs (the fewest the diagnosis takes) already name {what} '
+                     f'with at least {power:.0%} power')
+    else:
+        status, needed = 'found', int(math.ceil(answer))
+        low, high = (max(value, min_runs) for value in fit.interval_95)
+        statement = (f'about {needed} runs name {what} with {power:.0%} power (95 % '
+                     f'interval {_runs_text(low)} to {_runs_text(high)} runs, from '
+                     f'{len(rows)} diagnosed data sets)')
+    interval = tuple(float(max(v, min_runs)) if math.isfinite(v) else None
+                     for v in fit.interval_95)
+    fit_json = {'model': 'power = 1 / (1 + exp(-(intercept + slope ln(runs))))',
+                'intercept': fit.intercept, 'slope': fit.slope,
+                'runs_at_target': fit.runs_at_target if math.isfinite(answer) else None,
+                'bootstrap': BOOTSTRAP}
+    return PlanResult(cause, parameter, size, power, needed, interval, status, statement,
+                      tuple(curve), fit_json, pilot, base.robot.to_json(), replicates, seed,
+                      round(elapsed_s, 2),
+                      tuple(sorted(rows, key=lambda row: (row['runs'], row['replicate']))))
+
+
+def _runs_text(value: float) -> str:
+    return f'{value:.0f}' if math.isfinite(value) else 'more than any run count tried'
+
+
+def _check_out(out: str | Path | None) -> Path | None:
+    """Check that `out` may be written: new, or an empty directory (nothing is created)."""
+    if out is None:
+        return None
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ParameterError(f'--out {out} exists and is not an empty directory')
+    return out
+
+
+def write_plan(result: PlanResult, out: Path) -> dict[str, Path]:
+    """Write plan.json, table.csv (every diagnosed data set) and power_curve.png to `out`."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise ParameterError(f'--out {out}: cannot create it ({error.strerror})') from None
+    paths = {'plan': out / 'plan.json', 'table': out / 'table.csv',
+             'plot': out / 'power_curve.png'}
+    paths['plan'].write_text(dumps(result, indent=2) + '\n')
+    write_table(paths['table'], result.rows)
+    plot_power_curve(result, paths['plot'])
+    return paths
+
+
+def plot_power_curve(result: PlanResult, path: Path) -> None:
+    """Plot observed power (Wilson intervals), the fitted curve, the target and the answer."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(6.5, 4.5))
+    runs = np.array([point.runs for point in result.curve], dtype=float)
+    rates = np.array([point.power for point in result.curve])
+    below = rates - np.array([point.interval_95[0] for point in result.curve])
+    above = np.array([point.interval_95[1] for point in result.curve]) - rates
+    axis.errorbar(runs, rates, yerr=[below, above], fmt='o', capsize=4, color='tab:blue',
+                  label='share of data sets with the cause named (95 % Wilson interval)')
+    grid = np.geomspace(min(runs.min(), result.runs_needed or runs.min()) * 0.8,
+                        max(runs.max(), result.runs_needed or runs.max()) * 1.25, 200)
+    fitted = 1 / (1 + np.exp(-(result.fit['intercept'] + result.fit['slope'] * np.log(grid))))
+    axis.plot(grid, fitted, color='tab:blue', alpha=0.7, label='logistic fit in ln(runs)')
+    axis.axhline(result.power, color='grey', linestyle='--',
+                 label=f'requested power {result.power:.0%}')
+    if result.runs_needed is not None:
+        axis.axvline(result.runs_needed, color='tab:red',
+                     label=f'answer: {result.runs_needed} runs')
+        low, high = result.runs_needed_interval_95
+        if low is not None or high is not None:
+            axis.axvspan(low or grid[0], high or grid[-1], color='tab:red', alpha=0.12,
+                         label='95 % interval of the answer (bootstrap)')
+    axis.set_xscale('log')
+    axis.set_ylim(-0.02, 1.02)
+    axis.set_xlabel('runs recorded (log scale)')
+    axis.set_ylabel('power: share of data sets with the cause named')
+    axis.set_title(f'Runs needed: {result.cause}, {result.parameter} = {result.size:g}')
+    axis.legend(fontsize=7, loc='lower right')
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)

@@ -1,0 +1,187 @@
+"""One task of a study: simulate a data set, diagnose it, and say what came out as a row.
+
+`run_task` is what the Dask workers run (and what the in-process run calls in a loop): a pure
+function of the task and the spec (and, for a limit multiple, the row of the replicate's null
+data set), so that the table is the same wherever and in whatever order tasks run. A data set
+the diagnosis cannot handle is a row with status `error` and the reason, not a failed study.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+import math
+import time
+from typing import Any
+
+from octoroach_model.jsonio import jsonable
+from octoroach_model.model import check_effects, EFFECT_NAMES, EFFECT_PARAMETERS, simulate
+from octoroach_model.paths import Paths
+from octoroach_model.studies.damage import damage_paths
+from octoroach_model.studies.design import (
+    DAMAGE, draw_robot, draw_signs, replicate_seeds, RobotDraw, Task)
+from octoroach_model.studies.spec import StudySpec
+from octoroach_model.studies.table import COLUMN_NAMES, typed_row
+
+OK, ERROR, SKIPPED = 'ok', 'error', 'skipped'
+
+
+class Skip(Exception):
+    """A task that cannot be run for a reason of the design (e.g. no limit to multiply)."""
+
+
+def report_fields(report: Any) -> dict[str, Any]:
+    """Turn whatever `diagnose` returns into the report's JSON fields (the one adapter).
+
+    A typed report gives its `to_json()`; a dict report loses its live objects (keys starting
+    with '_'). Fields a report may lack get their meaning from the older ones: `causes` from
+    `cause`/`parameters` (and that candidate's gain and p-value), `adequate` None (unknown),
+    `unexplained` [].
+    """
+    if hasattr(report, 'to_json'):
+        plain = jsonable(report.to_json())
+    else:
+        plain = jsonable({key: value for key, value in dict(report).items()
+                          if not str(key).startswith('_')})
+    candidates = plain.get('candidates') or []
+    if 'causes' not in plain:
+        cause = plain.get('cause', 'none')
+        chosen = next((c for c in candidates if c.get('cause') == cause), {})
+        plain['causes'] = [] if cause in (None, 'none') else [{
+            'cause': cause, 'parameters': plain.get('parameters') or {}, 'interval': {},
+            'gain': chosen.get('gain'), 'p_value': chosen.get('p_value')}]
+    plain.setdefault('candidates', candidates)
+    plain.setdefault('adequate', None)
+    plain.setdefault('unexplained', [])
+    return plain
+
+
+def run_task(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None = None
+             ) -> dict[str, Any]:
+    """Simulate, damage and diagnose the task's data set; return its row of the table."""
+    started = time.perf_counter()
+    draw = draw_robot(spec, task.replicate)
+    runs = task.runs_cell if task.runs_cell is not None else draw.runs
+    row = _empty_row(task, spec, draw, runs)
+    try:
+        effects = task_effects(task, spec, null_row)
+        row.update(_truth_columns(effects, task))
+        measured = simulate_data(spec, draw, runs, effects, row)
+        from octoroach_model.diagnosis import diagnose
+
+        report = report_fields(diagnose(measured, spec.diagnosis_settings(draw.data_seed)))
+        row.update(outcome_columns(report, effects))
+        row['status'] = OK
+    except Skip as reason:
+        row.update(status=SKIPPED, note=str(reason))
+    except Exception as error:  # noqa: BLE001 - a data set the diagnosis fails on is a result
+        row.update(status=ERROR, note=f'{type(error).__name__}: {error}')
+    row['elapsed_s'] = round(time.perf_counter() - started, 3)
+    return typed_row(row)
+
+
+def task_effects(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None
+                 ) -> dict[str, dict[str, float]]:
+    """Return the effects put into the task's data set, signs applied and sizes checked."""
+    arm = task.arm
+    effects = arm.effect_dict()
+    if arm.kind in ('absolute', 'relative'):
+        main = EFFECT_PARAMETERS[arm.cause][0]
+        sign = {'positive': 1.0, 'negative': -1.0}.get(
+            arm.sign, draw_signs(spec, task.replicate)[arm.cause])
+        size = arm.size if arm.kind == 'absolute' else _limit_size(task, null_row)
+        effects[arm.cause][main] = sign * size
+    return check_effects(effects)
+
+
+def _limit_size(task: Task, null_row: Mapping[str, Any] | None) -> float:
+    cause = task.arm.cause
+    if null_row is None or null_row.get('status') != OK:
+        raise Skip('the null data set of this replicate has no diagnosis to read the limit from')
+    limit = null_row.get(f'limit_{cause}')
+    if limit is None or not math.isfinite(limit) or limit <= 0:
+        raise Skip(f'the diagnosis reported no detection limit for {cause} on the null data '
+                   f'set of this replicate')
+    return task.arm.limit_multiple * float(limit)
+
+
+def simulate_data(spec: StudySpec, draw: RobotDraw, runs: int,
+                  effects: Mapping[str, Mapping[str, float]], row: dict[str, Any]) -> Paths:
+    """Simulate the replicate's robot with `effects`, damaged as the spec says.
+
+    The damage counts and the duration go into `row`.
+    """
+    sigma1, sigma2 = draw.sigmas()
+    paths = simulate(runs, seed=draw.data_seed, sigma1=sigma1, sigma2=sigma2,
+                     cycles=draw.cycles, parameters=draw.parameters(), effects=effects)
+    damaged = damage_paths(paths, spec.damage, replicate_seeds(spec.seed, draw.replicate)[DAMAGE])
+    row.update(runs_cut=damaged.runs_cut, frames_dropped=damaged.frames_dropped,
+               duration_s=float(paths.t[-1]))
+    return damaged.paths
+
+
+def outcome_columns(report: Mapping[str, Any], effects: Mapping[str, Mapping[str, float]]
+                    ) -> dict[str, Any]:
+    """Compare what the diagnosis named and estimated with the truth put into the data."""
+    named_entries = {entry['cause']: entry for entry in report['causes']}
+    candidates = {entry.get('cause'): entry for entry in report['candidates']}
+    named = [entry['cause'] for entry in report['causes']]
+    true = list(effects)
+    columns: dict[str, Any] = {
+        'named': named, 'false_causes': [cause for cause in named if cause not in true],
+        'all_true_named': all(cause in named for cause in true) if true else None,
+        'adequate': report.get('adequate'),
+        'unexplained': [item.get('statistic', '?') if isinstance(item, Mapping) else str(item)
+                        for item in report.get('unexplained') or []],
+    }
+    for cause in EFFECT_NAMES:
+        main = EFFECT_PARAMETERS[cause][0]
+        entry = named_entries.get(cause)
+        candidate = candidates.get(cause, {})
+        source = entry if entry is not None else candidate
+        estimate = _number((source.get('parameters') or {}).get(main))
+        interval = ((entry or {}).get('interval') or {}).get(main) or [None, None]
+        truth = effects.get(cause, {}).get(main)
+        columns[f'named_{cause}'] = entry is not None
+        columns[f'estimate_{cause}'] = estimate
+        columns[f'low_{cause}'] = _number(interval[0])
+        columns[f'high_{cause}'] = _number(interval[1])
+        columns[f'limit_{cause}'] = _number((candidate.get('detectable') or {}).get(main))
+        columns[f'rel_error_{cause}'] = (estimate - truth) / truth \
+            if truth and math.isfinite(estimate) else math.nan
+    return columns
+
+
+def _truth_columns(effects: Mapping[str, Mapping[str, float]], task: Task) -> dict[str, Any]:
+    columns: dict[str, Any] = {'true_causes': list(effects)}
+    for cause in EFFECT_NAMES:
+        columns[f'true_{cause}'] = effects[cause][EFFECT_PARAMETERS[cause][0]] \
+            if cause in effects else math.nan
+    return columns
+
+
+def _empty_row(task: Task, spec: StudySpec, draw: RobotDraw, runs: int) -> dict[str, Any]:
+    row: dict[str, Any] = dict.fromkeys(COLUMN_NAMES)
+    sigma1, sigma2 = draw.sigmas()
+    row.update({
+        'key': task.key, 'arm': task.arm.label, 'kind': task.arm.kind,
+        'replicate': task.replicate, 'seed': draw.data_seed, 'runs': runs,
+        'size': task.arm.size, 'limit_multiple': task.arm.limit_multiple,
+        'leg_length_cm': draw.leg_length_cm, 'hip_distance_cm': draw.hip_distance_cm,
+        'stride_frequency_hz': draw.stride_frequency_hz, 'cycles': draw.cycles,
+        'sample_rate_hz': draw.sample_rate_hz, 'spread_scale': draw.spread_scale,
+        'sigma1_rad': sigma1, 'sigma2_rad': sigma2, 'runs_cut': 0, 'frames_dropped': 0,
+        'true_causes': [], 'named': [], 'false_causes': [], 'unexplained': [],
+        'note': '', 'status': ERROR,
+    })
+    for number, angle in enumerate(draw.touchdown_angles_deg, 1):
+        row[f'touchdown_{number}_deg'] = angle
+    for cause in EFFECT_NAMES:
+        row[f'named_{cause}'] = None
+    return row
+
+
+def _number(value: Any) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return math.nan
+    return number if math.isfinite(number) else math.nan

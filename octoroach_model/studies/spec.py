@@ -1,0 +1,556 @@
+"""A study spec: which robots, causes, sizes and run counts to diagnose, checked before work.
+
+A spec is a YAML mapping (docs/studies.md lists every key, its default and unit). Loading it
+gives a frozen `StudySpec` whose every value has been checked, so that a study never starts on
+a spec that would fail half-way: an unknown cause, a negative size, a range whose low end lies
+above its high end are one-line `ParameterError`s. `StudySpec.to_json()` is the normalised spec
+(defaults filled in) and `spec_hash` its fingerprint, which `--resume` compares.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+import dataclasses
+from dataclasses import dataclass, field
+import hashlib
+import math
+from pathlib import Path
+from typing import Any
+
+from octoroach_model.errors import ParameterError
+from octoroach_model.jsonio import dumps
+from octoroach_model.model import EFFECT_NAMES, EFFECT_PARAMETERS, PARAMETER_RANGES
+
+SIGNS = ('positive', 'negative', 'both')
+SIGN_MARK = {'positive': '', 'negative': '-', 'both': '+-'}
+SIGNED_CAUSES = ('speed_decay', 'lateral_slip')   # causes whose main parameter has a sign
+NULL = 'none'
+# DiagnosisSettings fields a spec may set (the seed comes from each replicate)
+DIAGNOSIS_DEFAULTS: dict[str, Any] = {'validate_models': False}
+
+
+@dataclass(frozen=True)
+class Draw:
+    """A value of the robot space.
+
+    Fixed (low == high), uniform on [low, high], or one of `choices` with equal chances.
+    `at(u)` maps one uniform number u in [0, 1) to the value, so every key consumes exactly
+    one draw whatever its kind (draws of other keys stay put).
+    """
+
+    low: float
+    high: float
+    choices: tuple[float, ...] = ()
+
+    @classmethod
+    def fixed(cls, value: float) -> Draw:
+        return cls(float(value), float(value))
+
+    def at(self, u: float) -> float:
+        if self.choices:
+            return self.choices[min(int(u * len(self.choices)), len(self.choices) - 1)]
+        return self.low + u * (self.high - self.low)
+
+    @property
+    def values(self) -> tuple[float, ...]:
+        """Return both ends of the range (or every choice), for range checks."""
+        return self.choices or (self.low, self.high)
+
+    def to_json(self) -> Any:
+        if self.choices:
+            return {'choice': list(self.choices)}
+        return self.low if self.low == self.high else {'low': self.low, 'high': self.high}
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """The robot space replicates are drawn from; every key a `Draw`, in the units named.
+
+    touchdown_angles_deg are the base angles phi1..phi4 (default Table II); each gets its own
+    draw of touchdown_offset_deg added. spread_scale multiplies Table III's (sigma1, sigma2).
+    """
+
+    leg_length_cm: Draw
+    hip_distance_cm: Draw
+    stride_frequency_hz: Draw
+    cycles: Draw
+    sample_rate_hz: Draw
+    spread_scale: Draw
+    touchdown_offset_deg: Draw
+    touchdown_angles_deg: tuple[float, float, float, float]
+
+    DRAWN = ('leg_length_cm', 'hip_distance_cm', 'stride_frequency_hz', 'cycles',
+             'sample_rate_hz', 'spread_scale')
+
+    def to_json(self) -> dict:
+        plain = {name: getattr(self, name).to_json() for name in self.DRAWN}
+        plain['touchdown_offset_deg'] = self.touchdown_offset_deg.to_json()
+        plain['touchdown_angles_deg'] = list(self.touchdown_angles_deg)
+        return plain
+
+
+@dataclass(frozen=True)
+class Arm:
+    """One kind of data set of the design.
+
+    The paper's model ('null'), one cause at an absolute size ('absolute'), one cause at a
+    multiple of the limit the diagnosis reported on the same replicate's null data
+    ('relative'), or several causes at once ('together').
+    """
+
+    kind: str
+    label: str
+    effects: tuple[tuple[str, tuple[tuple[str, float], ...]], ...] = ()
+    cause: str = ''
+    size: float = math.nan
+    limit_multiple: float = math.nan
+    sign: str = 'positive'
+
+    @property
+    def causes(self) -> tuple[str, ...]:
+        return (self.cause,) if self.cause else tuple(name for name, _ in self.effects)
+
+    def effect_dict(self) -> dict[str, dict[str, float]]:
+        return {name: dict(params) for name, params in self.effects}
+
+
+@dataclass(frozen=True)
+class DamageSpec:
+    """Damage applied to each simulated data set.
+
+    A share of runs end early (poses NaN after their end) somewhere in `cut_at` of the
+    duration, and a share of frames are dropped (filled by linear interpolation, as the bag
+    readers fill them).
+    """
+
+    cut_share: float = 0.0
+    cut_at: Draw = Draw(0.7, 0.95)
+    dropped_frames: float = 0.0
+
+    @property
+    def active(self) -> bool:
+        return self.cut_share > 0 or self.dropped_frames > 0
+
+    def to_json(self) -> dict:
+        return {'cut_share': self.cut_share, 'cut_at': self.cut_at.to_json(),
+                'dropped_frames': self.dropped_frames}
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """A whole study: robots, arms (causes and sizes), run counts, replicates, damage, seed.
+
+    `runs` is either a tuple of run counts (a factor of the design: every arm at every count)
+    or a `Draw` (each replicate draws its own count). Every arm is run on every replicate.
+    """
+
+    name: str
+    seed: int
+    replicates: int
+    runs: tuple[int, ...] | Draw
+    robot: RobotSpec
+    arms: tuple[Arm, ...]
+    damage: DamageSpec = DamageSpec()
+    diagnosis: tuple[tuple[str, Any], ...] = ()
+    source: str = field(default='', compare=False)
+
+    @property
+    def run_cells(self) -> tuple[int | None, ...]:
+        """Return the run counts of the design; (None,) when each replicate draws its own."""
+        return self.runs if isinstance(self.runs, tuple) else (None,)
+
+    def diagnosis_settings(self, seed: int):
+        """Return one replicate's DiagnosisSettings: the spec's overrides and its seed."""
+        from octoroach_model.diagnosis import DiagnosisSettings
+
+        return DiagnosisSettings(**{**DIAGNOSIS_DEFAULTS, **dict(self.diagnosis), 'seed': seed})
+
+    def to_json(self) -> dict:
+        return {
+            'name': self.name, 'seed': self.seed, 'replicates': self.replicates,
+            'runs': list(self.runs) if isinstance(self.runs, tuple) else self.runs.to_json(),
+            'robot': self.robot.to_json(),
+            'causes': [_arm_json(arm) for arm in self.arms],
+            'damage': self.damage.to_json(),
+            'diagnosis': {**DIAGNOSIS_DEFAULTS, **dict(self.diagnosis)},
+        }
+
+    @property
+    def spec_hash(self) -> str:
+        """Return the fingerprint of the normalised spec (comments and key order do not count)."""
+        return hashlib.sha256(dumps(self.to_json()).encode()).hexdigest()[:16]
+
+
+def _arm_json(arm: Arm) -> dict:
+    plain: dict[str, Any] = {'kind': arm.kind, 'label': arm.label}
+    if arm.cause:
+        plain['cause'] = arm.cause
+    if arm.effects:
+        plain['effects'] = arm.effect_dict()
+    if arm.kind == 'absolute':
+        plain['size'] = arm.size
+    if arm.kind == 'relative':
+        plain['limit_multiple'] = arm.limit_multiple
+    if arm.cause:
+        plain['sign'] = arm.sign
+    return plain
+
+
+# --------------------------------------------------------------------------------------------
+# loading and checking
+
+TOP_KEYS = ('name', 'seed', 'replicates', 'runs', 'robot', 'causes', 'damage', 'diagnosis')
+ROBOT_KEYS = (*RobotSpec.DRAWN, 'touchdown_offset_deg', 'touchdown_angles_deg')
+DAMAGE_KEYS = ('cut_share', 'cut_at', 'dropped_frames')
+CAUSE_KEYS = ('cause', 'sizes', 'limit_multiples', 'parameters', 'sign', 'together')
+# (low, high) accepted for each robot key, in its unit; high may be inf
+ROBOT_LIMITS: dict[str, tuple[float, float]] = {
+    'leg_length_cm': (0.1, 20.0), 'hip_distance_cm': (1.0, 100.0),
+    'stride_frequency_hz': (0.05, 50.0), 'cycles': (1.0, 1000.0),
+    'sample_rate_hz': (1.0, 10000.0), 'spread_scale': (0.0, 10.0),
+    'touchdown_offset_deg': (-30.0, 30.0),
+}
+MAX_SIGMA_RAD = 1.5
+
+
+def load_spec(path: str | Path) -> StudySpec:
+    """Read and check a spec file; one-line ParameterError for anything wrong."""
+    import yaml
+
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise ParameterError(f'cannot read the spec {path}: {error.strerror or error}') from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, 'problem_mark', None)
+        where = f' (line {mark.line + 1})' if mark is not None else ''
+        raise ParameterError(f'{path} is not valid YAML{where}') from None
+    spec = parse_spec(data, default_name=path.stem)
+    return dataclasses.replace(spec, source=str(path))
+
+
+def parse_spec(data: Any, default_name: str = 'study') -> StudySpec:
+    """Check the mapping a YAML spec holds and return it as a StudySpec."""
+    data = _mapping(data, 'the spec')
+    _known(data, TOP_KEYS, 'the spec')
+    name = str(data.get('name', default_name))
+    seed = _whole(data.get('seed', 0), 'seed', minimum=0)
+    replicates = _whole(data.get('replicates', 1), 'replicates', minimum=1)
+    runs = _runs(data.get('runs', [500]))
+    robot = _robot(_mapping(data.get('robot', {}), 'robot'))
+    arms = _arms(data.get('causes', [NULL]))
+    damage = _damage(_mapping(data.get('damage', {}), 'damage'))
+    diagnosis = _diagnosis(_mapping(data.get('diagnosis', {}), 'diagnosis'))
+    spec = StudySpec(name, seed, replicates, runs, robot, arms, damage, diagnosis)
+    _check_robot_space(spec)
+    return spec
+
+
+def nominal_robot() -> RobotSpec:
+    """Return Table II's robot (fixed values) as a RobotSpec."""
+    return _robot({})
+
+
+def robot_spec(values: Mapping[str, Any]) -> RobotSpec:
+    """Check a mapping of robot keys (missing keys: Table II); return a RobotSpec."""
+    robot = _robot(_mapping(values, 'robot'))
+    _check_robot_space(StudySpec('robot', 0, 1, (100,), robot, (Arm('null', NULL),)))
+    return robot
+
+
+def diagnosis_min_runs() -> int:
+    """Return the fewest runs the diagnosis takes (its module's MIN_RUNS)."""
+    import importlib
+
+    return int(getattr(importlib.import_module('octoroach_model.diagnosis.diagnose'),
+                       'MIN_RUNS', 40))
+
+
+def _runs(value: Any) -> tuple[int, ...] | Draw:
+    fewest = diagnosis_min_runs()
+    if isinstance(value, Mapping):
+        draw = _draw(value, 'runs')
+        if min(draw.values) < fewest:
+            raise ParameterError(f'runs: the diagnosis needs at least {fewest} runs, '
+                                 f'got {min(draw.values):g}')
+        return draw
+    counts = value if isinstance(value, list) else [value]
+    if not counts:
+        raise ParameterError('runs: give at least one run count')
+    checked = tuple(_whole(count, 'runs', minimum=fewest,
+                           why=f'the diagnosis needs at least {fewest} runs')
+                    for count in counts)
+    if len(set(checked)) != len(checked):
+        raise ParameterError(f'runs: a run count is listed twice in {list(checked)}')
+    return checked
+
+
+def _robot(values: Mapping[str, Any]) -> RobotSpec:
+    from octoroach_model.model import ModelParameters
+
+    _known(values, ROBOT_KEYS, 'robot')
+    nominal = ModelParameters.nominal()
+    defaults = {'leg_length_cm': nominal.leg_length * 100,
+                'hip_distance_cm': nominal.hip_distance * 100,
+                'stride_frequency_hz': nominal.stride_frequency, 'cycles': 10.0,
+                'sample_rate_hz': nominal.sample_rate, 'spread_scale': 1.0,
+                'touchdown_offset_deg': 0.0}
+    draws = {}
+    for key, default in defaults.items():
+        draw = _draw(values.get(key, default), f'robot.{key}')
+        low, high = ROBOT_LIMITS[key]
+        if not all(low <= value <= high for value in draw.values):
+            raise ParameterError(f'robot.{key} must lie in [{low:g}, {high:g}], '
+                                 f'got {draw.to_json()}')
+        draws[key] = draw
+    angles = values.get('touchdown_angles_deg',
+                        [math.degrees(a) for a in nominal.touchdown_angles])
+    if not (isinstance(angles, list) and len(angles) == 4):
+        raise ParameterError('robot.touchdown_angles_deg must be a list of 4 angles (deg)')
+    base = tuple(_number(a, 'robot.touchdown_angles_deg') for a in angles)
+    if not all(0 < a < 90 for a in base):
+        raise ParameterError(f'robot.touchdown_angles_deg must lie in (0, 90), got {list(base)}')
+    return RobotSpec(touchdown_angles_deg=base, **draws)
+
+
+def _check_robot_space(spec: StudySpec) -> None:
+    """Check every corner of the robot space: angles in range, spreads < 1.5, sampling."""
+    from octoroach_model.model import nominal_sigmas
+
+    robot = spec.robot
+    offsets = robot.touchdown_offset_deg.values
+    angles = [a + o for a in robot.touchdown_angles_deg for o in offsets]
+    if not all(0 < a < 90 for a in angles):
+        raise ParameterError('robot: touchdown angles plus touchdown_offset_deg leave (0, 90) '
+                             'deg')
+    widest = max(nominal_sigmas()) * max(robot.spread_scale.values)
+    if widest >= MAX_SIGMA_RAD:
+        raise ParameterError(f'robot.spread_scale: {max(robot.spread_scale.values):g} x Table '
+                             f'III gives an angle spread of {widest:.2f} rad, above '
+                             f'{MAX_SIGMA_RAD}')
+    fastest = max(robot.stride_frequency_hz.values)
+    slowest_rate = min(robot.sample_rate_hz.values)
+    if slowest_rate < 4 * fastest:
+        raise ParameterError(f'robot: a sample rate of {slowest_rate:g} Hz cannot follow a '
+                             f'stride of {fastest:g} Hz (need at least 4 samples per cycle)')
+
+
+def _arms(value: Any) -> tuple[Arm, ...]:
+    items = value if isinstance(value, list) else [value]
+    if not items:
+        raise ParameterError('causes: give at least one entry (none, or a cause with sizes)')
+    arms: list[Arm] = []
+    for number, item in enumerate(items, 1):
+        where = f'causes[{number}]'
+        if item == NULL or item is None:
+            arms.append(Arm('null', NULL))
+            continue
+        if isinstance(item, str):
+            raise ParameterError(f'{where}: {item!r}: write none, or a mapping such as '
+                                 f'{{cause: {item}, sizes: [...]}}')
+        item = _mapping(item, where)
+        _known(item, CAUSE_KEYS, where)
+        if 'together' in item:
+            arms.append(_together(item, where))
+        else:
+            arms.extend(_single(item, where))
+    unique: list[Arm] = []
+    for arm in arms:
+        if any(other.label == arm.label for other in unique):
+            if arm.kind == 'null':
+                continue
+            raise ParameterError(f'causes: {arm.label} is listed twice')
+        unique.append(arm)
+    if any(arm.kind == 'relative' for arm in unique) and not any(
+            arm.kind == 'null' for arm in unique):
+        # a limit multiple is read off the replicate's null data set: diagnose it as well
+        unique.append(Arm('null', NULL))
+    # the null arm first: relative arms need its limits, and tasks run in arm order
+    return tuple(sorted(unique, key=lambda arm: arm.kind != 'null'))
+
+
+def _single(item: Mapping[str, Any], where: str) -> list[Arm]:
+    cause = _cause(item.get('cause'), where)
+    main = EFFECT_PARAMETERS[cause][0]
+    sign = str(item.get('sign', 'positive'))
+    if sign not in SIGNS:
+        raise ParameterError(f'{where}.sign must be one of {", ".join(SIGNS)}, got {sign!r}')
+    if sign != 'positive' and cause not in SIGNED_CAUSES:
+        raise ParameterError(f'{where}.sign: {cause} has no sign (only '
+                             f'{", ".join(SIGNED_CAUSES)} do)')
+    extra = _parameters(cause, item.get('parameters', {}), f'{where}.parameters')
+    if main in dict(extra):
+        raise ParameterError(f'{where}.parameters: {main} is the main parameter; its values '
+                             f'are the sizes')
+    has_sizes, has_multiples = 'sizes' in item, 'limit_multiples' in item
+    if has_sizes == has_multiples:
+        raise ParameterError(f'{where}: give either sizes (in the unit of {main}) or '
+                             f'limit_multiples (of the reported detection limit)')
+    if has_sizes:
+        sizes = _positive_list(item['sizes'], f'{where}.sizes')
+        for size in sizes:
+            _check_parameter(cause, main, size, f'{where}.sizes')
+        return [Arm('absolute', f'{cause}={SIGN_MARK[sign]}{size:g}',
+                    ((cause, ((main, size), *extra)),), cause=cause, size=size, sign=sign)
+                for size in sizes]
+    multiples = _positive_list(item['limit_multiples'], f'{where}.limit_multiples')
+    return [Arm('relative', f'{cause}@{SIGN_MARK[sign]}{multiple:g}x', ((cause, extra),),
+                cause=cause, limit_multiple=multiple, sign=sign) for multiple in multiples]
+
+
+def _together(item: Mapping[str, Any], where: str) -> Arm:
+    if set(item) != {'together'}:
+        raise ParameterError(f'{where}: together takes no other key (got '
+                             f'{", ".join(sorted(set(item) - {"together"}))})')
+    causes = _mapping(item['together'], f'{where}.together')
+    if len(causes) < 2:
+        raise ParameterError(f'{where}.together: name at least two causes')
+    effects = []
+    for cause, value in causes.items():
+        cause = _cause(cause, f'{where}.together')
+        if isinstance(value, Mapping):
+            params = _parameters(cause, value, f'{where}.together.{cause}')
+            if EFFECT_PARAMETERS[cause][0] not in dict(params):
+                raise ParameterError(f'{where}.together.{cause}: give its main parameter '
+                                     f'{EFFECT_PARAMETERS[cause][0]}')
+        else:
+            size = _positive_list([value], f'{where}.together.{cause}')[0]
+            params = ((EFFECT_PARAMETERS[cause][0], size),)
+            _check_parameter(cause, params[0][0], size, f'{where}.together.{cause}')
+        effects.append((cause, params))
+    label = '+'.join(f'{cause}={dict(params)[EFFECT_PARAMETERS[cause][0]]:g}'
+                     for cause, params in effects)
+    return Arm('together', label, tuple(effects))
+
+
+def _cause(value: Any, where: str) -> str:
+    if value not in EFFECT_PARAMETERS:
+        raise ParameterError(f'{where}: unknown cause {value!r}; known: '
+                             f'{", ".join(EFFECT_NAMES)}')
+    return str(value)
+
+
+def _parameters(cause: str, value: Any, where: str) -> tuple[tuple[str, float], ...]:
+    params = _mapping(value, where)
+    checked = []
+    for key, number in params.items():
+        if key not in EFFECT_PARAMETERS[cause]:
+            raise ParameterError(f'{where}: {cause} has no parameter {key!r}; it takes '
+                                 f'{", ".join(EFFECT_PARAMETERS[cause])}')
+        number = _number(number, f'{where}.{key}')
+        _check_parameter(cause, key, number, f'{where}.{key}')
+        checked.append((str(key), number))
+    return tuple(checked)
+
+
+def _check_parameter(cause: str, key: str, value: float, where: str) -> None:
+    low, high = PARAMETER_RANGES[key]
+    if not low <= value <= high:
+        raise ParameterError(f'{where}: {cause}.{key} = {value:g} is outside [{low:g}, '
+                             f'{high:g}]')
+
+
+def _positive_list(value: Any, where: str) -> tuple[float, ...]:
+    items = value if isinstance(value, list) else [value]
+    if not items:
+        raise ParameterError(f'{where}: give at least one value')
+    numbers = tuple(_number(item, where) for item in items)
+    for number in numbers:
+        if number <= 0:
+            raise ParameterError(f'{where}: sizes are magnitudes and must be positive, got '
+                                 f'{number:g} (the model of the paper is the entry none; a '
+                                 f'sign is set with sign:)')
+    return numbers
+
+
+def _damage(values: Mapping[str, Any]) -> DamageSpec:
+    _known(values, DAMAGE_KEYS, 'damage')
+    cut_share = _number(values.get('cut_share', 0.0), 'damage.cut_share')
+    dropped = _number(values.get('dropped_frames', 0.0), 'damage.dropped_frames')
+    cut_at = _draw(values.get('cut_at', {'low': 0.7, 'high': 0.95}), 'damage.cut_at')
+    if not 0 <= cut_share <= 1:
+        raise ParameterError(f'damage.cut_share must lie in [0, 1], got {cut_share:g}')
+    if not 0 <= dropped < 0.5:
+        raise ParameterError(f'damage.dropped_frames must lie in [0, 0.5), got {dropped:g}')
+    if not all(0 < value <= 1 for value in cut_at.values):
+        raise ParameterError(f'damage.cut_at must lie in (0, 1] (a share of the duration), '
+                             f'got {cut_at.to_json()}')
+    return DamageSpec(cut_share, cut_at, dropped)
+
+
+def _diagnosis(values: Mapping[str, Any]) -> tuple[tuple[str, Any], ...]:
+    from octoroach_model.diagnosis import DiagnosisSettings
+
+    defaults = DiagnosisSettings()
+    settable = {f.name: getattr(defaults, f.name) for f in dataclasses.fields(DiagnosisSettings)
+                if f.name != 'seed' and isinstance(getattr(defaults, f.name), (bool, int, float))}
+    checked = []
+    for key, value in values.items():
+        if key not in settable:
+            raise ParameterError(f'diagnosis: no setting {key!r}; settable: '
+                                 f'{", ".join(sorted(settable))}')
+        default = settable[key]
+        if isinstance(default, bool):
+            if not isinstance(value, bool):
+                raise ParameterError(f'diagnosis.{key} must be true or false, got {value!r}')
+        elif isinstance(default, int):
+            value = _whole(value, f'diagnosis.{key}', minimum=1)
+        else:
+            value = _number(value, f'diagnosis.{key}')
+            if value < 0:
+                raise ParameterError(f'diagnosis.{key} must not be negative, got {value:g}')
+        checked.append((str(key), value))
+    return tuple(sorted(checked))
+
+
+def _draw(value: Any, where: str) -> Draw:
+    if isinstance(value, Mapping):
+        if set(value) == {'choice'}:
+            choices = value['choice']
+            if not isinstance(choices, list) or not choices:
+                raise ParameterError(f'{where}.choice must be a non-empty list')
+            return Draw(math.nan, math.nan, tuple(_number(c, where) for c in choices))
+        if set(value) != {'low', 'high'}:
+            raise ParameterError(f'{where}: a range is {{low: A, high: B}} and a set of '
+                                 f'values {{choice: [A, B, ...]}}; got keys '
+                                 f'{", ".join(map(str, value))}')
+        low, high = _number(value['low'], f'{where}.low'), _number(value['high'],
+                                                                   f'{where}.high')
+        if low > high:
+            raise ParameterError(f'{where}: bad range, low {low:g} is above high {high:g}')
+        return Draw(low, high)
+    return Draw.fixed(_number(value, where))
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ParameterError(f'{where} must be a number, got {value!r}')
+    if not math.isfinite(value):
+        raise ParameterError(f'{where} must be finite, got {value}')
+    return float(value)
+
+
+def _whole(value: Any, where: str, minimum: int, why: str = '') -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ParameterError(f'{where} must be a whole number, got {value!r}')
+    if value < minimum:
+        reason = f' ({why})' if why else ''
+        raise ParameterError(f'{where} must be at least {minimum}, got {value}{reason}')
+    return int(value)
+
+
+def _mapping(value: Any, where: str) -> Mapping[str, Any]:
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise ParameterError(f'{where} must be a mapping of keys to values, got '
+                             f'{type(value).__name__}')
+    return value
+
+
+def _known(values: Mapping[str, Any], keys: Sequence[str], where: str) -> None:
+    unknown = [str(key) for key in values if key not in keys]
+    if unknown:
+        raise ParameterError(f'{where}: unknown key {unknown[0]!r}; known: {", ".join(keys)}')

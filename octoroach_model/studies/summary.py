@@ -1,0 +1,202 @@
+"""What a study measured: false-positive rate, power, estimation error, two-cause recovery.
+
+Every rate comes with its 95 % Wilson score interval (scipy's `binomtest(...).proportion_ci`),
+which keeps its coverage at the small counts and the rates near 0 or 1 that studies give.
+Rows whose status is not `ok` count in `status` only, never in a rate.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+import math
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from octoroach_model.model import EFFECT_PARAMETERS
+from octoroach_model.studies.spec import StudySpec
+from octoroach_model.studies.table import causes_of
+
+LEVEL = 0.95
+POWER_TARGET = 0.8
+# issue 14's test of a reported limit: named in 65-95 % of data sets at the limit, >= 90 % at 2x
+AT_LIMIT_RANGE = (0.65, 0.95)
+AT_TWICE_MIN = 0.90
+FALSE_POSITIVE_TARGET = 0.05
+
+
+class Rate(NamedTuple):
+    """k of n, the share, and its 95 % Wilson interval (None for n = 0)."""
+
+    successes: int
+    trials: int
+    rate: float | None
+    interval: tuple[float, float] | None
+
+    def to_json(self) -> dict[str, Any]:
+        return {'count': self.successes, 'data_sets': self.trials, 'rate': self.rate,
+                'interval_95': list(self.interval) if self.interval else None}
+
+
+def wilson(successes: int, trials: int) -> Rate:
+    """Return the share successes / trials with its Wilson score interval."""
+    if trials == 0:
+        return Rate(0, 0, None, None)
+    from scipy.stats import binomtest
+
+    ci = binomtest(int(successes), int(trials)).proportion_ci(LEVEL, method='wilson')
+    interval = (float(ci.low), float(ci.high))
+    return Rate(int(successes), int(trials), successes / trials, interval)
+
+
+def _finite(values: Iterable[float]) -> list[float]:
+    return [float(v) for v in values if v is not None and math.isfinite(v)]
+
+
+def _median(values: Iterable[float]) -> float | None:
+    finite = _finite(values)
+    return float(np.median(finite)) if finite else None
+
+
+def _cell(spec: StudySpec, row: Mapping[str, Any]) -> int | str:
+    """Return a row's run-count cell: its count, or 'drawn' (each replicate drew one)."""
+    return row['runs'] if isinstance(spec.runs, tuple) else 'drawn'
+
+
+def summarize(spec: StudySpec, rows: Sequence[Mapping[str, Any]],
+              wall_time_s: float | None = None) -> dict[str, Any]:
+    """Return the summary.json of a study (docs/studies.md describes every field)."""
+    ok = [row for row in rows if row['status'] == 'ok']
+    return {
+        'study': spec.name, 'spec_hash': spec.spec_hash, 'seed': spec.seed,
+        'status': _status(rows),
+        'false_positive': _false_positive(spec, ok),
+        'false_causes_with_effects': wilson(
+            sum(bool(row['false_causes']) for row in ok if row['true_causes']),
+            sum(1 for row in ok if row['true_causes'])).to_json(),
+        'power': _power(spec, ok),
+        'power_at_limit_multiples': _relative_power(spec, ok),
+        'estimation': _estimation(spec, ok),
+        'two_cause_recovery': _recovery(spec, ok),
+        'detection_limits': _limits(spec, ok),
+        'timing': _timing(rows, wall_time_s),
+    }
+
+
+def _status(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    counts: dict[str, int] = {}
+    for row in rows:
+        counts[row['status']] = counts.get(row['status'], 0) + 1
+    notes = [f'{row["key"]}: {row["note"]}' for row in rows if row['status'] != 'ok']
+    return {'rows': len(rows), 'counts': counts, 'first_problems': notes[:5]}
+
+
+def _false_positive(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    nulls = [row for row in ok if row['kind'] == 'null']
+    overall = wilson(sum(bool(row['named']) for row in nulls), len(nulls))
+    by_cell = []
+    for cell in sorted({_cell(spec, row) for row in nulls}, key=str):
+        members = [row for row in nulls if _cell(spec, row) == cell]
+        by_cell.append({'runs': cell, **wilson(sum(bool(r['named']) for r in members),
+                                               len(members)).to_json()})
+    named_counts: dict[str, int] = {}
+    for row in nulls:
+        for cause in causes_of(row['named']):
+            named_counts[cause] = named_counts.get(cause, 0) + 1
+    return {'definition': "share of data sets from the paper's model (no effect) in which "
+                          'any cause was named',
+            **overall.to_json(), 'target': FALSE_POSITIVE_TARGET,
+            'by_runs': by_cell, 'causes_named': named_counts}
+
+
+def _power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    entries = []
+    for arm in (arm for arm in spec.arms if arm.kind == 'absolute'):
+        members = [row for row in ok if row['arm'] == arm.label]
+        for cell in sorted({_cell(spec, row) for row in members}, key=str):
+            group = [row for row in members if _cell(spec, row) == cell]
+            entries.append({
+                'cause': arm.cause, 'parameter': EFFECT_PARAMETERS[arm.cause][0],
+                'size': arm.size, 'sign': arm.sign, 'runs': cell,
+                **wilson(sum(bool(row[f'named_{arm.cause}']) for row in group),
+                         len(group)).to_json()})
+    return entries
+
+
+def _relative_power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    entries = []
+    for arm in (arm for arm in spec.arms if arm.kind == 'relative'):
+        members = [row for row in ok if row['arm'] == arm.label]
+        for cell in sorted({_cell(spec, row) for row in members}, key=str):
+            group = [row for row in members if _cell(spec, row) == cell]
+            rate = wilson(sum(bool(row[f'named_{arm.cause}']) for row in group), len(group))
+            entry = {'cause': arm.cause, 'limit_multiple': arm.limit_multiple, 'runs': cell,
+                     'median_size': _median(abs(row[f'true_{arm.cause}']) for row in group),
+                     **rate.to_json()}
+            if arm.limit_multiple == 1 and rate.rate is not None:
+                entry['target'] = f'{AT_LIMIT_RANGE[0]:.0%}-{AT_LIMIT_RANGE[1]:.0%}'
+                entry['meets_target'] = AT_LIMIT_RANGE[0] <= rate.rate <= AT_LIMIT_RANGE[1]
+            if arm.limit_multiple == 2 and rate.rate is not None:
+                entry['target'] = f'>= {AT_TWICE_MIN:.0%}'
+                entry['meets_target'] = rate.rate >= AT_TWICE_MIN
+            entries.append(entry)
+    return entries
+
+
+def _estimation(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Summarise the main parameter's errors where the true cause was named.
+
+    Also how often the reported 95 % interval held the truth.
+    """
+    entries = []
+    for arm in (arm for arm in spec.arms if arm.kind in ('absolute', 'relative', 'together')):
+        members = [row for row in ok if row['arm'] == arm.label]
+        for cause in arm.causes:
+            for cell in sorted({_cell(spec, row) for row in members}, key=str):
+                named = [row for row in members if _cell(spec, row) == cell
+                         and row[f'named_{cause}']]
+                errors = _finite(row[f'rel_error_{cause}'] for row in named)
+                with_interval = [row for row in named if math.isfinite(row[f'low_{cause}'])]
+                covered = sum(row[f'low_{cause}'] <= row[f'true_{cause}'] <= row[f'high_{cause}']
+                              for row in with_interval)
+                entries.append({
+                    'arm': arm.label, 'cause': cause, 'runs': cell, 'named': len(named),
+                    'median_abs_relative_error': _median(abs(e) for e in errors),
+                    'median_relative_error': _median(errors),
+                    'interval_coverage': wilson(covered, len(with_interval)).to_json()})
+    return entries
+
+
+def _recovery(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    entries = []
+    for arm in (arm for arm in spec.arms if arm.kind == 'together'):
+        members = [row for row in ok if row['arm'] == arm.label]
+        for cell in sorted({_cell(spec, row) for row in members}, key=str):
+            group = [row for row in members if _cell(spec, row) == cell]
+            entries.append({
+                'arm': arm.label, 'causes': list(arm.causes), 'runs': cell,
+                'definition': 'share of data sets in which every true cause was named',
+                **wilson(sum(bool(row['all_true_named']) for row in group),
+                         len(group)).to_json(),
+                'each_named': {cause: wilson(sum(bool(row[f'named_{cause}']) for row in group),
+                                             len(group)).to_json() for cause in arm.causes}})
+    return entries
+
+
+def _limits(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Median detection limit each cause reported on null data sets, per run count."""
+    nulls = [row for row in ok if row['kind'] == 'null']
+    entries = []
+    for cell in sorted({_cell(spec, row) for row in nulls}, key=str):
+        group = [row for row in nulls if _cell(spec, row) == cell]
+        for cause, params in EFFECT_PARAMETERS.items():
+            limits = _finite(row[f'limit_{cause}'] for row in group)
+            entries.append({'cause': cause, 'parameter': params[0], 'runs': cell,
+                            'median_limit': _median(limits), 'reported': len(limits),
+                            'data_sets': len(group)})
+    return entries
+
+
+def _timing(rows: Sequence[Mapping[str, Any]], wall_time_s: float | None) -> dict[str, Any]:
+    elapsed = _finite(row['elapsed_s'] for row in rows)
+    return {'wall_time_s': wall_time_s, 'median_task_s': _median(elapsed),
+            'total_task_s': float(sum(elapsed)) if elapsed else None}

@@ -1,0 +1,178 @@
+"""What one call of the validator does, without ROS: its inputs, the runs it reads, its work.
+
+The validator node answers `~/validate` and `~/diagnose` on measured runs that may still be
+growing (a recorder writing the bag it names). A `Job` holds one call's inputs, taken from the
+node's parameter values when the call starts; a `Workbench` keeps the measured runs between
+calls and reads them again when the inputs or the files behind them changed.
+
+What "changed" means is `source_stamps`: the path, modification time and size of every file
+under the named sources. A bag directory's own time stamp is not enough: a recorder appends to
+the .mcap inside it, which changes the file's size and time but not the directory's (a
+directory only changes when an entry is added or removed), so runs recorded after the first
+call would go unseen.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+import os
+from pathlib import Path
+from typing import Any
+
+from octoroach_model.errors import ParameterError
+from octoroach_model.paths import Paths
+from octoroach_model.validation import ValidationSettings
+
+__all__ = ['Cancelled', 'Job', 'Progress', 'Workbench', 'diagnosis_settings',
+           'run_diagnosis', 'run_validation', 'source_stamps']
+
+Progress = Callable[[float, str], None]
+# Files whose change means the measured runs must be read again: bag data and metadata,
+# multisample data sets.
+WATCHED_SUFFIXES = ('.mcap', '.yaml', '.npz')
+FileStamp = tuple[str, int, int]  # path, modification time [ns], size [bytes]
+
+
+class Cancelled(Exception):
+    """Raised from a progress callback when the job must stop (the node shuts down)."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """One call's inputs, taken from the parameter values when it starts."""
+
+    sources: tuple[str, ...]
+    topic: str | None
+    gap_s: float
+    min_duration_s: float
+    nominal: str
+    draws: str
+    sigma1: float
+    sigma2: float
+    report_dir: str
+    settings: ValidationSettings
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, Any]) -> Job:
+        """Make a job from parameter values; ParameterError where they do not fit together."""
+        settings = ValidationSettings(
+            rho=values['rho'], epsilon=values['epsilon'], delta=values['delta'],
+            k=values['k'], gamma=values['gamma'], seed=values['seed'],
+            sigma1_max=values['sigma1_max'], sigma2_max=values['sigma2_max'],
+            grid_points=values['grid_points'], resolution_m=values['resolution_m'])
+        return cls(sources=tuple(values.get('bags', ())), topic=values['topic'] or None,
+                   gap_s=float(values['gap_s']),
+                   min_duration_s=float(values['min_duration_s']),
+                   nominal=values['nominal'], draws=values['draws'],
+                   sigma1=float(values['sigma1']), sigma2=float(values['sigma2']),
+                   report_dir=values['report_dir'], settings=settings)
+
+    def sigmas(self) -> tuple[float, float] | None:
+        """Return the fixed point to evaluate, or None for the search (15)."""
+        if self.sigma1 < 0 and self.sigma2 < 0:
+            return None
+        if self.sigma1 < 0 or self.sigma2 < 0:
+            raise ParameterError(
+                f'sigma1 = {self.sigma1:g} and sigma2 = {self.sigma2:g} rad: set both >= 0 to '
+                'evaluate at a fixed point, or both negative to search')
+        return self.sigma1, self.sigma2
+
+    def require_sources(self) -> None:
+        """Raise ParameterError when no source is named."""
+        if not self.sources:
+            raise ParameterError('no measured runs: set the parameter bags (bag directories, '
+                                 '.mcap files or .npz data sets)')
+
+
+def source_stamps(sources: Sequence[str]) -> tuple[FileStamp, ...]:
+    """Return (path, mtime, size) of every bag or data-set file under `sources`, sorted.
+
+    A file source is stamped itself; a directory (a bag, or a folder of bags) by every file
+    ending in WATCHED_SUFFIXES below it. A missing source has no stamp, so its appearance
+    counts as a change too.
+    """
+    stamps: list[FileStamp] = []
+    for source in sources:
+        path = Path(source)
+        if path.is_dir():
+            files = [Path(folder) / name for folder, _, names in os.walk(path)
+                     for name in names if name.endswith(WATCHED_SUFFIXES)]
+        else:
+            files = [path]
+        for file in files:
+            try:
+                stat = file.stat()
+            except OSError:
+                continue  # gone meanwhile, or never there: the reader says what is wrong
+            stamps.append((str(file), stat.st_mtime_ns, stat.st_size))
+    return tuple(sorted(stamps))
+
+
+class Workbench:
+    """The measured runs, kept between calls and read again when inputs or files change.
+
+    Only the running job uses it (one at a time), so it needs no lock.
+    """
+
+    def __init__(self) -> None:
+        self._key: tuple[Any, ...] | None = None
+        self._measured: Paths | None = None
+
+    def measured(self, job: Job) -> Paths:
+        """Return the runs of `job.sources`, read again when a name, setting or file changed."""
+        from octoroach_model.recordings import load_measured
+
+        job.require_sources()
+        key = (job.sources, job.topic, job.gap_s, job.min_duration_s,
+               source_stamps(job.sources))
+        if key != self._key or self._measured is None:
+            self._measured = load_measured(
+                list(job.sources), gap_s=job.gap_s, topic=job.topic,
+                min_duration_s=job.min_duration_s or None)
+            self._key = key
+        return self._measured
+
+
+def run_validation(job: Job, bench: Workbench, progress: Progress) -> dict[str, Any]:
+    """Run the offline `validate` chain (load, nominal model, validate); JSON-ready data."""
+    from octoroach_model.validation import validate_measured
+
+    progress(0.0, 'loading the measured runs')
+    measured = bench.measured(job)
+    progress(0.0, f'{measured.n_paths} runs loaded; nominal model: {job.nominal}')
+    result = validate_measured(measured, job.settings, nominal=job.nominal, draws=job.draws,
+                               sigmas=job.sigmas(), sources=list(job.sources),
+                               progress=progress)
+    return dict(result.to_json())
+
+
+def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict[str, Any]:
+    """Run `diagnose` on the measured runs; JSON-ready data, and files with report_dir."""
+    from dataclasses import replace
+
+    from octoroach_model.diagnosis import diagnose
+
+    progress(0.0, 'loading the measured runs')
+    measured = bench.measured(job)
+    report = diagnose(measured, diagnosis_settings(job), progress=progress)
+    report = replace(report, sources=tuple(job.sources))
+    files: dict[str, str] = {}
+    if job.report_dir:
+        from octoroach_model.diagnosis import write_report
+
+        try:
+            written = write_report(report, Path(job.report_dir), measured=measured, plots=True)
+            files = {str(k): str(v) for k, v in dict(written or {}).items()}
+        except Cancelled:
+            raise
+        except Exception as error:  # noqa: BLE001 - the report is still worth returning
+            files = {'error': ' '.join(f'{type(error).__name__}: {error}'.split())}
+    answer = report.to_json()
+    return {**answer, 'report_files': files} if job.report_dir else answer
+
+
+def diagnosis_settings(job: Job) -> Any:
+    """Return the diagnosis settings of a call: the library defaults with its seed."""
+    from octoroach_model.diagnosis import DiagnosisSettings
+
+    return DiagnosisSettings(seed=job.settings.seed)

@@ -1,0 +1,391 @@
+"""The pieces of a study, each on its own.
+
+Spec checks, seeding, damage, the table, the summary, the diagnosis adapter and plan's
+power-curve fit. No diagnosis runs here (test_studies_dask.py runs whole studies).
+"""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+import random
+
+import numpy as np
+import octoroach_model as om
+from octoroach_model.errors import DataError, ParameterError
+from octoroach_model.recordings.runs import RunSet
+from octoroach_model.studies.damage import cut_runs_short, damage_paths, drop_frames
+from octoroach_model.studies.design import build_tasks, draw_robot, draw_signs
+from octoroach_model.studies.plan import _coarse_grid, _next_counts, fit_power_curve
+from octoroach_model.studies.replicate import outcome_columns, report_fields
+from octoroach_model.studies.spec import DamageSpec, Draw, parse_spec
+from octoroach_model.studies.summary import summarize, wilson
+from octoroach_model.studies.table import (
+    append_row, COLUMN_NAMES, read_table, row_line, start_table, TABLE_NAME, typed_row)
+import pytest
+import yaml
+
+
+def suite_seed() -> int:
+    seed = int(os.environ.get('OCTOROACH_TEST_SEED', random.SystemRandom().randrange(10**6)))
+    print(f'OCTOROACH_TEST_SEED={seed}')
+    return seed
+
+
+SEED = suite_seed()
+REPO = Path(__file__).resolve().parents[1]
+
+VARIED = """
+name: varied   # a comment
+seed: 11
+replicates: 4
+runs: {low: 150, high: 1000}
+robot:
+  leg_length_cm: {low: 1.8, high: 2.6}
+  stride_frequency_hz: {low: 1.5, high: 3.5}
+  cycles: {low: 8, high: 14}
+  sample_rate_hz: {choice: [50, 100, 200]}
+  spread_scale: {low: 0.3, high: 1.5}
+  touchdown_offset_deg: {low: -5, high: 5}
+causes:
+  - none
+  - {cause: persistent_turning, sizes: [2, 5]}
+  - {cause: lateral_slip, limit_multiples: [1, 2], sign: both}
+  - {together: {speed_decay: 0.2, initial_pose_error: {heading_std_deg: 4, position_std_cm: 0.3}}}
+damage: {cut_share: 0.25, cut_at: {low: 0.7, high: 0.95}, dropped_frames: 0.01}
+diagnosis: {score_runs: 300, bootstrap: 20}
+"""
+
+
+def spec_of(text: str):
+    return parse_spec(yaml.safe_load(text))
+
+
+# --------------------------------------------------------------------------------------------
+# the spec
+
+def test_a_spec_lists_its_arms_null_first_with_readable_labels():
+    spec = spec_of(VARIED)
+    assert [arm.label for arm in spec.arms] == [
+        'none', 'persistent_turning=2', 'persistent_turning=5', 'lateral_slip@+-1x',
+        'lateral_slip@+-2x', 'speed_decay=0.2+initial_pose_error=4']
+    assert spec.diagnosis_settings(7).seed == 7
+    assert spec.diagnosis_settings(7).validate_models is False
+    assert spec.diagnosis_settings(7).score_runs == 300
+
+
+def test_the_spec_hash_ignores_comments_and_key_order_but_not_values():
+    spec = spec_of(VARIED)
+    reordered = yaml.safe_load(VARIED)
+    reordered = dict(reversed(list(reordered.items())))
+    assert parse_spec(reordered).spec_hash == spec.spec_hash
+    assert spec_of(VARIED.replace('# a comment', '')).spec_hash == spec.spec_hash
+    assert spec_of(VARIED.replace('replicates: 4', 'replicates: 5')).spec_hash != spec.spec_hash
+
+
+def test_limit_multiples_bring_the_null_data_sets_they_are_read_from():
+    spec = spec_of('causes: [{cause: speed_decay, limit_multiples: [1, 2]}]\nreplicates: 2')
+    assert [arm.kind for arm in spec.arms] == ['null', 'relative', 'relative']
+    tasks = build_tasks(spec)
+    assert [task.key for task in tasks[:3]] == [
+        'none/n500/r0', 'speed_decay@1x/n500/r0', 'speed_decay@2x/n500/r0']
+    assert tasks[1].depends_on == 'none/n500/r0' and tasks[0].depends_on is None
+    assert len({task.key for task in tasks}) == len(tasks) == 6
+
+
+@pytest.mark.parametrize('text, reason', [
+    ('causes: [{cause: wobble, sizes: [1]}]', "unknown cause 'wobble'"),
+    ('causes: [{cause: persistent_turning, sizes: [-2]}]', 'must be positive'),
+    ('causes: [{cause: persistent_turning, sizes: [0]}]', 'must be positive'),
+    ('robot: {leg_length_cm: {low: 2.6, high: 1.8}}', 'bad range, low 2.6 is above high 1.8'),
+    ('robot: {leg_length_cm: {low: 1.8}}', 'a range is'),
+    ('robot: {wheels: 4}', "unknown key 'wheels'"),
+    ('runs: [20]', 'at least 40'),
+    ('runs: {low: 10, high: 100}', 'at least 40 runs'),
+    ('causes: [{cause: persistent_turning, sizes: [200]}]', 'outside [0, 90]'),
+    ('causes: [{cause: persistent_turning, sizes: [2], sign: both}]', 'has no sign'),
+    ('causes: [{cause: persistent_turning}]', 'either sizes'),
+    ('causes: [{cause: initial_pose_error, sizes: [2], parameters: {heading_std_deg: 3}}]',
+     'main parameter'),
+    ('causes: [{together: {speed_decay: 0.1}}]', 'at least two'),
+    ('causes: [persistent_turning]', 'write none'),
+    ('replicates: 0', 'at least 1'),
+    ('seed: -1', 'at least 0'),
+    ('robot: {stride_frequency_hz: 20, sample_rate_hz: 50}', 'cannot follow'),
+    ('robot: {spread_scale: 12}', 'must lie in'),
+    ('robot: {touchdown_offset_deg: {low: -50, high: 5}}', 'must lie in'),
+    ('damage: {cut_share: 1.5}', 'cut_share'),
+    ('diagnosis: {speed: 3}', "no setting 'speed'"),
+    ('diagnosis: {bootstrap: 0}', 'at least 1'),
+    ('robot: [1, 2]', 'must be a mapping'),
+])
+def test_a_bad_spec_is_one_line_naming_what_is_wrong(text, reason):
+    with pytest.raises(ParameterError, match=None) as caught:
+        parse_spec(yaml.safe_load(text))
+    message = str(caught.value)
+    assert reason in message and '\n' not in message, message
+
+
+@pytest.mark.parametrize('path', sorted((REPO / 'studies').glob('*.yaml')),
+                         ids=lambda path: path.name)
+def test_every_spec_file_in_the_repository_is_valid(path):
+    spec = om.load_spec(path)
+    assert spec.name == path.stem and build_tasks(spec)
+
+
+def test_a_spec_file_that_is_not_yaml_or_missing_is_a_one_line_error(tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('runs: [50\nseed: 1\n')
+    with pytest.raises(ParameterError, match='not valid YAML'):
+        om.load_spec(bad)
+    with pytest.raises(ParameterError, match='cannot read the spec'):
+        om.load_spec(tmp_path / 'missing.yaml')
+
+
+# --------------------------------------------------------------------------------------------
+# seeding and draws
+
+def test_each_replicate_draws_its_robot_from_the_study_seed_and_its_index_only():
+    spec = spec_of(VARIED)
+    draws = [draw_robot(spec, replicate) for replicate in range(4)]
+    assert draws == [draw_robot(spec, replicate) for replicate in range(4)]
+    assert len({draw.data_seed for draw in draws}) == 4
+    for draw in draws:
+        assert 1.8 <= draw.leg_length_cm <= 2.6 and 1.5 <= draw.stride_frequency_hz <= 3.5
+        assert 8 <= draw.cycles <= 14 and draw.sample_rate_hz in (50, 100, 200)
+        assert 150 <= draw.runs <= 1000
+        offsets = np.subtract(draw.touchdown_angles_deg, spec.robot.touchdown_angles_deg)
+        assert np.all(np.abs(offsets) <= 5)
+        assert draw.parameters().liftoff_angles == (
+            -min(draw.parameters().touchdown_angles[:2]),
+            -min(draw.parameters().touchdown_angles[2:]))
+    other_seed = spec_of(VARIED.replace('seed: 11', 'seed: 12'))
+    assert draw_robot(other_seed, 0) != draws[0]
+
+
+def test_fixing_one_robot_key_leaves_the_draws_of_the_others_unchanged():
+    spec = spec_of(VARIED)
+    fixed = spec_of(VARIED.replace('leg_length_cm: {low: 1.8, high: 2.6}', 'leg_length_cm: 2'))
+    one, other = draw_robot(spec, 3), draw_robot(fixed, 3)
+    assert other.leg_length_cm == 2.0
+    assert (one.stride_frequency_hz, one.cycles, one.touchdown_angles_deg, one.data_seed) == (
+        other.stride_frequency_hz, other.cycles, other.touchdown_angles_deg, other.data_seed)
+
+
+def test_signs_are_drawn_per_replicate_and_both_signs_occur():
+    spec = spec_of(VARIED)
+    signs = [draw_signs(spec, replicate)['lateral_slip'] for replicate in range(40)]
+    assert set(signs) == {1.0, -1.0}
+    assert signs == [draw_signs(spec, replicate)['lateral_slip'] for replicate in range(40)]
+
+
+# --------------------------------------------------------------------------------------------
+# damage
+
+def test_cut_runs_end_with_nan_tails_at_the_drawn_share_of_the_duration():
+    paths = om.simulate(40, seed=SEED, cycles=4)
+    poses, cut = cut_runs_short(paths.poses, paths.t, 0.25, Draw(0.7, 0.95),
+                                np.random.default_rng(SEED))
+    assert cut == 10
+    finite = np.isfinite(poses).all(axis=2)
+    ended = np.flatnonzero(~finite[:, -1])
+    assert len(ended) == 10
+    for run in range(40):
+        last = np.flatnonzero(finite[run])[-1]
+        assert finite[run, :last + 1].all(), 'a run ends once and never comes back'
+        if run in ended:
+            assert 0.7 * paths.t[-1] - 0.02 <= paths.t[last] <= 0.95 * paths.t[-1]
+        np.testing.assert_array_equal(poses[run, :last + 1], paths.poses[run, :last + 1])
+
+
+def test_dropped_frames_are_filled_as_the_bag_reader_fills_them():
+    paths = om.simulate(12, seed=SEED, cycles=3)
+    filled, dropped = drop_frames(paths.poses, 0.1, np.random.default_rng(SEED))
+    changed = ~np.isclose(filled, paths.poses).all(axis=2)
+    assert 0.05 * filled[:, 1:-1].size / 3 < dropped < 0.15 * filled[:, 1:-1].size / 3
+    assert changed.sum() <= dropped
+    # the reader's way: drop the lost frames and resample the runs onto their grid
+    lost = np.random.default_rng(SEED).random(paths.poses.shape[:2]) < 0.1
+    lost[:, 0] = lost[:, -1] = False
+    with_gaps = paths.poses.copy()
+    with_gaps[lost] = np.nan
+    read = RunSet.from_paths(om.Paths(paths.t, with_gaps)).to_paths(paths.rate_hz)
+    np.testing.assert_allclose(read.poses, filled, atol=1e-12)
+
+
+def test_damage_is_the_same_for_every_arm_of_a_replicate_and_counted():
+    damage = DamageSpec(cut_share=0.25, dropped_frames=0.02)
+    plain = om.simulate(40, seed=SEED, cycles=3)
+    turned = om.simulate(40, seed=SEED, cycles=3,
+                         effects={'persistent_turning': {'yaw_rate_std_deg_s': 5}})
+    one = damage_paths(plain, damage, np.random.SeedSequence([SEED, 2]))
+    other = damage_paths(turned, damage, np.random.SeedSequence([SEED, 2]))
+    np.testing.assert_array_equal(np.isnan(one.paths.poses), np.isnan(other.paths.poses))
+    assert one.runs_cut == 10 and one.frames_dropped == other.frames_dropped > 0
+    assert one.paths.info['damage'] == {'runs_cut': 10, 'frames_dropped': one.frames_dropped}
+
+
+# --------------------------------------------------------------------------------------------
+# the table
+
+def a_row(**values):
+    row = dict.fromkeys(COLUMN_NAMES)
+    row.update({'key': 'none/n50/r0', 'arm': 'none', 'kind': 'null', 'replicate': 0,
+                'seed': 123, 'runs': 50, 'size': math.nan, 'true_causes': [],
+                'named': ['lateral_slip', 'speed_decay'], 'false_causes': ['lateral_slip'],
+                'named_lateral_slip': True, 'estimate_lateral_slip': 0.1 + 0.2,
+                'status': 'ok', 'note': 'a, note\nover "two" lines', 'elapsed_s': 1.5})
+    row.update(values)
+    return typed_row(row)
+
+
+def test_a_row_reads_back_exactly_and_a_cut_off_last_line_is_dropped(tmp_path):
+    table = tmp_path / TABLE_NAME
+    start_table(table)
+    append_row(table, a_row())
+    append_row(table, a_row(key='none/n50/r1', replicate=1))
+    with open(table, 'a') as stream:
+        stream.write(row_line(a_row(key='none/n50/r2'))[:40])      # a kill mid-write
+    rows, dropped = read_table(table)
+    assert dropped == 1 and len(rows) == 2
+    first = rows[0]
+    assert first['estimate_lateral_slip'] == 0.1 + 0.2              # bit for bit
+    assert first['named'] == 'lateral_slip;speed_decay'
+    assert first['named_lateral_slip'] is True and first['named_speed_decay'] is None
+    assert math.isnan(first['size']) and first['note'] == 'a, note over "two" lines'
+    assert first['seed'] == 123 and first['runs'] == 50
+
+
+def test_a_file_that_is_not_a_study_table_is_refused(tmp_path):
+    other = tmp_path / 'other.csv'
+    other.write_text('a,b\n1,2\n')
+    with pytest.raises(DataError, match='columns'):
+        read_table(other)
+
+
+# --------------------------------------------------------------------------------------------
+# the diagnosis adapter
+
+def test_the_adapter_builds_causes_from_a_report_that_names_one_cause_only():
+    report = {'cause': 'lateral_slip', 'parameters': {'velocity_cm_s': 1.9},
+              'candidates': [{'cause': 'lateral_slip', 'parameters': {'velocity_cm_s': 1.9},
+                              'gain': 0.5, 'p_value': 1e-9,
+                              'detectable': {'velocity_cm_s': 0.2}},
+                             {'cause': 'speed_decay', 'parameters': {'fraction': 0.01},
+                              'gain': 0.0, 'p_value': 0.4, 'detectable': {'fraction': None}}],
+              '_models': object()}
+    plain = report_fields(report)
+    assert '_models' not in plain
+    assert plain['causes'] == [{'cause': 'lateral_slip', 'parameters': {'velocity_cm_s': 1.9},
+                                'interval': {}, 'gain': 0.5, 'p_value': 1e-9}]
+    assert plain['adequate'] is None and plain['unexplained'] == []
+    columns = outcome_columns(plain, {'lateral_slip': {'velocity_cm_s': 2.0}})
+    assert columns['named'] == ['lateral_slip'] and columns['all_true_named'] is True
+    assert columns['rel_error_lateral_slip'] == pytest.approx(-0.05)
+    assert columns['limit_lateral_slip'] == 0.2 and math.isnan(columns['limit_speed_decay'])
+    assert columns['estimate_speed_decay'] == 0.01 and not columns['named_speed_decay']
+    assert report_fields({'cause': 'none', 'parameters': {}, 'candidates': []})['causes'] == []
+
+
+class TypedReport:
+    """A report as the rewritten diagnosis returns it: an object with to_json()."""
+
+    def to_json(self):
+        return {'cause': 'speed_decay', 'parameters': {'fraction': 0.21},
+                'causes': [{'cause': 'speed_decay', 'parameters': {'fraction': 0.21},
+                            'interval': {'fraction': [0.18, 0.24]}, 'gain': 1.0,
+                            'p_value': 1e-5},
+                           {'cause': 'measurement_noise', 'parameters': {'position_std_cm': 0.1},
+                            'interval': {'position_std_cm': [0.08, 0.12]}, 'gain': 0.2,
+                            'p_value': 1e-3}],
+                'candidates': [], 'adequate': False,
+                'unexplained': [{'statistic': 'heading_rate_spread', 'z': 5.0}]}
+
+
+def test_the_adapter_reads_a_typed_report_with_several_causes_and_intervals():
+    plain = report_fields(TypedReport())
+    columns = outcome_columns(plain, {'speed_decay': {'fraction': 0.2},
+                                      'initial_pose_error': {'heading_std_deg': 4.0,
+                                                             'position_std_cm': 0.0}})
+    assert columns['named'] == ['speed_decay', 'measurement_noise']
+    assert columns['false_causes'] == ['measurement_noise']
+    assert columns['all_true_named'] is False and columns['adequate'] is False
+    assert (columns['low_speed_decay'], columns['high_speed_decay']) == (0.18, 0.24)
+    assert columns['unexplained'] == ['heading_rate_spread']
+
+
+# --------------------------------------------------------------------------------------------
+# the summary
+
+def test_wilson_intervals_are_the_textbook_formula():
+    for successes, trials in ((0, 20), (3, 20), (20, 20), (117, 250)):
+        rate = wilson(successes, trials)
+        z, p = 1.959963984540054, successes / trials
+        centre = (p + z * z / (2 * trials)) / (1 + z * z / trials)
+        half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials ** 2)) \
+            / (1 + z * z / trials)
+        assert rate.interval == pytest.approx((max(centre - half, 0), min(centre + half, 1)))
+    assert wilson(0, 0).rate is None
+
+
+def test_the_summary_counts_false_positives_power_recovery_and_errors():
+    spec = spec_of('runs: [50]\ncauses: [none, {cause: persistent_turning, sizes: [5]}, '
+                   '{together: {persistent_turning: 5, lateral_slip: 1}}]')
+    rows = []
+    for replicate in range(10):
+        rows.append(a_row(key=f'n{replicate}', replicate=replicate, arm='none', kind='null',
+                          true_causes=[], named=['speed_decay'] if replicate < 2 else []))
+        rows.append(a_row(key=f't{replicate}', arm='persistent_turning=5', kind='absolute',
+                          true_causes=['persistent_turning'], false_causes=[],
+                          named_persistent_turning=replicate < 7,
+                          true_persistent_turning=5.0,
+                          rel_error_persistent_turning=0.1 * (replicate - 3),
+                          low_persistent_turning=4.0, high_persistent_turning=6.0))
+        rows.append(a_row(key=f'b{replicate}', arm=spec.arms[2].label, kind='together',
+                          true_causes=['persistent_turning', 'lateral_slip'], false_causes=[],
+                          all_true_named=replicate % 2 == 0,
+                          status='ok' if replicate < 8 else 'error'))
+    summary = summarize(spec, rows, wall_time_s=12.0)
+    assert summary['false_positive']['count'] == 2
+    assert summary['false_positive']['data_sets'] == 10
+    assert summary['false_positive']['causes_named'] == {'speed_decay': 2}
+    power = summary['power'][0]
+    assert (power['count'], power['data_sets'], power['runs']) == (7, 10, 50)
+    estimation = next(e for e in summary['estimation'] if e['arm'] == 'persistent_turning=5')
+    assert estimation['named'] == 7
+    assert estimation['median_relative_error'] == pytest.approx(0.0)
+    assert estimation['interval_coverage']['count'] == 7
+    recovery = summary['two_cause_recovery'][0]
+    assert (recovery['count'], recovery['data_sets']) == (4, 8)
+    assert summary['status']['counts'] == {'ok': 28, 'error': 2}
+
+
+# --------------------------------------------------------------------------------------------
+# plan's search
+
+def test_the_power_fit_finds_the_run_count_of_a_known_power_curve():
+    rng = np.random.default_rng(SEED)
+    true_a, true_b = -13.0, 2.5          # 80 % power at exp((ln 4 + 13) / 2.5) = 1284 runs
+    counts = (200, 400, 800, 1600, 3200)
+    rows = []
+    for replicate in range(60):
+        u = rng.random()                 # one draw per replicate: nested data sets (CRN)
+        for runs in counts:
+            power = 1 / (1 + math.exp(-(true_a + true_b * math.log(runs))))
+            rows.append({'runs': runs, 'replicate': replicate, 'status': 'ok',
+                         'named_speed_decay': u < power})
+    fit = fit_power_curve(rows, 'speed_decay', 0.8, bootstrap=200, seed=SEED)
+    truth = math.exp((math.log(4) - true_a) / true_b)
+    assert fit.interval_95[0] < truth < fit.interval_95[1]
+    assert abs(math.log(fit.runs_at_target / truth)) < 0.3
+
+
+def test_plan_grids_start_around_the_guess_and_grow_toward_the_answer():
+    assert _coarse_grid(400, 40, 2000) == [100, 200, 400, 800]
+    assert _coarse_grid(10, 40, 2000) == [40, 80, 160]
+    assert _coarse_grid(2000, 40, 2000) == [500, 1000, 2000]
+    assert _coarse_grid(5000, 40, 2000) == [625, 1250, 2000]
+    fit = fit_power_curve([{'runs': n, 'replicate': r, 'status': 'ok', 'named_x': False}
+                           for n in (100, 200) for r in range(4)], 'x', 0.8, bootstrap=10)
+    assert _next_counts(fit, [100, 200], 40, 2000) == [400]
+    assert _next_counts(fit, [100, 2000], 40, 2000) == []
