@@ -25,7 +25,7 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 300
-SMALL_DIAGNOSIS = {'score_runs': 200, 'calibration_runs': 100, 'bootstrap': 10}
+SMALL_DIAGNOSIS = {'score_runs': 200, 'moment_runs': 100, 'bootstrap': 10}
 
 
 def suite_seed() -> int:

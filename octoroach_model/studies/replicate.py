@@ -29,29 +29,8 @@ class Skip(Exception):
 
 
 def report_fields(report: Any) -> dict[str, Any]:
-    """Turn whatever `diagnose` returns into the report's JSON fields (the one adapter).
-
-    A typed report gives its `to_json()`; a dict report loses its live objects (keys starting
-    with '_'). Fields a report may lack get their meaning from the older ones: `causes` from
-    `cause`/`parameters` (and that candidate's gain and p-value), `adequate` None (unknown),
-    `unexplained` [].
-    """
-    if hasattr(report, 'to_json'):
-        plain = jsonable(report.to_json())
-    else:
-        plain = jsonable({key: value for key, value in dict(report).items()
-                          if not str(key).startswith('_')})
-    candidates = plain.get('candidates') or []
-    if 'causes' not in plain:
-        cause = plain.get('cause', 'none')
-        chosen = next((c for c in candidates if c.get('cause') == cause), {})
-        plain['causes'] = [] if cause in (None, 'none') else [{
-            'cause': cause, 'parameters': plain.get('parameters') or {}, 'interval': {},
-            'gain': chosen.get('gain'), 'p_value': chosen.get('p_value')}]
-    plain.setdefault('candidates', candidates)
-    plain.setdefault('adequate', None)
-    plain.setdefault('unexplained', [])
-    return plain
+    """The report's JSON fields, which a row reads (the one place a study meets a report)."""
+    return jsonable(report.to_json())
 
 
 def run_task(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None = None

@@ -24,8 +24,9 @@ SIGNS = ('positive', 'negative', 'both')
 SIGN_MARK = {'positive': '', 'negative': '-', 'both': '+-'}
 SIGNED_CAUSES = ('speed_decay', 'lateral_slip')   # causes whose main parameter has a sign
 NULL = 'none'
-# DiagnosisSettings fields a spec may set (the seed comes from each replicate)
-DIAGNOSIS_DEFAULTS: dict[str, Any] = {'validate_models': False}
+# DiagnosisSettings fields a spec may set (the seed comes from each replicate); a replicate
+# is one Dask task, so its diagnosis runs in that task's process (workers: 1)
+DIAGNOSIS_DEFAULTS: dict[str, Any] = {'validate_models': False, 'workers': 1}
 
 
 @dataclass(frozen=True)
