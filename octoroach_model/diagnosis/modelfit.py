@@ -29,8 +29,8 @@ from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.model import ModelParameters, RandomStreams, model_poses, nominal_sigmas
 from octoroach_model.paths import Paths
 from octoroach_model.validation.fit import (
-    AverageTarget, FreeEffect, MeanPathSettings, SwayTarget, average_target, fit_nominal,
-    simulated_runs, sway_weights)
+    AverageTarget, FreeEffect, MeanPathSettings, ResidualScales, SwayTarget, average_target,
+    fit_nominal, residual_vector, simulated_runs)
 
 Effects = Mapping[str, Mapping[str, float]]
 
@@ -108,6 +108,11 @@ class RunData:
     @property
     def n(self) -> int:
         return self.paths.n_paths
+
+    @property
+    def scales(self) -> ResidualScales:
+        """Standard errors of the average path, heading and sway: the fit's units."""
+        return self.target.scales(self.features[:, SWAY_COLUMNS])
 
     @property
     def sway(self) -> SwayTarget:
@@ -278,7 +283,7 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
     held = {name: values for name, values in model.effects.items() if name not in path_causes}
     mean = MeanPathSettings(model.sigmas, settings.mean_path_runs,
                             int(np.random.SeedSequence([settings.seed, 5]).generate_state(1)[0]),
-                            sway=data.sway)
+                            sway=data.sway, scales=data.scales)
     fit = fit_nominal(data.paths, initial=model.parameters, heading_weight_m=(
         settings.heading_weight_m), effects=held, free=free, multistart=False,
         align_gait=False, mean=mean, start_pose=model.start_pose, target=data.target,
@@ -301,14 +306,13 @@ def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSet
     resample's solution is one Gauss-Newton step from the fit."""
     pseudo_inverse = np.linalg.pinv(fit.jacobian)
     target = data.target
-    weights = sway_weights(fit.heading_weight_m, len(target.t))
     data_sway = data.features[:, SWAY_COLUMNS]
     full = simulated_runs(fit.parameters, fit.start_pose, mean.sway.t, fit.effects, mean)
     model_sway = mean.sway.of_runs(full, fit.parameters.stride_frequency)
     runs = full[:, :len(target.t)]
 
     def vector(xy, turn, sway):
-        return np.concatenate([_stack(xy, turn, fit.heading_weight_m), sway * weights]) * 100.0
+        return residual_vector(xy, turn, sway, fit.heading_weight_m, mean.scales)
 
     rng = np.random.default_rng([settings.seed, 17])
     base = vector(target.average, target.turn, np.nanmean(data_sway, axis=0))
@@ -332,14 +336,6 @@ def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSet
         model_steps.append(pseudo_inverse @ change)
     return (np.atleast_2d(np.cov(np.array(data_steps), rowvar=False))
             + np.atleast_2d(np.cov(np.array(model_steps), rowvar=False)))
-
-
-def _stack(xy: np.ndarray, turn: np.ndarray, heading_weight_m: float) -> np.ndarray:
-    """The residual vector's layout: positions, then the weighted heading (validation/fit)."""
-    parts = [xy.ravel()]
-    if heading_weight_m > 0:
-        parts.append(turn * heading_weight_m)
-    return np.concatenate(parts)
 
 
 def path_start(simulator: Simulator, model: FittedModel, cause: Cause,

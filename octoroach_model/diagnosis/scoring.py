@@ -31,6 +31,7 @@ from octoroach_model.diagnosis.features import RESOLUTION
 ENERGY_FRACTIONS = (0.2, 0.4, 0.6, 0.8, 1.0)
 PAIR_RUNS = 400           # model runs used for the energy score's spread term
 LOG_SCORE_MIN_SPREAD = 0.1
+NUMERICAL_NOISE = 1e-6    # per-run score differences below this are rounding, not evidence
 
 
 @dataclass(frozen=True)
@@ -133,6 +134,8 @@ class PairedGain:
         mean = float(improvement.mean())
         if len(improvement) < 3:
             return cls(mean, math.inf, 1.0)
+        if float(np.max(np.abs(improvement))) < NUMERICAL_NOISE:
+            return cls(0.0, 0.0, 1.0)           # the same model up to rounding: no evidence
         standard_error = float(improvement.std(ddof=1) / math.sqrt(len(improvement)))
         if standard_error <= 1e-12 * (1 + abs(mean)):
             return cls(mean, 0.0, 0.0 if mean > 1e-9 else 1.0)

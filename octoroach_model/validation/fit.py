@@ -100,6 +100,7 @@ class MeanPathSettings:
     runs: int = 200
     seed: int = 0
     sway: SwayTarget | None = None
+    scales: ResidualScales | None = None
 
 
 @dataclass(frozen=True)
@@ -119,6 +120,41 @@ class SwayTarget:
         cut = np.arange(len(self.t))[None, :] >= picks[:, None]
         runs = np.where(cut[..., None], np.nan, runs)
         return sway_features(self.t, runs[..., :2], runs[..., 2], guess_hz)
+
+@dataclass(frozen=True)
+class ResidualScales:
+    """Standard errors that make the fit's residuals dimensionless: of the average path at
+    each time (G, 2) [m], of the average heading change (G,) [rad] and of the mean sway (3,).
+
+    From the data's own run-to-run spread: where the runs scatter widely (late in a run, or
+    under a random turning rate), the average is uncertain and a gap there weighs little, so
+    the geometry does not bend to follow the chance curvature of an average path.
+    """
+
+    path: np.ndarray
+    turn: np.ndarray
+    sway: np.ndarray
+
+
+def residual_vector(path_gap: np.ndarray, turn_gap: np.ndarray | None,
+                    sway_gap: np.ndarray | None, heading_weight_m: float,
+                    scales: ResidualScales | None) -> np.ndarray:
+    """The fit's residuals from model-minus-data gaps: in standard errors with `scales`,
+    else in cm (heading through `heading_weight_m`, sway through `sway_weights`)."""
+    if scales is not None:
+        parts = [(path_gap / scales.path).ravel()]
+        if turn_gap is not None:
+            parts.append(turn_gap / scales.turn)
+        if sway_gap is not None:
+            parts.append(sway_gap / scales.sway)
+        return np.concatenate(parts)
+    parts = [path_gap.ravel()]
+    if turn_gap is not None:
+        parts.append(turn_gap * heading_weight_m)
+    if sway_gap is not None:
+        parts.append(sway_gap * sway_weights(heading_weight_m, len(path_gap)))
+    return np.concatenate(parts) * 100.0
+
 
 SWAY_WEIGHT = 5.0
 
@@ -200,6 +236,21 @@ class AverageTarget:
     def turn(self) -> np.ndarray:
         return _nanmean_rows(self.runs_turn)
 
+    def scales(self, sway_per_run: np.ndarray | None = None,
+               floor_m: float = 1e-5) -> ResidualScales:
+        """Standard errors of this target's averages (and of the mean of `sway_per_run`),
+        never below `floor_m` (positions; the same in rad for the heading)."""
+        def standard_error(values: np.ndarray) -> np.ndarray:
+            count = np.maximum(np.isfinite(values).sum(axis=0), 2)
+            with np.errstate(invalid='ignore'):
+                spread = np.nanstd(values, axis=0, ddof=1)
+            return np.maximum(np.nan_to_num(spread / np.sqrt(count)), floor_m)
+
+        sway = (standard_error(sway_per_run) if sway_per_run is not None
+                else np.full(3, floor_m))
+        return ResidualScales(standard_error(self.runs_xy), standard_error(self.runs_turn),
+                              np.maximum(sway, 1e-12))
+
     def resampled(self, index: np.ndarray) -> AverageTarget:
         """The target of the runs picked by `index` (a bootstrap resample)."""
         return AverageTarget(self.t, self.runs_xy[index], self.runs_turn[index],
@@ -277,7 +328,6 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
         return parameters, check_effects(model_effects)
 
     sway = mean.sway if mean is not None else None
-    sway_weight = sway_weights(heading_weight_m, len(t))
     grid = sway.t if sway is not None else t     # t is a prefix of the recorded grid
 
     def runs_of(parameters, model_effects):
@@ -291,17 +341,20 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
     def path_of(parameters, model_effects):
         return runs_of(parameters, model_effects)[:, :len(t)].mean(axis=0)
 
+    scales = mean.scales if mean is not None else None
+    if scales is not None:
+        average_heading = target.turn
+
     def residuals(vector):
         parameters, model_effects = build(vector)
         runs = runs_of(parameters, model_effects)
         path = runs[:, :len(t)].mean(axis=0)
-        parts = [(path[:, :2] - average).ravel()]
-        if average_heading is not None:
-            parts.append((path[:, 2] - start_pose[2] - average_heading) * heading_weight_m)
-        if sway is not None:
-            model_sway = np.nanmean(sway.of_runs(runs, parameters.stride_frequency), axis=0)
-            parts.append((model_sway - np.asarray(sway.values)) * sway_weight)
-        return np.concatenate(parts) * 100.0
+        turn_gap = (path[:, 2] - start_pose[2] - average_heading
+                    if average_heading is not None else None)
+        sway_gap = (np.nanmean(sway.of_runs(runs, parameters.stride_frequency), axis=0)
+                    - np.asarray(sway.values) if sway is not None else None)
+        return residual_vector(path[:, :2] - average, turn_gap, sway_gap, heading_weight_m,
+                               scales)
 
     lower = LOWER + [item.lower for item in free]
     upper = UPPER + [item.upper for item in free]
