@@ -29,7 +29,7 @@ import numpy as np
 
 from octoroach_model.diagnosis.causes import BY_NAME, CAUSES, RunScale
 from octoroach_model.diagnosis.decide import SizeVerdict, decision_z, judge
-from octoroach_model.diagnosis.executors import executor_for
+from octoroach_model.diagnosis.executors import executor_for, single_threaded
 from octoroach_model.diagnosis.modelfit import (
     CausesFit, FitSettings, FittedModel, GeometryUncertainty, RunData, Simulator, fit_causes)
 from octoroach_model.diagnosis.report import (
@@ -112,7 +112,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     say = progress or (lambda fraction, message: None)
     started = time.monotonic()
     check_runs(measured)
-    with executor_for(executor, settings.workers) as pool:
+    with executor_for(executor, settings.workers) as pool, single_threaded():
         say(0.02, 'preparing the runs (features, gait clock)')
         halves = _prepare(measured, settings)
         say(0.08, 'fitting the baseline (geometry on the mean path, spread scale)')
