@@ -127,6 +127,9 @@ def add_pose_arguments(parser: argparse.ArgumentParser) -> None:
                         'one)')
     parser.add_argument('--subject', default=None, metavar='NAME',
                         help='Vicon CSV / C3D: the subject or object (default: the only one)')
+    parser.add_argument('--markers', default=None, metavar='A,B,C',
+                        help='C3D / Vicon CSV trajectories: the markers on the rigid body, '
+                        "comma-separated (default: all of the subject's)")
     parser.add_argument('--forward-axis', choices=('x', 'y', '-x', '-y'), default='x',
                         help="the body axis the robot walks along; heading = that axis's yaw")
 
@@ -135,5 +138,6 @@ def read_options(args: argparse.Namespace) -> ReadOptions:
     """The ReadOptions of parsed pose arguments."""
     from octoroach_model.recordings.options import ReadOptions
 
+    markers = tuple(name.strip() for name in (args.markers or '').split(',') if name.strip())
     return ReadOptions(topic=args.topic, frame=args.frame, subject=args.subject,
-                       forward_axis=args.forward_axis)
+                       markers=markers, forward_axis=args.forward_axis)

@@ -228,6 +228,14 @@ def decision_rules(settings: DiagnosisSettings, adequacy_z: float) -> dict:
     }
 
 
+def _percent(share: float) -> str:
+    return f'{100 * share:.0f} %' if math.isfinite(share) else 'n/a'
+
+
+def _unit(unit: str) -> str:
+    return f' {unit}' if unit else ''
+
+
 def _number(value: float | None, digits: int = 3) -> str:
     """A number as a reader wants it: 0 where it is below resolution, else `digits`
     significant digits."""
@@ -254,8 +262,8 @@ def summary_text(report: DiagnosisReport) -> str:
            if abs(row.z) > report.adequacy_bound_z and row.material][:6]
     if off:
         for row in off:
-            lines.append(f'- {row.statistic}: data {_number(row.data, 4)} {row.unit}, model '
-                         f'{_number(row.model, 4)} {row.unit} (z = {row.z:+.1f})')
+            lines.append(f'- {row.statistic}: data {_number(row.data, 4)}{_unit(row.unit)}, '
+                         f'model {_number(row.model, 4)}{_unit(row.unit)} (z = {row.z:+.1f})')
     else:
         lines.append('No statistic disagrees materially beyond the adequacy bound '
                      f'(|z| > {report.adequacy_bound_z:.1f}).')
@@ -270,14 +278,13 @@ def summary_text(report: DiagnosisReport) -> str:
         lines.append(f'{number}. **{named.cause}** ({values}; 95 % interval of {parameter}: '
                      f'{_number(low)} to {_number(high)}). Adding it improved the held-out '
                      f'score by {_number(named.gain)} data spreads per run (p = '
-                     f'{named.p_value:.2g}), {_number(100 * named.relative, 2)} % of what '
-                     f'the model lacked then; positions {_number(named.gain_cm)} cm per run '
-                     f'closer.')
+                     f'{named.p_value:.2g}), {_percent(named.relative)} of what the model '
+                     f'lacked then; positions {_number(named.gain_cm)} cm per run closer.')
     gain = report.gain
     lines += ['', f'Held-out score: baseline {_number(gain.baseline)}, extended '
                   f'{_number(gain.extended)}, the data themselves {_number(gain.ideal)} '
                   f'(lower is better): the extended model removes '
-                  f'{_number(100 * gain.relative, 2)} % of the baseline\'s excess. Positions: '
+                  f'{_percent(gain.relative)} of the baseline\'s excess. Positions: '
                   f"{_number(gain.energy_score_cm['baseline'])} -> "
                   f"{_number(gain.energy_score_cm['extended'])} cm."]
     lines += ['', '## What the extended model still misses', '']
@@ -289,14 +296,14 @@ def summary_text(report: DiagnosisReport) -> str:
                      'so the data carry an effect that no cause of the table explains (or '
                      'explains only in part):')
         for row in report.unexplained:
-            lines.append(f'- {row.statistic}: data {_number(row.data, 4)} {row.unit}, model '
-                         f'{_number(row.model, 4)} {row.unit} (z = {row.z:+.1f})')
+            lines.append(f'- {row.statistic}: data {_number(row.data, 4)}{_unit(row.unit)}, '
+                         f'model {_number(row.model, 4)}{_unit(row.unit)} (z = {row.z:+.1f})')
     for name, model in (('baseline', report.baseline), ('extended', report.extended)):
         if 'violation' in model:
             lines.append('')
             lines.append(f"Paper's validation of the {name} model (rho = {model['rho']}): "
-                         f"widest admissible spread sigma1 = {_number(model['sigma1_max'])}, "
-                         f"sigma2 = {_number(model['sigma2_max'])} rad at E_k = "
+                         f"widest admissible spread sigma1 = {_number(model['sigma1'])}, "
+                         f"sigma2 = {_number(model['sigma2'])} rad at E_k = "
                          f"{_number(model['violation'])}"
                          + ('' if model.get('accepted') else ' (no spread admissible)') + '.')
     lines += ['', '## What could have been seen', '']
