@@ -1,4 +1,5 @@
-"""Suite-wide set-up: an isolated ROS domain per test process, and one visible random seed.
+"""
+Suite-wide set-up: an isolated ROS domain per test process, and one visible random seed.
 
 Parallel runs (pytest-xdist workers, two CI jobs on one machine) must never hear each other,
 so the domain id comes from the worker and the process id. Child processes started by tests
@@ -18,6 +19,13 @@ import matplotlib
 
 matplotlib.use('Agg')
 SEED_VARIABLE = 'OCTOROACH_TEST_SEED'
+# the markers of the ament_python template's lint tests, and of the mypy test beside them
+LINT_MARKERS = {
+    'linter': 'a static check of the code (flake8, pep257, mypy)',
+    'flake8': "flake8 with ament's plugins and settings",
+    'pep257': "pydocstyle with ament's convention",
+    'mypy': 'mypy on the package',
+}
 
 
 def _isolated_domain_id() -> int:
@@ -33,8 +41,10 @@ os.environ.setdefault('MPLBACKEND', 'Agg')
 
 
 def pytest_configure(config) -> None:
-    """Fix the suite seed before any worker starts (workers inherit the environment)."""
+    """Fix the suite seed before any worker starts (they inherit it); name the lint markers."""
     os.environ.setdefault(SEED_VARIABLE, str(random.SystemRandom().randrange(10 ** 6)))
+    for marker, meaning in LINT_MARKERS.items():
+        config.addinivalue_line('markers', f'{marker}: {meaning}')
 
 
 def pytest_report_header(config) -> str:
