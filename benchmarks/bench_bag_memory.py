@@ -1,4 +1,5 @@
-"""Measure memory and time of reading large pose inputs: do `read_runs` and `convert` stay bounded.
+"""
+Measure memory and time of reading large pose inputs: do `read_runs` and `convert` stay bounded.
 
 For each bag kind (the package's MCAP bag, TFMessage on /tf in MCAP, Odometry in MCAP,
 TransformStamped in a rosbag2 sqlite3 bag, a ROS 1 bag), a child process writes an input of
@@ -174,7 +175,7 @@ def _size_mb(path: Path) -> float:
 
 def main() -> int:
     """Run the benchmark and print one table."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--runs', type=int, default=4000)
     parser.add_argument('--samples', type=int, default=250)
     parser.add_argument('--kinds', default=','.join(KINDS),

@@ -1,4 +1,5 @@
-"""Memory and time of reading a 1,000,000-pose Vicon CSV export and C3D file.
+"""
+Memory and time of reading a 1,000,000-pose Vicon CSV export and C3D file.
 
 Each input holds 4000 trials of 250 frames at 50 Hz with 1 s of untracked frames between them
 (1,200,000 frames, 1,000,000 poses), written in a child process: the CSV as Vicon's export
@@ -160,7 +161,7 @@ def _in_child(target, *args):
 
 def main() -> int:
     """Write each input, measure its reading, print the figures."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--runs', type=int, default=4000)
     parser.add_argument('--samples', type=int, default=250)
     parser.add_argument('--formats', nargs='+', default=['csv', 'c3d'], choices=READERS)

@@ -1,4 +1,5 @@
-"""Throughput of the model: closed-form, vectorised kinematics against a numeric reference.
+"""
+Throughput of the model: closed-form, vectorised kinematics against a numeric reference.
 
 Two references run the switching four-bar sample by sample. The straightforward one solves
 closure (3) as the paper writes it, two equations in (q1, phi2), with scipy's fsolve from the
@@ -27,7 +28,8 @@ START = (0.0, 0.0, math.pi / 2)
 
 
 def reference_front_angle(rear_angle, span, branch, leg, hips):
-    """phi2 with |O2 - O1| = span, by brentq on the touchdown branch (pair's own frame).
+    """
+    phi2 with |O2 - O1| = span, by brentq on the touchdown branch (pair's own frame).
 
     O1 = A + l(-cos phi1, sin phi1), O2 = B + l(cos phi2, sin phi2), A = (0, -d/2),
     B = (0, d/2). Along the branch the distance runs monotonically between the collinear
@@ -133,7 +135,7 @@ def best_time(function, repeats):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--runs', type=int, default=400,
                         help='runs for the reference comparison (default 400)')
     parser.add_argument('--seed', type=int, default=2)

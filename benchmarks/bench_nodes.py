@@ -1,4 +1,5 @@
-"""Timing of the ROS nodes: simulator rate and jitter, replay -> recorder throughput and loss.
+"""
+Timing of the ROS nodes: simulator rate and jitter, replay -> recorder throughput and loss.
 
 - simulator, 1 and 50 robots at 50 Hz: one run of `--cycles` cycles per robot, received here
   by a raw subscriber; achieved rate = (samples - 1) / (last - first reception) per robot
@@ -109,7 +110,8 @@ def bench_simulator(robots: int, cycles: int, workdir: Path) -> dict[str, float]
 
 
 def _stop_recorder(recorder: subprocess.Popen, log: Path, expected: int, bag: Path) -> int:
-    """Wait (10 s at most) until the recorder logs `expected` messages, stop it with SIGINT,
+    """
+    Wait (10 s at most) until the recorder logs `expected` messages, stop it with SIGINT,
     and return the message count of the bag it closed."""
     import yaml
 
@@ -178,7 +180,7 @@ def bench_live_recording(robots: int, cycles: int, workdir: Path) -> dict[str, f
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--cycles', type=int, default=20, help='cycles of the simulated run')
     parser.add_argument('--runs', type=int, default=20, help='runs in the replayed bag')
     parser.add_argument('--robots', type=int, nargs='*', default=[1, 50])

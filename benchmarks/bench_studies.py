@@ -1,4 +1,5 @@
-"""What the diagnosis can do, measured by studies, and what a study costs to run.
+"""
+What the diagnosis can do, measured by studies, and what a study costs to run.
 
 Two parts:
 
@@ -160,7 +161,7 @@ def print_tables(names: list[str]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--scale', action='store_true', help='1 vs 2 local workers')
     parser.add_argument('--studies', nargs='*', default=None, metavar='NAME',
                         help=f'run the README studies (default all: {", ".join(README_STUDIES)})')

@@ -1,4 +1,5 @@
-"""Latency of the validator node's answers while a long validation runs.
+"""
+Latency of the validator node's answers while a long validation runs.
 
 The node runs as its own process (`python -m octoroach_model validator`), as deployed; this
 process sends the requests from a client node spun on a background thread. Measured from
@@ -141,7 +142,7 @@ def sample(client: Client, kinds: list[str], samples: int, pause_s: float,
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--samples', type=int, default=50, help='calls per kind and state')
     parser.add_argument('--runs', type=int, default=200, help='model runs in the data set')
     parser.add_argument('--grid-points', type=int, default=101,

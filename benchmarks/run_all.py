@@ -1,4 +1,5 @@
-"""`make bench`: every benchmark in turn, each printing its own table.
+"""
+`make bench`: every benchmark in turn, each printing its own table.
 
 Benchmarks measure; they are not timed tests and never fail on a number.
 """

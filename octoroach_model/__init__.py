@@ -1,4 +1,5 @@
-"""octoroach_model: the OctoRoACH's stochastic kinematic model, validated and diagnosed.
+"""
+octoroach_model: the OctoRoACH's stochastic kinematic model, validated and diagnosed.
 
 >>> import octoroach_model as om
 >>> paths = om.simulate(10, seed=0)

@@ -1,4 +1,5 @@
-"""Command-line entry points. Parsing only: the work is in the layers below.
+"""
+Command-line entry points. Parsing only: the work is in the layers below.
 
 Each executable `X` has a function `X_main(argv=None) -> int`, used both by the console
 scripts that `ros2 run` finds (setup.py) and by `python -m octoroach_model X`.

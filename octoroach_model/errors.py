@@ -1,4 +1,5 @@
-"""Domain errors: every failure a user can cause ends as one of these, with a one-line reason.
+"""
+Domain errors: every failure a user can cause ends as one of these, with a one-line reason.
 
 The CLI and the nodes catch `OctoroachError` and print ``error: <message>``; nothing else
 should reach a user as a traceback.

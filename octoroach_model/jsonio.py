@@ -1,4 +1,5 @@
-"""The one conversion of results to JSON: numbers, lists and objects only.
+"""
+The one conversion of results to JSON: numbers, lists and objects only.
 
 Policy for values JSON has no word for: NaN and +-infinity become null (a missing or
 unbounded value: the field's description says which); numpy scalars and arrays become numbers

@@ -1,4 +1,5 @@
-"""`Paths`: runs of the robot on one common time grid, the currency between all layers.
+"""
+`Paths`: runs of the robot on one common time grid, the currency between all layers.
 
 Model output, measured runs after splitting and resampling, and everything the validation and
 the diagnosis consume are `Paths`. Poses are planar: x [m], y [m], heading [rad], with heading
@@ -19,7 +20,8 @@ X, Y, HEADING = 0, 1, 2
 
 @dataclass(frozen=True)
 class Paths:
-    """n runs sampled at the same times (each from its own start, some ending early).
+    """
+    n runs sampled at the same times (each from its own start, some ending early).
 
     Attributes
     ----------
@@ -79,7 +81,8 @@ class Paths:
         return Paths(self.t[keep], self.poses[:, keep], dict(self.info))
 
     def cut_to(self, lengths: np.ndarray) -> Paths:
-        """The runs with run i ending after lengths[i] samples (NaN after), as measured runs
+        """
+        The runs with run i ending after lengths[i] samples (NaN after), as measured runs
         that left the capture volume early would; lengths beyond the grid change nothing."""
         index = np.arange(len(self.t))
         cut = index[None, :] >= np.asarray(lengths)[:, None]

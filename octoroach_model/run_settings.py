@@ -1,4 +1,5 @@
-"""What one live run of the model needs, from plain parameter values (no ROS here).
+"""
+What one live run of the model needs, from plain parameter values (no ROS here).
 
 The simulator node turns its ROS parameters into a `RunSettings` at the start of every run;
 the run itself (`RunSettings.simulate`) and its seed (`RunSettings.run_seed`) come from here,
@@ -37,7 +38,8 @@ def marker_topic(subject: str) -> str:
 
 @dataclass(frozen=True)
 class RunSettings:
-    """The settings of one run of every robot, taken when the run starts.
+    """
+    The settings of one run of every robot, taken when the run starts.
 
     Lengths in metres, angles in radians, rates in Hz; `effect_params` keep the causes'
     own keys and units (`heading_std_deg`, `position_std_cm`, ...).

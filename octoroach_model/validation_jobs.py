@@ -1,4 +1,5 @@
-"""What one call of the validator does, without ROS: its inputs, the runs it reads, its work.
+"""
+What one call of the validator does, without ROS: its inputs, the runs it reads, its work.
 
 The validator node answers `~/validate` and `~/diagnose` on measured runs that may still be
 growing (a recorder writing the bag it names). A `Job` holds one call's inputs, taken from the
@@ -85,7 +86,8 @@ class Job:
 
 
 def source_stamps(sources: Sequence[str]) -> tuple[FileStamp, ...]:
-    """Return (path, mtime, size) of every bag or data-set file under `sources`, sorted.
+    """
+    Return (path, mtime, size) of every bag or data-set file under `sources`, sorted.
 
     A file source is stamped itself; a directory (a bag, or a folder of bags) by every file
     ending in WATCHED_SUFFIXES below it. A missing source has no stamp, so its appearance
@@ -109,7 +111,8 @@ def source_stamps(sources: Sequence[str]) -> tuple[FileStamp, ...]:
 
 
 class Workbench:
-    """The measured runs, kept between calls and read again when inputs or files change.
+    """
+    The measured runs, kept between calls and read again when inputs or files change.
 
     Only the running job uses it (one at a time), so it needs no lock.
     """

@@ -1,4 +1,5 @@
-"""Test helpers for the motion-capture readers: independent writers and the run splitter.
+"""
+Test helpers for the motion-capture readers: independent writers and the run splitter.
 
 The writers follow the formats' own documentation, not the readers' code: Vicon CSV exports
 as Vicon lays them out (section name, frame rate, names, ``Frame,Sub Frame,...``, units, one
@@ -44,7 +45,8 @@ def runs_from_chunks(chunks: Iterable[PoseChunk], gap_s: float = 0.5) -> RunSet:
 
 def body_rotations(heading: np.ndarray, roll: np.ndarray | None = None,
                    pitch: np.ndarray | None = None, forward_angle: float = 0.0) -> Rotation:
-    """Orientations whose body axis at `forward_angle` has yaw `heading`, tilted by roll/pitch.
+    """
+    Orientations whose body axis at `forward_angle` has yaw `heading`, tilted by roll/pitch.
 
     Yaw first, then pitch about the new y, then roll about the new x (scipy 'ZYX'); the
     forward axis is turned back by `forward_angle` about the body z axis.
@@ -65,7 +67,8 @@ def write_vicon_csv(path: Path, frames: np.ndarray, rates: dict, objects: dict, 
                     angle_unit: str = 'deg', length_unit: str = 'mm',
                     quaternion_first: bool = False, delimiter: str = ',',
                     end_with_newline: bool = True, extra_sections: Sequence[str] = ()) -> Path:
-    """A Vicon CSV export of rigid objects, written as Vicon's documentation lays it out.
+    """
+    A Vicon CSV export of rigid objects, written as Vicon's documentation lays it out.
 
     `objects` maps the name cell (e.g. 'Global Angle octo:octo' or 'octo:octo') to
     (positions (F, 3) in metres, Rotation of F, tracked (F,) bool). `rotation` is 'helical'
@@ -153,7 +156,8 @@ def markers_on_body(poses: np.ndarray, layout_m: dict[str, Sequence[float]],
 def write_c3d(path: Path, rate_hz: float, markers: dict[str, np.ndarray], *,
               units: str = 'mm', first_frame: int = 1, subjects: Sequence[str] = (),
               model_outputs: dict[str, np.ndarray] | None = None) -> Path:
-    """A C3D file written by ezc3d: markers (F, 3) in metres, NaN where not seen.
+    """
+    A C3D file written by ezc3d: markers (F, 3) in metres, NaN where not seen.
 
     Not-seen points are written with residual -1 (how C3D marks them); `model_outputs`
     are extra points listed in POINT:ANGLES, as Nexus stores joint angles.

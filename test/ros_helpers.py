@@ -1,4 +1,5 @@
-"""Node processes for end-to-end tests: isolated ROS env, stop by signal, logs on failure.
+"""
+Node processes for end-to-end tests: isolated ROS env, stop by signal, logs on failure.
 
 Every node runs as `python -m octoroach_model NAME ARGS` in its own process, with the test
 process's ROS_DOMAIN_ID and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (set per pytest process in
@@ -33,7 +34,8 @@ _NODE_SETS = itertools.count()
 
 
 def fresh_domain() -> int:
-    """A ROS domain for one test's node processes, not this process's own one.
+    """
+    A ROS domain for one test's node processes, not this process's own one.
 
     Derived from this process's domain (pid and worker, see conftest.py), so in-process rclpy
     tests of the same worker (their participants may outlive a test until garbage
@@ -129,7 +131,8 @@ class NodeProcess:
 
 
 class NodeSet:
-    """Node processes of one test, on a ROS domain of their own (`domain`; pass it to
+    """
+    Node processes of one test, on a ROS domain of their own (`domain`; pass it to
     `call_trigger`); whatever is still running at the end is killed."""
 
     def __init__(self, log_dir: Path) -> None:
@@ -155,7 +158,8 @@ class NodeSet:
 
 
 def call_trigger(service: str, domain: int, timeout: float = 20.0) -> tuple[bool, str]:
-    """Call a std_srvs/Trigger service on `domain` from a throwaway rclpy context:
+    """
+    Call a std_srvs/Trigger service on `domain` from a throwaway rclpy context:
     (success, message)."""
     import rclpy
     from rclpy.context import Context
@@ -188,7 +192,8 @@ def call_trigger(service: str, domain: int, timeout: float = 20.0) -> tuple[bool
 
 
 class Client:
-    """Service calls and subscriptions from a node of this test, spun on its own thread.
+    """
+    Service calls and subscriptions from a node of this test, spun on its own thread.
 
     `domain`: the ROS domain of the nodes to talk to (NodeSet.domain for node processes);
     default this process's own.
@@ -351,7 +356,8 @@ _SUBSTITUTION = re.compile(r'\$\((var|find-pkg-share) ([A-Za-z0-9_]+)\)')
 
 def read_launch_file(path: Path, share: Path, package: str = 'octoroach_model',
                      **arguments: str) -> list[LaunchedNode]:
-    """The nodes of an XML launch file, with the parameters files and remappings it names.
+    """
+    The nodes of an XML launch file, with the parameters files and remappings it names.
 
     `share` stands for `$(find-pkg-share PACKAGE)` (the checkout: its config/ and launch/ are
     laid out as in share/PACKAGE); launch arguments take their defaults unless given. Only the

@@ -1,4 +1,5 @@
-"""The offline programs as a user runs them: `python -m octoroach_model X ...` in a subprocess.
+"""
+The offline programs as a user runs them: `python -m octoroach_model X ...` in a subprocess.
 
 CONTRACT.md: `simulate` writes bags any reader can split (>= 1 s between runs), `validate`
 prints the paper's validation as JSON, and bad input exits non-zero with one line on stderr,
@@ -65,7 +66,8 @@ def assert_one_line_error(result: subprocess.CompletedProcess) -> str:
 
 @pytest.fixture(scope='module')
 def simulated(tmp_path_factory):
-    """Bags written by `simulate`: plain (twice), with lateral slip, with two effects, and
+    """
+    Bags written by `simulate`: plain (twice), with lateral slip, with two effects, and
     60 runs for `validate`."""
     folder = tmp_path_factory.mktemp('simulated')
     common = ['--paths', 30, '--seed', 1]

@@ -1,4 +1,5 @@
-"""The diagnosis must find effects hidden in data: the suite hides causes drawn at random.
+"""
+The diagnosis must find effects hidden in data: the suite hides causes drawn at random.
 
 Every run of the suite draws afresh, from the suite seed (printed in pytest's header and in
 every failure message; `OCTOROACH_TEST_SEED=N make test` replays a run):
@@ -97,7 +98,8 @@ def test_two_causes_at_once_are_both_named_with_their_sizes():
 
 
 def random_robot(rng: random.Random) -> tuple[om.ModelParameters, int, int, float]:
-    """A robot of README's false-positive table: touchdown angles within 5 deg of Table II,
+    """
+    A robot of README's false-positive table: touchdown angles within 5 deg of Table II,
     leg 1.8-2.6 cm, strides 1.5-3.5 Hz, 8-14 cycles, 50/100/200 Hz, 150-600 runs (up to 1000
     in the benchmark; fewer here for time), spreads 0.3-1.5 x Table III."""
     nominal = om.ModelParameters.nominal()
@@ -127,7 +129,8 @@ def test_a_null_from_a_randomly_drawn_robot_names_no_cause():
 
 
 def wobble(paths: om.Paths, amplitude_deg: float, period_s: float, seed: int) -> om.Paths:
-    """An effect outside the table of causes: a slow yaw wobble (a tether, an uneven floor),
+    """
+    An effect outside the table of causes: a slow yaw wobble (a tether, an uneven floor),
     heading + A sin(2 pi t / P + phase_i) - A sin(phase_i), each step turned with it."""
     rng = np.random.default_rng(seed)
     t = paths.t

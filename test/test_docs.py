@@ -1,4 +1,5 @@
-"""The documentation in docs/ says what the code does, in the project's own words.
+"""
+The documentation in docs/ says what the code does, in the project's own words.
 
 Checked here: links and anchors between the pages resolve, the figures a page quotes come
 from the code block beside them, the table of causes and Table II match the code and

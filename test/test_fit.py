@@ -1,4 +1,5 @@
-"""The nominal fit (eq. 9): the deterministic model closest to the average measured path.
+"""
+The nominal fit (eq. 9): the deterministic model closest to the average measured path.
 
 Runs made by the model itself with known, perturbed parameters must be fitted back exactly;
 the start pose is the measured mean start pose; the stride-frequency start value comes from
@@ -31,7 +32,8 @@ def perturbed_parameters() -> om.ModelParameters:
 
 
 def deterministic_runs(parameters: om.ModelParameters, cycles: float) -> om.Paths:
-    """Two runs of the deterministic model whose average is exactly the model path.
+    """
+    Two runs of the deterministic model whose average is exactly the model path.
 
     The runs are shifted by opposite offsets and their recorded headings turned by opposite
     angles, so the mean start pose is TRUE_START while no single run starts there.

@@ -1,4 +1,5 @@
-"""Motion-capture files straight into the programs: `validate`, `convert` and `diagnose`
+"""
+Motion-capture files straight into the programs: `validate`, `convert` and `diagnose`
 take Vicon CSV exports and C3D files like bags (one trial per file, one run per trial).
 """
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""One source of defaults: the paper's values come from config/table2.yaml and nowhere else.
+"""
+One source of defaults: the paper's values come from config/table2.yaml and nowhere else.
 
 The shipped file holds Table II and III; an edited copy, named by OCTOROACH_MODEL_TABLE2 or
 passed as a path, changes every default of the model at once (docs/model.md, "Where the
@@ -114,7 +115,8 @@ def test_simulate_without_spreads_is_table_iii():
 # An edited copy changes every path
 
 def check_every_path_follows(edited: ModelParameters, **where) -> None:
-    """ModelParameters.nominal, nominal_sigmas, simulate and the validation's default model
+    """
+    ModelParameters.nominal, nominal_sigmas, simulate and the validation's default model
     all give the edited values (`where`: the path argument, or nothing for the environment)."""
     assert ModelParameters.nominal(**where) == edited
     assert nominal_sigmas(**where) == (EDITED['sigma1'], EDITED['sigma2'])

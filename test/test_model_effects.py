@@ -1,4 +1,5 @@
-"""The effects of the table of causes (docs/causes.md), each against its definition.
+"""
+The effects of the table of causes (docs/causes.md), each against its definition.
 
 Every check compares a run with an effect to the plain run of the same seed: the angle draws
 are the same by design (common random numbers), so the difference is the effect alone.

@@ -1,4 +1,5 @@
-"""The switching four-bar (docs/model.md): geometry, closure, stances and their chaining.
+"""
+The switching four-bar (docs/model.md): geometry, closure, stances and their chaining.
 
 Independent checks of `octoroach_model.model.kinematics`: feet held in the world through a
 stance, the closed-form closure against numeric solutions of eq. (2)/(3), continuity at the
@@ -53,7 +54,8 @@ def closure_ratio(rear_angle, span):
 
 
 def stance_feet(angles, stance, within):
-    """World feet and span of a stance at fractions `within` (W,): (n, W) arrays.
+    """
+    World feet and span of a stance at fractions `within` (W,): (n, W) arrays.
 
     The feet come from `feet_in_body` at the rear angle and the closure's front angle, placed
     with the poses that `integrate_stances` gives at those phases.

@@ -1,4 +1,5 @@
-"""Recorder and replay, end to end with real rclpy in separate processes.
+"""
+Recorder and replay, end to end with real rclpy in separate processes.
 
 simulator -> recorder -> bag must give back the model's runs; a bag replayed at 10x into the
 recorder must give back the same messages; a recorder killed with SIGKILL must leave a bag

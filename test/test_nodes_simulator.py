@@ -1,4 +1,5 @@
-"""The simulator node: its messages, its parameters, its command line.
+"""
+The simulator node: its messages, its parameters, its command line.
 
 In-process tests run rclpy in a context of their own (fixture `ros`), a node and a listener in
 one executor; the process-level behaviour (exit codes, one-line errors) goes through `main`.
@@ -26,7 +27,8 @@ FAST = [Parameter('rate', value=100.0), Parameter('pause_s', value=0.5),
 
 @pytest.fixture
 def ros():
-    """An rclpy context and executor of this test alone; its nodes are destroyed after it,
+    """
+    An rclpy context and executor of this test alone; its nodes are destroyed after it,
     so no publisher of this test stays visible to later ones."""
     import rclpy
     from rclpy.context import Context

@@ -1,4 +1,5 @@
-"""The validator node: services, latched statistics, parameters, busy answers, processes.
+"""
+The validator node: services, latched statistics, parameters, busy answers, processes.
 
 Real rclpy on real DDS, isolated by conftest.py (own ROS domain, localhost). In-process tests
 spin the node as `main` does (MultiThreadedExecutor on a thread of its own) and talk to it
@@ -325,7 +326,8 @@ def test_bad_start_up_input_is_one_error_line(rule, words):
 
 def test_a_bag_growing_inside_its_directory_changes_the_stamps_the_directory_does_not(
         tmp_path):
-    """Why the validator once kept answering with 3 runs while 50 were on disk: it watched
+    """
+    Why the validator once kept answering with 3 runs while 50 were on disk: it watched
     the bag directory, whose time stamp a recorder appending to the .mcap never changes."""
     bag = tmp_path / 'bag'
     bag.mkdir()

@@ -1,4 +1,5 @@
-"""`colcon build` installs the package the way `ros2 run octoroach_model X` expects.
+"""
+`colcon build` installs the package the way `ros2 run octoroach_model X` expects.
 
 Runs colcon from the venv on the checkout, into a temporary build/install/log base so the
 tree is left alone, then looks at the install space: executables in lib/<package>, the ament

@@ -1,4 +1,5 @@
-"""Params files (config/NODE.yaml) and the launch file (launch/octoroach.launch.xml).
+"""
+Params files (config/NODE.yaml) and the launch file (launch/octoroach.launch.xml).
 
 There is no `ros2 launch` on PyPI, so the launch test reads the launch file, starts exactly the
 nodes it names with the parameters files and remappings it names (`read_launch_file`), and

@@ -1,4 +1,5 @@
-"""README's "With ROS" walk-through works as written, top to bottom.
+"""
+README's "With ROS" walk-through works as written, top to bottom.
 
 The test takes the first ```bash block of the section from README.md itself (so the README and
 the test cannot drift apart), runs it unchanged with bash in an empty folder whose `.venv` is

@@ -1,4 +1,5 @@
-"""Every bag format is read into the same runs as the package's own TransformStamped bag.
+"""
+Every bag format is read into the same runs as the package's own TransformStamped bag.
 
 The same runs are written by independent writers (rosbags' ROS 1 writer, its rosbag2 sqlite3
 and MCAP writers) as TransformStamped on the VICON topic, as TFMessage on /tf, as Odometry

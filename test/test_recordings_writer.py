@@ -1,4 +1,5 @@
-"""The one writer writes bags as rosbag2 Jazzy does, and its crash-safe mode keeps what it flushed.
+"""
+The one writer writes bags as rosbag2 Jazzy does, and its crash-safe mode keeps what it flushed.
 
 Each bag is checked with readers other than ours: rosbags' rosbag2 Reader, mcap's indexed
 reader with mcap-ros2-support's decoder, and plain YAML.
@@ -133,7 +134,8 @@ def test_a_flushed_bag_survives_its_writer(tmp_path: Path) -> None:
 
 
 def test_the_mcap_api_the_bag_layer_relies_on_is_there() -> None:
-    """Check the public mcap API the reader and the crash-safe writer use.
+    """
+    Check the public mcap API the reader and the crash-safe writer use.
 
     Fails on an upgrade that drops it: Writer.flush ends the open chunk; breakup_chunk
     decodes one chunk.

@@ -1,4 +1,5 @@
-"""No crash anywhere in the robot space: every robot the model can describe gets a result, or
+"""
+No crash anywhere in the robot space: every robot the model can describe gets a result, or
 the package's DataError with a one-line reason naming the limit its data miss.
 
 Hypothesis draws robots (strides 0.5-6 Hz, 30-500 Hz sampling, 3-40 cycles, touchdown angles

@@ -1,4 +1,5 @@
-"""Runs of any length are used to their end, and a frame no robot could reach is dropped.
+"""
+Runs of any length are used to their end, and a frame no robot could reach is dropped.
 
 A damaged float (a pose 881 m away) or a marker swap must not decide a validation, and one
 run that ended early (the robot left the capture volume) must not shorten every other run.
@@ -33,7 +34,8 @@ def test_a_frame_far_from_its_neighbours_is_unreachable_and_nothing_else_is() ->
 
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, om.Paths]:
-    """The same 200 runs as an intact bag and as one with a frame 881 m off and a run that
+    """
+    The same 200 runs as an intact bag and as one with a frame 881 m off and a run that
     ended at half its duration."""
     folder = tmp_path_factory.mktemp('damage')
     runs = om.simulate(200, seed=5, cycles=6)

@@ -1,4 +1,5 @@
-"""The pieces of a study, each on its own.
+"""
+The pieces of a study, each on its own.
 
 Spec checks, seeding, damage, the table, the summary, the diagnosis adapter and plan's
 power-curve fit. No diagnosis runs here (test_studies_dask.py runs whole studies).
@@ -267,7 +268,8 @@ def test_a_file_that_is_not_a_study_table_is_refused(tmp_path):
 # the diagnosis adapter
 
 class TypedReport:
-    """A report's JSON as `diagnose` returns it (`to_json()`), written out so that the columns
+    """
+    A report's JSON as `diagnose` returns it (`to_json()`), written out so that the columns
     it gives can be checked by hand."""
 
     def to_json(self):

@@ -1,4 +1,5 @@
-"""Whole studies as a user runs them.
+"""
+Whole studies as a user runs them.
 
 In this process, on a 2-worker Dask LocalCluster (with a worker killed mid-study), interrupted
 and resumed from the command line, bad specs refused before any work, and `plan` from data set

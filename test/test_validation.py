@@ -1,4 +1,5 @@
-"""The paper's probabilistic validation (NOTES.md section 4, eqs. 13-16).
+"""
+The paper's probabilistic validation (NOTES.md section 4, eqs. 13-16).
 
 Sample size, disjoint multisamples, the per-sample Student-t region, the estimate E^_k, the
 search (15) for the widest admissible spreads, and the plug-in interface that makes the method
@@ -42,7 +43,8 @@ UNICYCLE_SPEED = 0.12   # m/s
 
 
 def unicycle(sigmas, seed, n_runs, t):
-    """Straight runs along +y; each run's heading ~ N(pi/2, sigma1^2) and speed
+    """
+    Straight runs along +y; each run's heading ~ N(pi/2, sigma1^2) and speed
     ~ v (1 + sigma2 N(0, 1)). (n_runs, T, 3), drawn from `seed` alone."""
     rng = np.random.default_rng(seed)
     heading = math.pi / 2 + sigmas[0] * rng.standard_normal(n_runs)

@@ -1,4 +1,5 @@
-"""The offline programs (`python -m octoroach_model X`, `ros2 run octoroach_model X`).
+"""
+The offline programs (`python -m octoroach_model X`, `ros2 run octoroach_model X`).
 
 One module per program, each with `parser()` (argparse, parsing only) and `run(args)` (the
 work, in the layers below). `run_command` turns every domain error into one line on stderr

@@ -1,4 +1,5 @@
-"""What every offline program shares: the parser, argument types, progress lines, exit codes.
+"""
+What every offline program shares: the parser, argument types, progress lines, exit codes.
 
 Exit codes (README, "Offline programs"): 0 success, 1 the data or a value cannot be used
 (`error: ...` on stderr), 2 a usage error (unknown option, missing argument, malformed value),
@@ -96,7 +97,8 @@ def _whole(text: str) -> int:
 
 
 def new_output(path: Path, option: str, *, directory_ok: bool = False) -> Path:
-    """Check before any work that `path` can be written: not an existing file (or, unless
+    """
+    Check before any work that `path` can be written: not an existing file (or, unless
     `directory_ok`, an existing directory), and its parent can be created."""
     if path.exists() and not (directory_ok and path.is_dir()):
         raise ParameterError(f'{option} {path} exists already; choose a new path')

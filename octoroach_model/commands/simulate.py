@@ -11,7 +11,8 @@ from octoroach_model.errors import ParameterError
 
 
 def parse_effects(pairs: list[tuple[str, str]]) -> dict[str, dict[str, float]]:
-    """--effect NAME and --effect-param KEY=VALUE, in command-line order: a parameter belongs
+    """
+    --effect NAME and --effect-param KEY=VALUE, in command-line order: a parameter belongs
     to the --effect before it (or, written NAME.KEY=VALUE, to NAME)."""
     effects: dict[str, dict[str, float]] = {}
     current = None

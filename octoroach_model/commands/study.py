@@ -11,7 +11,8 @@ from octoroach_model.commands.common import finite_float, nonnegative_int, OneLi
 
 
 class ProgressBar:
-    """A progress bar over a known number of rows, on stderr.
+    """
+    A progress bar over a known number of rows, on stderr.
 
     On a terminal it is redrawn in place; in a log (not a terminal) it writes one line per
     5 % step and one for the last row.

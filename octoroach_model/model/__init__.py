@@ -1,4 +1,5 @@
-"""The paper's switching four-bar model, its stochastic version and the causes' effects.
+"""
+The paper's switching four-bar model, its stochastic version and the causes' effects.
 
 Plain numpy; imports nothing from the rest of the package but `paths` and `errors`.
 """

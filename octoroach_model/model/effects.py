@@ -1,4 +1,5 @@
-"""The model extensions of the table of causes (docs/causes.md), exactly as defined there.
+"""
+The model extensions of the table of causes (docs/causes.md), exactly as defined there.
 
 Two kinds: time warps act on the gait phase before the kinematics are evaluated
 (`gait_frequency_variation`, `speed_decay`); the others transform finished runs
@@ -64,7 +65,8 @@ def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
 
 def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
                 rngs: Mapping[str, np.random.Generator]) -> np.ndarray:
-    """Give the (n, T) gait clock: the times at which the unwarped model is evaluated.
+    """
+    Give the (n, T) gait clock: the times at which the unwarped model is evaluated.
 
     speed_decay warps first, then each run's gait_frequency_variation stretches the result:
     clock = (1 + e) (t - fraction t^2 / (2 T)).
@@ -119,7 +121,8 @@ def rotate_about_start(poses: np.ndarray, dheading: np.ndarray) -> np.ndarray:
 
 
 def turn_persistently(poses: np.ndarray, t: np.ndarray, yaw_rate: np.ndarray) -> np.ndarray:
-    """Turn each run at its rate w: theta + w t, p(0) + integral of R(w s) p_dot(s) ds.
+    """
+    Turn each run at its rate w: theta + w t, p(0) + integral of R(w s) p_dot(s) ds.
 
     The integral is a sum over sample steps, each step rotated by w at its midpoint time.
     """
@@ -135,7 +138,8 @@ def turn_persistently(poses: np.ndarray, t: np.ndarray, yaw_rate: np.ndarray) ->
 
 
 def slip_sideways(poses: np.ndarray, t: np.ndarray, velocity: float) -> np.ndarray:
-    """Add a sideways drift: p + integral of v r(theta) ds, r = (sin theta, -cos theta).
+    """
+    Add a sideways drift: p + integral of v r(theta) ds, r = (sin theta, -cos theta).
 
     The integral follows the trapezoid rule on the sample times.
     """

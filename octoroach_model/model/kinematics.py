@@ -1,4 +1,5 @@
-"""The switching four-bar (eqs. 1-5; derived in docs/model.md), closed form and vectorised.
+"""
+The switching four-bar (eqs. 1-5; derived in docs/model.md), closed form and vectorised.
 
 Body frame: x to the right, y forward, origin at G, hips A = (0, -d/2) and B = (0, d/2).
 A stance pair has a rear foot and a front foot; `mirror` = +1 for the right pair (rear leg to
@@ -26,7 +27,8 @@ def feet_in_body(rear_angle, front_angle, mirror, leg_length, hip_distance):
 
 
 def solve_front_angle(rear_angle, span, leg_length, hip_distance, branch):
-    """Front leg angle that keeps |front foot - rear foot| = span (closure, eq. 3).
+    """
+    Front leg angle that keeps |front foot - rear foot| = span (closure, eq. 3).
 
     `branch` (+1 or -1) picks the root of a cos(phi) + b sin(phi) = c; it is fixed at
     touchdown so the angle is continuous through the stance. Where the stance leaves the
@@ -45,7 +47,8 @@ def solve_front_angle(rear_angle, span, leg_length, hip_distance, branch):
 
 
 def closure_branch(rear_angle, front_angle, leg_length, hip_distance):
-    """+1 or -1: which root of the closure the touchdown configuration lies on.
+    """
+    +1 or -1: which root of the closure the touchdown configuration lies on.
 
     The closure is the same equation for both pairs once the left pair is mirrored, so the
     mirror sign does not enter here.
@@ -57,7 +60,8 @@ def closure_branch(rear_angle, front_angle, leg_length, hip_distance):
 
 def stance_motion(rear_touchdown, front_touchdown, rear_liftoff, phase, mirror,
                   leg_length, hip_distance):
-    """Pose of G during a stance, relative to the body frame at touchdown.
+    """
+    Pose of G during a stance, relative to the body frame at touchdown.
 
     Parameters
     ----------
@@ -92,7 +96,8 @@ def stance_motion(rear_touchdown, front_touchdown, rear_liftoff, phase, mirror,
 
 
 def stance_angles(nominal_angles, normals, sigma1, sigma2):
-    """Random angles xi = eta + diag(sigma1 I4, sigma2 I2) Y (eq. 11).
+    """
+    Random angles xi = eta + diag(sigma1 I4, sigma2 I2) Y (eq. 11).
 
     normals : (..., 6) standard normal draws Y. Returns (..., 6) angles in radians.
     """
@@ -101,7 +106,8 @@ def stance_angles(nominal_angles, normals, sigma1, sigma2):
 
 
 def integrate_stances(angles, phase, start_pose, leg_length, hip_distance):
-    """Poses of runs made of alternating stances (right pair first).
+    """
+    Poses of runs made of alternating stances (right pair first).
 
     Parameters
     ----------
@@ -178,7 +184,8 @@ _BLOCK = 1 << 13
 
 
 def _cos_sin(angle, scale=1.0):
-    """Give scale * cos and scale * sin by the half-angle tangent: one SIMD tan, no sin/cos.
+    """
+    Give scale * cos and scale * sin by the half-angle tangent: one SIMD tan, no sin/cos.
 
     Accurate to a few units in the last place, like np.cos and np.sin (numpy's float64 tan
     is vectorised on x86-64, its sin and cos are several times slower).
@@ -202,7 +209,8 @@ class _Geometry:
         self.wrap = not 2.0 * leg_length < hip_distance
 
     def sweep(self, rear_angle, closure_offset, branch, mirror):
-        """Rear foot and foot-to-foot segment in the body frame at the given rear angles.
+        """
+        Rear foot and foot-to-foot segment in the body frame at the given rear angles.
 
         closure_offset = (span^2 - 2 l^2 - d^2) / (2 l) per stance, so that the closure's
         ratio c / hypot(a, b) of `solve_front_angle` is (offset + d sin(rear)) / |P|.
@@ -231,7 +239,8 @@ class _Geometry:
         return rear_x, rear_y, segment_x, segment_y
 
     def poses(self, stance, within, out):
-        """World poses of G at fractions `within` of stances, written into `out` (..., 3).
+        """
+        World poses of G at fractions `within` of stances, written into `out` (..., 3).
 
         stance : the 11 per-stance fields of `_stances`, each broadcastable with `within`
         to out's shape without its last axis.
@@ -254,7 +263,8 @@ class _Geometry:
 
 
 def _stances(angles, start, geometry: _Geometry):
-    """Everything constant during each stance, as one (11, S, n) array.
+    """
+    Everything constant during each stance, as one (11, S, n) array.
 
     angles : (n, S, 6); start : (n, 3) pose at the first touchdown. The 11 fields, in order:
     rear touchdown angle, its sweep (liftoff - touchdown), closure offset (see

@@ -1,4 +1,5 @@
-"""Parameters of the switching four-bar model (docs/model.md), SI units throughout.
+"""
+Parameters of the switching four-bar model (docs/model.md), SI units throughout.
 
 The paper's values are read from one file, in one place (`load_nominal`): Table II (geometry
 and nominal angles), Table III (the angle spreads sigma1, sigma2) and the timing (the stride
@@ -49,7 +50,8 @@ def _share_directory() -> Path | None:
 
 
 def table2_path(path: str | os.PathLike | None = None) -> Path:
-    """Name the file the nominal values come from.
+    """
+    Name the file the nominal values come from.
 
     That is `path` if given, else the file named by $OCTOROACH_MODEL_TABLE2, else the shipped
     config/table2.yaml (`config_path`).
@@ -64,7 +66,8 @@ def table2_path(path: str | os.PathLike | None = None) -> Path:
 
 @dataclass(frozen=True)
 class ModelParameters:
-    """Geometry, nominal angles and timing of the model (every field required).
+    """
+    Geometry, nominal angles and timing of the model (every field required).
 
     Angles are in radians; touchdown_angles = (phi1, phi2, phi3, phi4), liftoff_angles =
     (phi_R, phi_L). stride_frequency counts full gait cycles (right + left stance) per second.

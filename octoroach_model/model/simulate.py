@@ -1,4 +1,5 @@
-"""Runs of the stochastic model (eq. 11, docs/model.md), optionally with effects.
+"""
+Runs of the stochastic model (eq. 11, docs/model.md), optionally with effects.
 
 Random numbers come in independent streams spawned from one seed: the angle normals of the
 first 2 * cycles stances, the normals of any extra stances a faster gait needs, and one stream
@@ -25,7 +26,8 @@ DEFAULT_START_POSE = (0.0, 0.0, math.pi / 2)
 
 
 class AntitheticNormal:
-    """Standard normals in mirrored pairs along the first axis (run i + n/2 gets -z of run i):
+    """
+    Standard normals in mirrored pairs along the first axis (run i + n/2 gets -z of run i):
     every odd moment of a mean over runs is then exactly zero, so a mean path shows no
     random rotation or drift of its own (variance reduction by antithetic variates)."""
 
@@ -39,7 +41,8 @@ class AntitheticNormal:
 
 
 class RandomStreams:
-    """Independent generators for each random ingredient of a model run, from one seed.
+    """
+    Independent generators for each random ingredient of a model run, from one seed.
 
     With `antithetic`, every generator gives its normals in mirrored pairs (AntitheticNormal):
     for means over runs (the nominal fit's mean path), not for runs that stand for data.
@@ -69,7 +72,8 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
              draws: str = 'stance', effects: Effects | None = None,
              start_pose: Sequence[float] = DEFAULT_START_POSE,
              t: np.ndarray | None = None) -> Paths:
-    """`n_paths` runs of the stochastic model on a common time grid.
+    """
+    `n_paths` runs of the stochastic model on a common time grid.
 
     Parameters
     ----------

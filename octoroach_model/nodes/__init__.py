@@ -1,4 +1,5 @@
-"""ROS 2 nodes: thin adapters between VICON-style messages and the model / recordings layers.
+"""
+ROS 2 nodes: thin adapters between VICON-style messages and the model / recordings layers.
 
 Only this subpackage imports rclpy. Each module has `main(argv) -> int`, reached through
 `ros2 run octoroach_model X` and `python -m octoroach_model X`:

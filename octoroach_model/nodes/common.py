@@ -1,4 +1,5 @@
-"""What every node shares: parameters with ranges, the command line, spin and shutdown, QoS.
+"""
+What every node shares: parameters with ranges, the command line, spin and shutdown, QoS.
 
 Parameters are declared from `ParamSpec` tables, so the same table gives the ROS descriptors
 (description, FloatingPointRange / IntegerRange), the checks in the set-parameters callbacks and
@@ -38,7 +39,8 @@ class UsageError(OctoroachError):
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One ROS parameter: default, description, unit and allowed values.
+    """
+    One ROS parameter: default, description, unit and allowed values.
 
     The type is the default's type (bool, int, float, str or list of str); `low`/`high` give an
     inclusive range for numbers, `choices` the allowed strings. `preset` marks a default that
@@ -137,7 +139,8 @@ def _number(value: float) -> str:
 
 def with_defaults(specs: Sequence[ParamSpec], defaults: dict[str, Any] | None
                   ) -> list[ParamSpec]:
-    """Return the specs with some defaults replaced by command-line flags.
+    """
+    Return the specs with some defaults replaced by command-line flags.
 
     A flag is the most specific thing a user says, so its value wins over the same parameter
     in --ros-args or in a params file (which may well hold the parameter's plain default).
@@ -148,7 +151,8 @@ def with_defaults(specs: Sequence[ParamSpec], defaults: dict[str, Any] | None
 
 
 def declare_parameters(node: Node, specs: Sequence[ParamSpec]) -> dict[str, ParamValue]:
-    """Declare every spec on `node`; the values in force (defaults or --ros-args overrides).
+    """
+    Declare every spec on `node`; the values in force (defaults or --ros-args overrides).
 
     Raises ParameterError with a one-line reason when an override has the wrong type or lies
     outside its range.
@@ -172,7 +176,8 @@ def declare_parameters(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Para
 
 def rejected_override(node: Node, name: str,
                       check: Callable[[ParamValue], str | None]) -> str | None:
-    """Why the override of `name` (--ros-args, params file) was refused, in our words.
+    """
+    Why the override of `name` (--ros-args, params file) was refused, in our words.
 
     rclpy refuses an override of the wrong type or range without handing back the value. To
     read it through the public API, the parameter is declared once more without type or range
@@ -216,7 +221,8 @@ def set_parameters_callback(
         node: Node, specs: Sequence[ParamSpec],
         check_all: Callable[[dict[str, ParamValue]], str | None] | None = None,
 ) -> Callable[[list[Parameter]], SetParametersResult]:
-    """Make a callback for `add_on_set_parameters_callback`: ranges, choices, `check_all`.
+    """
+    Make a callback for `add_on_set_parameters_callback`: ranges, choices, `check_all`.
 
     `check_all` sees every value as it would be after the change (for checks across
     parameters) and returns a reason to reject, or None.
@@ -312,7 +318,8 @@ def _show(value: ParamValue) -> str:
 
 
 def split_ros_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
-    """(node's own flags, ROS arguments incl. '--ros-args') from a command line.
+    """
+    (node's own flags, ROS arguments incl. '--ros-args') from a command line.
 
     ROS arguments run from each '--ros-args' to the next '--' or the end. `-p` rules are checked
     here so that a malformed one gives one clear line instead of an rcl parse error.
@@ -349,7 +356,8 @@ def fail(message: str, code: int = 2) -> int:
 
 def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = None,
              prog: str = 'octoroach_model', executor_threads: int = 1) -> int:
-    """Init, build the node, spin until Ctrl-C / SIGTERM / done, shut down; an exit code.
+    """
+    Init, build the node, spin until Ctrl-C / SIGTERM / done, shut down; an exit code.
 
     The Jazzy talker pattern. A node may have `done` (an rclpy Future: spin until its result,
     the exit code), `stop_jobs()` (called first on the way out, to stop worker threads) and

@@ -1,4 +1,5 @@
-"""Message conversion for the nodes: planar poses <-> VICON transforms, markers, statistics.
+"""
+Message conversion for the nodes: planar poses <-> VICON transforms, markers, statistics.
 
 VICON convention (vicon_bridge): a geometry_msgs/msg/TransformStamped per sample, metres, the
 child frame's yaw is the heading, unit quaternion (0, 0, sin(h/2), cos(h/2)). The quaternion
@@ -44,7 +45,8 @@ def set_stamp(stamp: Time, stamp_ns: int) -> None:
 
 
 def planar_rows(poses: np.ndarray) -> list[list[PlanarPose]]:
-    """Turn (..., T, 3) poses into lists of (x, y, qz, qw) in plain floats, one per sample.
+    """
+    Turn (..., T, 3) poses into lists of (x, y, qz, qw) in plain floats, one per sample.
 
     Computed for a whole run at once, so that publishing a sample only copies four numbers.
     """
@@ -138,7 +140,8 @@ def validation_status(result: Mapping[str, Any], name: str,
 
 
 def diagnosis_fields(report: Mapping[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
-    """Return (model sufficient, verdict in words, key/value pairs) of a diagnosis report.
+    """
+    Return (model sufficient, verdict in words, key/value pairs) of a diagnosis report.
 
     Each named cause gives `cause_<i>` (its name), `cause_<i>.<parameter>` (its size) and
     `cause_<i>.interval` (95 % interval of its main parameter), in the report's order.
@@ -166,7 +169,8 @@ def diagnosis_fields(report: Mapping[str, Any]) -> tuple[bool, str, list[tuple[s
 
 def diagnosis_status(report: Mapping[str, Any], name: str,
                      hardware_id: str) -> DiagnosticStatus:
-    """Make the status of a diagnosis: OK when the paper's model explains the runs, WARN when
+    """
+    Make the status of a diagnosis: OK when the paper's model explains the runs, WARN when
     it needed causes or still misses something."""
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 

@@ -1,4 +1,5 @@
-"""recorder: VICON topics to a rosbag2 MCAP bag, and the bag to a multisample data set.
+"""
+recorder: VICON topics to a rosbag2 MCAP bag, and the bag to a multisample data set.
 
 ROS glue only: messages are taken raw (serialized CDR, as in demo_nodes_py's
 listener_serialized) with their middleware reception time, and handed to the bag layer's
@@ -193,7 +194,8 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
         return any(fnmatch.fnmatchcase(topic, pattern) for pattern in self._patterns)
 
     def _discover(self) -> None:
-        """Subscribe to wanted topics that have appeared, with the type they are published with.
+        """
+        Subscribe to wanted topics that have appeared, with the type they are published with.
 
         A topic listed with several types (a stale endpoint of a process gone, a publisher
         that changed type) gets the first usable one; when no publisher of that type is left
@@ -242,7 +244,8 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
         self.get_logger().info(f'recording {topic} [{msgtype}]')
 
     def _connection(self, recorded: _Recorded) -> Any:
-        """Get the bag channel of a topic and type, made at its first message.
+        """
+        Get the bag channel of a topic and type, made at its first message.
 
         So a type that never delivers leaves no trace in the bag.
         """
@@ -254,7 +257,8 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
         return connection
 
     def _on_message(self, recorded: _Recorded, data: bytes, info: dict[str, Any]) -> None:
-        """Queue the message, then whatever else waits on its subscription.
+        """
+        Queue the message, then whatever else waits on its subscription.
 
         The executor hands over one message per wake-up at a cost of a few hundred
         microseconds; taking the backlog here (as rclpy's wait_for_message does) lets a

@@ -1,4 +1,5 @@
-"""replay: a recorded bag published again on its topics with its recorded timing and QoS.
+"""
+replay: a recorded bag published again on its topics with its recorded timing and QoS.
 
 What `ros2 bag play` does on a full ROS install, for rosbag2 bags (MCAP or sqlite3) on a
 PyPI-only one; ROS glue only, the bag is read by the bag layer's `BagReader`. Every message

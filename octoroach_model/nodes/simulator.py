@@ -1,4 +1,5 @@
-"""simulator: the model's runs as a live VICON pose stream, so ROS tools can be tried on it.
+"""
+simulator: the model's runs as a live VICON pose stream, so ROS tools can be tried on it.
 
 Runs of `cycles` gait cycles follow one another, separated by a pause of `pause_s` with no
 poses; a run marker (std_msgs/msg/UInt32, data = run index) goes out one sample period before
@@ -143,7 +144,8 @@ class _PreparedRun:
 
 
 class Simulator(Node):  # type: ignore[misc,valid-type]
-    """Publishes model runs as VICON poses; see the module docstring.
+    """
+    Publishes model runs as VICON poses; see the module docstring.
 
     Sample k of a run is due at t0 + k / rate on the steady clock (t0: the timer tick after
     the run's marker). Each tick sends every sample due by then, so a late or skipped tick

@@ -1,4 +1,5 @@
-"""validator: the paper's probabilistic validation (and the diagnosis) as ROS services.
+"""
+validator: the paper's probabilistic validation (and the diagnosis) as ROS services.
 
 A thin adapter. `~/validate` and `~/diagnose` (std_srvs/srv/Trigger) take the parameters in
 force at the call, hand the work to a worker thread and answer with the JSON result; the
@@ -351,7 +352,8 @@ class Validator(Node):  # type: ignore[misc,valid-type]
 
 def call_service(service: str, node_name: str, timeout_s: float,
                  ros_args: Sequence[str]) -> int:
-    """Call `~/<service>` of the validator `node_name` and print its JSON answer; exit code.
+    """
+    Call `~/<service>` of the validator `node_name` and print its JSON answer; exit code.
 
     What `ros2 service call /validator/validate std_srvs/srv/Trigger` does on a full ROS
     install, for machines with rclpy only: the answer goes to stdout, a failed call also

@@ -1,4 +1,5 @@
-"""Recordings: pose bags and motion-capture files, runs cut from them, multisample data sets.
+"""
+Recordings: pose bags and motion-capture files, runs cut from them, multisample data sets.
 
 Ground floor of the package: imports numpy, rosbags and mcap, never rclpy nor the model.
 

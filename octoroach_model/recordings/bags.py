@@ -1,4 +1,5 @@
-"""Pose streams from any input: ROS 2 and ROS 1 bags here, motion-capture files by dispatch.
+"""
+Pose streams from any input: ROS 2 and ROS 1 bags here, motion-capture files by dispatch.
 
 `iter_pose_samples` turns each source into pose streams, delivered chunk by chunk
 (`PoseChunk`), never holding a bag in memory. Inputs:
@@ -58,7 +59,8 @@ _PLAIN_TYPES = (TRANSFORM_STAMPED, POSE_STAMPED)
 
 
 class PoseChunk(NamedTuple):
-    """A block of consecutive samples of one pose stream, with the markers that came with them.
+    """
+    A block of consecutive samples of one pose stream, with the markers that came with them.
 
     `sequence` numbers every pose and marker message of a source in arrival (file) order, so
     a marker splits a stream exactly where the recorder received it. Times are int64 ns;
@@ -110,7 +112,8 @@ def read_options(options: ReadOptions | None = None, topic: str | None = None) -
 def iter_pose_samples(sources: Sources, *, topic: str | None = None,
                       notes: list[str] | None = None, chunk_size: int = DEFAULT_CHUNK_SIZE,
                       options: ReadOptions | None = None) -> Iterator[PoseChunk]:
-    """Pose samples of every source, chunk by chunk, without holding an input in memory.
+    """
+    Pose samples of every source, chunk by chunk, without holding an input in memory.
 
     `sources`: bags (rosbag2 directories, .mcap files, ROS 1 .bag files), motion-capture
     exports (.csv, .c3d), or folders of them. Which stream: see the module docstring. Every
@@ -393,7 +396,8 @@ def _compose(outer: tuple[float, ...], inner: tuple[float, ...]) -> tuple[float,
 
 def _marker_topics(name: str, topics: dict[str, TopicInfo], streams: dict[str, str],
                    options: ReadOptions, notes: list[str]) -> dict[str, str]:
-    """Stream label -> its run-marker topic, for markers present with at least one message.
+    """
+    Stream label -> its run-marker topic, for markers present with at least one message.
 
     `streams` maps each label to the name its subject is read from (topic or frame).
     """

@@ -1,4 +1,5 @@
-"""C3D files: the robot's pose from its markers, by a least-squares rigid fit per frame.
+"""
+C3D files: the robot's pose from its markers, by a least-squares rigid fit per frame.
 
 Read with the `c3d` package's public `Reader`, frame by frame, so a file of any length is
 converted in bounded memory (one chunk of frames at a time). The mapping (docs/formats_mocap.md):
@@ -114,7 +115,8 @@ def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
                          chunk_size: int = 10_000, *,
                          layout: Mapping[str, Sequence[float]] | None = None,
                          ) -> Iterator[PoseChunk]:
-    """Pose samples of the rigid body in a C3D file, chunk by chunk (mapping: module doc).
+    """
+    Pose samples of the rigid body in a C3D file, chunk by chunk (mapping: module doc).
 
     `layout` maps marker names (``Marker`` or ``Subject:Marker``) to their (x, y, z) position
     in metres in the body frame; it also names the body's markers. The stream ends with one

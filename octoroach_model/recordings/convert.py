@@ -1,4 +1,5 @@
-"""Convert: any pose input into the package's standard bag.
+"""
+Convert: any pose input into the package's standard bag.
 
 The standard bag is what `simulate` writes: `TransformStamped` on ``/vicon/S/S`` (frame
 ``vicon/world`` -> ``vicon/S/S``, metres, the heading as the yaw of a unit quaternion) with a
@@ -61,7 +62,8 @@ def convert_to_bag(inputs: Sequence[PathLike] | PathLike, out: PathLike, *,
                    options: ReadOptions | None = None, subject: str | None = None,
                    gap_s: float = DEFAULT_GAP_S,
                    chunk_size: int = DEFAULT_CHUNK_SIZE) -> ConvertReport:
-    """Write the pose stream of every input into one new standard bag at `out`.
+    """
+    Write the pose stream of every input into one new standard bag at `out`.
 
     Each input must hold one pose stream (choose with `options`: topic, /tf frame, subject).
     The output subject is `subject`, else the input's (``/vicon/S/S``), else 'octoroach'.

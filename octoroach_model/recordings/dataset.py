@@ -1,4 +1,5 @@
-"""Multisample data sets: runs already on a common grid, in one portable file.
+"""
+Multisample data sets: runs already on a common grid, in one portable file.
 
 Why a file of its own: splitting and resampling bags is the slow, note-producing step; a data
 set keeps its result (and the notes) so validation can be rerun without the bags.
@@ -33,7 +34,8 @@ PathLike = Union[str, 'os.PathLike[str]']
 
 
 def save_dataset(path: PathLike, paths: Paths) -> Path:
-    """Write `paths` as a data set file (format in the module docstring); returns its path.
+    """
+    Write `paths` as a data set file (format in the module docstring); returns its path.
 
     Written to a temporary file first and then renamed, so a crash never leaves half a file.
     """

@@ -1,4 +1,5 @@
-"""What the motion-capture file readers share: units, subject names, markers, pose chunks.
+"""
+What the motion-capture file readers share: units, subject names, markers, pose chunks.
 
 The Vicon CSV reader (`vicon_csv.py`) and the C3D reader (`c3d_file.py`) both turn frames of
 a capture into `PoseChunk` streams. This module holds the facts they have in common:
@@ -122,7 +123,8 @@ def choose_subject(where: str, subjects: Sequence[str], wanted: str | None,
 
 def select_body_markers(where: str, labels: Sequence[str], options: ReadOptions,
                         default_subject: str = '', named: Sequence[str] = ()) -> list[int]:
-    """Return the indexes into `labels` of the body's markers, checked to be at least 3.
+    """
+    Return the indexes into `labels` of the body's markers, checked to be at least 3.
 
     Markers named by `named` (a given layout) or `options.markers` are found by full label
     or by marker name within the subject; otherwise the body is every marker of the subject
@@ -213,7 +215,8 @@ class FitSummary:
 
 
 class MarkerBody:
-    """The markers of one rigid body and its reference layout: poses from marker frames.
+    """
+    The markers of one rigid body and its reference layout: poses from marker frames.
 
     `layout_m` (M, 3) is in metres in the body frame, one row per marker in `names` order;
     None until `set_layout_from_frames` has seen enough complete frames.

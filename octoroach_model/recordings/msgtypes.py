@@ -1,4 +1,5 @@
-"""Message types: ROS 2 Jazzy's standard types, plus those a bag defines for itself.
+"""
+Message types: ROS 2 Jazzy's standard types, plus those a bag defines for itself.
 
 Every bag that follows rosbag2 carries the full definition of each message type it holds (MCAP
 schemas, sqlite3's message_definitions table, ROS 1 connection headers). Types this package
@@ -77,7 +78,8 @@ class BagTypes:
         return msgtype in self.store.fielddefs
 
     def add_definition(self, msgtype: str, encoding: str, text: str) -> bool:
-        """Register `msgtype` (and the types it uses) from a bag's definition if unknown.
+        """
+        Register `msgtype` (and the types it uses) from a bag's definition if unknown.
 
         Returns whether the type can be decoded afterwards; why not is kept in `unreadable`.
         """

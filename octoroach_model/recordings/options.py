@@ -1,4 +1,5 @@
-"""How to find the robot's pose in an input: which topic, frame, subject, markers and axis.
+"""
+How to find the robot's pose in an input: which topic, frame, subject, markers and axis.
 
 One record for every reader (ROS 2 and ROS 1 bags, /tf, Vicon CSV exports, C3D files), so a
 choice made on the command line, in the Python API or in a node parameter means the same
@@ -17,7 +18,8 @@ FORWARD_AXES = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.pi / 2}
 
 @dataclass(frozen=True)
 class ReadOptions:
-    """Where the pose of the robot is in an input.
+    """
+    Where the pose of the robot is in an input.
 
     topic : ROS bags: the pose topic (default: the VICON topic, or the only pose topic).
     frame : /tf and /tf_static: the child frame to follow (default: the only moving one).

@@ -1,4 +1,5 @@
-"""Where a message type keeps a pose, found from its definition alone.
+"""
+Where a message type keeps a pose, found from its definition alone.
 
 A pose is a position (`geometry_msgs/Point` or `Vector3`) beside an orientation
 (`geometry_msgs/Quaternion`), searched depth-first in declaration order, sequences excluded:

@@ -1,4 +1,5 @@
-"""Pose bags: VICON poses and run markers written as the package's standard bag.
+"""
+Pose bags: VICON poses and run markers written as the package's standard bag.
 
 The standard bag is what `simulate` and `convert` write and what the simulator and recorder
 make live: `TransformStamped` on ``/vicon/S/S`` (header frame ``vicon/world``, child frame
@@ -35,7 +36,8 @@ RECORDED_VICON_QOS = QosProfile(history='unknown', depth=0)
 
 
 class PoseBagWriter:
-    """Streams pose samples and run markers into a new bag directory.
+    """
+    Streams pose samples and run markers into a new bag directory.
 
     Use as a context manager; samples are written in the order given (the arrival order a
     recorder would see). The marker topic is created at the first marker, so a bag without
@@ -99,7 +101,8 @@ class PoseBagWriter:
 
     def write_poses(self, stamp_ns: np.ndarray, poses: np.ndarray, *,
                     log_time_ns: np.ndarray | None = None) -> None:
-        """Write samples (k, 3) x, y, heading at header stamps `stamp_ns` (int ns).
+        """
+        Write samples (k, 3) x, y, heading at header stamps `stamp_ns` (int ns).
 
         The log time defaults to the stamp, as for a recorder on the VICON machine.
         """
@@ -148,7 +151,8 @@ def write_paths_bag(out_path: PathLike, paths: Paths, *, topic: str = DEFAULT_PO
                     marker_topic: str | None = DEFAULT_MARKER_TOPIC, gap_s: float = 1.0,
                     start_time_ns: int = DEFAULT_START_TIME_NS,
                     message_type: str = TRANSFORM_STAMPED) -> PathLike:
-    """Write each run of `paths` at its sample times, one run after another.
+    """
+    Write each run of `paths` at its sample times, one run after another.
 
     Runs are separated by `gap_s` (>= 1 s) of silence so that any reader can split them; one
     marker per run (data = run index) precedes its first pose unless `marker_topic` is None.

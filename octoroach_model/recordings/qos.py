@@ -1,4 +1,5 @@
-"""QoS profiles as rosbag2 (Jazzy) stores them, and the profile a replay offers.
+"""
+QoS profiles as rosbag2 (Jazzy) stores them, and the profile a replay offers.
 
 A bag keeps, per topic, the QoS profiles its publishers offered when it was recorded: in
 metadata.yaml (``offered_qos_profiles``: a list of mappings, metadata version 9) and in each
@@ -131,7 +132,8 @@ class QosOverride:
 
 def replay_profile(offered: Sequence[QosProfile], override: QosOverride = QosOverride(),
                    fallback_depth: int = 1000) -> tuple[QosProfile, str]:
-    """Choose the profile to publish a recorded topic with, and say when it is not as recorded.
+    """
+    Choose the profile to publish a recorded topic with, and say when it is not as recorded.
 
     As ``ros2 bag play`` does: the recorded offer when every publisher offered the same
     reliability, durability and liveliness; otherwise the most widely matched choice

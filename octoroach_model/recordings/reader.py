@@ -1,4 +1,5 @@
-"""The one bag reader: rosbag2 (MCAP or sqlite3) and ROS 1 bags, streamed message by message.
+"""
+The one bag reader: rosbag2 (MCAP or sqlite3) and ROS 1 bags, streamed message by message.
 
 MCAP files are read with mcap's `StreamReader`, record by record in file order, and never
 through their summary index: the bags that matter most are the damaged ones. A recorder killed
@@ -159,7 +160,8 @@ class _McapFileTopics:
 
 
 class BagReader:
-    """One bag: its topics, and its messages as a stream. See the module docstring.
+    """
+    One bag: its topics, and its messages as a stream. See the module docstring.
 
     `source`: a rosbag2 bag directory, a bare .mcap file or a ROS 1 .bag file. Anything odd
     met while reading (a missing metadata.yaml, a cut file, skipped chunks) is appended to

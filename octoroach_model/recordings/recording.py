@@ -1,4 +1,5 @@
-"""The recorder's bag: raw messages in reception order, in a crash-safe `BagWriter`.
+"""
+The recorder's bag: raw messages in reception order, in a crash-safe `BagWriter`.
 
 Arrival order is what splits runs (a run marker cuts its stream where it was received), but
 an executor may hand over two topics' messages out of order when it falls behind. Messages

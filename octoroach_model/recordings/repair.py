@@ -1,4 +1,5 @@
-"""Repair: a bag left by a killed recorder made complete, every surviving message kept.
+"""
+Repair: a bag left by a killed recorder made complete, every surviving message kept.
 
 A recorder killed with SIGKILL (or a full disk, a power cut) leaves MCAP files without
 summary, index or footer, cut at some byte, and no metadata.yaml; ``ros2 bag info``, rosbags
@@ -64,7 +65,8 @@ class _FileScan:
 
 
 def repair_bag(source: PathLike, out: PathLike | None = None) -> RepairReport:
-    """Make the bag at `source` complete (in place) or write a complete copy to `out`.
+    """
+    Make the bag at `source` complete (in place) or write a complete copy to `out`.
 
     `source`: a rosbag2 MCAP bag directory or a bare .mcap file. A bare file without `out`
     is repaired into a new bag directory named after it (``x.mcap`` -> ``x/``).

@@ -1,4 +1,5 @@
-"""Rigid bodies in motion capture: rotations as Vicon writes them, and the pose from markers.
+"""
+Rigid bodies in motion capture: rotations as Vicon writes them, and the pose from markers.
 
 Pure numpy, vectorised over frames, for the Vicon CSV and C3D readers:
 
@@ -29,7 +30,8 @@ MIN_HORIZONTAL = 1e-9
 
 
 class RigidFit(NamedTuple):
-    """Pose of a rigid body per frame: world = rotation @ body + translation.
+    """
+    Pose of a rigid body per frame: world = rotation @ body + translation.
 
     rotation : (F, 3, 3); translation : (F, 3) in the markers' unit; valid : (F,) False where
     fewer than 3 markers were seen or they lie on one line (rotation and translation NaN);
@@ -51,7 +53,8 @@ def _skew(vectors: np.ndarray) -> np.ndarray:
 
 
 def rotation_from_helical(vectors_rad: np.ndarray) -> np.ndarray:
-    """Rotations of helical (axis-angle) vectors: unit axis times angle in radians.
+    """
+    Rotations of helical (axis-angle) vectors: unit axis times angle in radians.
 
     Rodrigues' formula R = I + a [r]x + b [r]x^2 with a = sin(t)/t, b = (1 - cos t)/t^2,
     t = |r|; series for small t keep it exact near the identity.
@@ -80,7 +83,8 @@ def _axis_rotation(angle: np.ndarray, axis: int) -> np.ndarray:
 
 
 def rotation_from_euler_xyz(angles_rad: np.ndarray) -> np.ndarray:
-    """Rotations of Euler XYZ angles (rad): about x, then the new y, then the new z.
+    """
+    Rotations of Euler XYZ angles (rad): about x, then the new y, then the new z.
 
     R = Rx(a) @ Ry(b) @ Rz(c) for angles (a, b, c); a level body (a = b = 0) has R = Rz(c).
     """
@@ -103,7 +107,8 @@ def rotation_from_quaternion(xyzw: np.ndarray) -> np.ndarray:
 
 
 def forward_heading(rotation: np.ndarray, forward_angle_rad: float) -> np.ndarray:
-    """(F,) heading: yaw of the body axis at `forward_angle_rad` from body x (in body x-y).
+    """
+    (F,) heading: yaw of the body axis at `forward_angle_rad` from body x (in body x-y).
 
     NaN where the forward axis points (almost) straight up or down, or the pose is NaN.
     """
@@ -116,7 +121,8 @@ def forward_heading(rotation: np.ndarray, forward_angle_rad: float) -> np.ndarra
 
 
 def fit_rigid(layout: np.ndarray, markers: np.ndarray) -> RigidFit:
-    """Least-squares pose of a rigid body in every frame (Kabsch / Umeyama, no scale).
+    """
+    Least-squares pose of a rigid body in every frame (Kabsch / Umeyama, no scale).
 
     layout : (M, 3) marker positions in the body frame.
     markers : (F, M, 3) marker positions in the world, same unit, NaN where not seen.
@@ -157,7 +163,8 @@ def fit_rigid(layout: np.ndarray, markers: np.ndarray) -> RigidFit:
 
 
 def layout_from_frames(frames: np.ndarray) -> np.ndarray:
-    """(M, 3) body-frame layout from (K, M, 3) frames in which every marker was seen.
+    """
+    (M, 3) body-frame layout from (K, M, 3) frames in which every marker was seen.
 
     The body frame is the world frame moved to the markers' centroid in the first frame (as
     Vicon Tracker does when an object is created); the other frames are fitted to it and

@@ -1,4 +1,5 @@
-"""ROS 1 bags (format 2.0), streamed chunk by chunk with rosbags' own record readers.
+"""
+ROS 1 bags (format 2.0), streamed chunk by chunk with rosbags' own record readers.
 
 rosbags' `Reader.open()` loads the index entry of every message before the first one is read
 (some 180 bytes each: memory that grows with the bag). This reader opens the bag with

@@ -1,4 +1,5 @@
-"""Runs: pose streams cut into runs, cleaned, and resampled onto one common time grid.
+"""
+Runs: pose streams cut into runs, cleaned, and resampled onto one common time grid.
 
 Policies (also in the package README):
 
@@ -53,7 +54,8 @@ JUMP_WINDOW = 5
 
 
 class Run(NamedTuple):
-    """One run: times from its first sample (strictly increasing), finite poses.
+    """
+    One run: times from its first sample (strictly increasing), finite poses.
 
     `poses` is (T, 3) x [m], y [m], heading [rad] unwrapped along the run; `source` names the
     bag, topic and run index; `start_stamp_s` is the absolute stamp of the first sample (NaN
@@ -111,7 +113,8 @@ class RunSet:
 
     def to_paths(self, rate_hz: float = DEFAULT_RATE_HZ,
                  min_duration_s: float | None = None) -> Paths:
-        """The runs on one grid t = 0, 1/rate_hz, ... up to the longest run's end.
+        """
+        The runs on one grid t = 0, 1/rate_hz, ... up to the longest run's end.
 
         Every run keeps all of its samples; one that ends earlier is NaN after its end. With
         `min_duration_s`, shorter runs are dropped (with a note) first. Each coordinate is
@@ -162,7 +165,8 @@ class RunSet:
 
 
 def reachable(poses: np.ndarray) -> np.ndarray:
-    """(k,) False for frames more than JUMP_LIMIT_M / JUMP_LIMIT_RAD away from the median of
+    """
+    (k,) False for frames more than JUMP_LIMIT_M / JUMP_LIMIT_RAD away from the median of
     the JUMP_WINDOW frames around them (themselves included): a single damaged frame, or two
     in a row, cannot move that median."""
     if len(poses) < 3:
@@ -324,7 +328,8 @@ class _StreamSplitter:
 
 def read_runs(sources: Sources, *, topic: str | None = None, gap_s: float = DEFAULT_GAP_S,
               use_markers: bool = True, options: ReadOptions | None = None) -> RunSet:
-    """Runs of every pose stream in `sources` (bags, motion-capture files, folders of them).
+    """
+    Runs of every pose stream in `sources` (bags, motion-capture files, folders of them).
 
     `options` says where the pose is (topic, /tf frame, subject, forward axis); `topic` is
     the same as ``ReadOptions(topic=...)``. Splitting, cleaning and what is noted: see the
@@ -356,7 +361,8 @@ def load_measured(sources: Sources, *, rate_hz: float = DEFAULT_RATE_HZ,
                   gap_s: float = DEFAULT_GAP_S, topic: str | None = None,
                   min_duration_s: float | None = None, use_markers: bool = True,
                   options: ReadOptions | None = None) -> Paths:
-    """Measured runs from bags, motion-capture files and/or data sets (.npz), on one grid.
+    """
+    Measured runs from bags, motion-capture files and/or data sets (.npz), on one grid.
 
     `options` (and `topic`): where the pose is, see `read_runs`. Notes on everything
     converted, skipped or repaired are in ``.info['notes']``.

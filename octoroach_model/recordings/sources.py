@@ -1,4 +1,5 @@
-"""Inputs by name: which files a source is, and what kind of input each one is.
+"""
+Inputs by name: which files a source is, and what kind of input each one is.
 
 A source is a rosbag2 bag directory (metadata.yaml plus .mcap or .db3 files, or only the .mcap
 files when the recorder died), a bare .mcap file, a ROS 1 .bag file, a motion-capture export
@@ -49,7 +50,8 @@ def is_bag_directory(path: Path) -> bool:
 
 def expand_sources(sources: Sources, *,
                    suffixes: tuple[str, ...] = POSE_INPUT_SUFFIXES) -> list[Path]:
-    """Bag directories and files named by `sources`; a folder expands to what it holds.
+    """
+    Bag directories and files named by `sources`; a folder expands to what it holds.
 
     Files and bag directories are taken as given (their content is checked when read); inside a
     plain folder only bag directories and files ending in `suffixes` count.
@@ -86,7 +88,8 @@ def _search_folder(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
 
 def source_files(sources: Sources, *,
                  suffixes: tuple[str, ...] = MEASURED_SUFFIXES) -> list[Path]:
-    """List every file whose change changes what `sources` read as.
+    """
+    List every file whose change changes what `sources` read as.
 
     That is a bag directory's storage files and metadata.yaml, and the other inputs themselves.
     Watch these (size, modification time) to notice a bag that a recorder is still writing:

@@ -1,4 +1,5 @@
-"""The VICON convention of the package: topic and frame names, message types, heading.
+"""
+The VICON convention of the package: topic and frame names, message types, heading.
 
 - pose topic of subject S: ``/vicon/S/S``, `geometry_msgs/msg/TransformStamped` (PoseStamped
   is read too), header frame ``vicon/world``, child frame ``vicon/S/S``; metres; the child
@@ -60,7 +61,8 @@ def heading_to_quaternion(heading: np.ndarray) -> tuple[np.ndarray, ...]:
 
 def quaternion_to_heading(qx: np.ndarray, qy: np.ndarray, qz: np.ndarray,
                           qw: np.ndarray) -> np.ndarray:
-    """Yaw in (-pi, pi] of any quaternion; non-unit ones are normalised first.
+    """
+    Yaw in (-pi, pi] of any quaternion; non-unit ones are normalised first.
 
     A zero or non-finite quaternion gives NaN, so that sample is dropped downstream.
     """

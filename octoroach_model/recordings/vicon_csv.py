@@ -1,4 +1,5 @@
-"""Vicon CSV exports (Tracker, Nexus): the pose of a rigid object, streamed row by row.
+"""
+Vicon CSV exports (Tracker, Nexus): the pose of a rigid object, streamed row by row.
 
 A Vicon CSV export is a list of sections separated by a blank line. Each section has a
 five-line header and then one row per frame:
@@ -125,7 +126,8 @@ def _snippet(line: str) -> str:
 
 
 def read_csv_sections(path: Path) -> tuple[str, list[CsvSection], int]:
-    """Return the delimiter, the sections (headers only) and the cut line of an export.
+    """
+    Return the delimiter, the sections (headers only) and the cut line of an export.
 
     The file is read once, line by line, without parsing data rows. The cut line is the
     number of the last line when the file does not end with a line break (an export stopped
@@ -226,7 +228,8 @@ def _is_marker_group(group: _Group) -> bool:
 
 def iter_csv_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
                          chunk_size: int = 10_000) -> Iterator[PoseChunk]:
-    """Pose samples of the rigid object in a Vicon CSV export, chunk by chunk.
+    """
+    Pose samples of the rigid object in a Vicon CSV export, chunk by chunk.
 
     Mapping: module docstring. The stream ends with one chunk whose `is_last` is True; what
     was converted, dropped or assumed goes to `notes`. Raises BagError with a one-line reason
@@ -424,7 +427,8 @@ def path_stem(where: str) -> str:
 
 
 class _RowReader:
-    """Data rows of one section in blocks: frame numbers and the wanted cells as floats.
+    """
+    Data rows of one section in blocks: frame numbers and the wanted cells as floats.
 
     Empty cells become NaN; rows without a frame number, with text where a number belongs,
     with a non-zero sub frame, or cut by the end of the file are skipped and counted.

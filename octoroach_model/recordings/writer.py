@@ -1,4 +1,5 @@
-"""The one bag writer: rosbag2 bags as ROS 2 Jazzy writes them, on mcap's public Writer.
+"""
+The one bag writer: rosbag2 bags as ROS 2 Jazzy writes them, on mcap's public Writer.
 
 Layout (rosbag2 Jazzy, storage plugin mcap, metadata version 9):
 
@@ -230,7 +231,8 @@ def channel_metadata(offered_qos: Sequence[QosProfile], type_hash: str) -> dict[
 
 
 class BagWriter:
-    """A new rosbag2 bag directory ``PATH`` with ``PATH/PATH_0.mcap`` and metadata.yaml.
+    """
+    A new rosbag2 bag directory ``PATH`` with ``PATH/PATH_0.mcap`` and metadata.yaml.
 
     Use as a context manager (or `create` and `close`). Topics are added with `add_topic`
     (standard Jazzy types are described from Jazzy's definitions) and written to with

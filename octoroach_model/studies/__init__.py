@@ -1,4 +1,5 @@
-"""Studies of the diagnosis, on Dask, and `plan`.
+"""
+Studies of the diagnosis, on Dask, and `plan`.
 
 A study measures the diagnosis's operating characteristics over many synthetic data sets;
 `plan` says how many runs an experiment needs. Uses model/ and diagnosis/; no rclpy.

@@ -1,4 +1,5 @@
-"""Damage like a lab's: runs that end early, frames the motion capture dropped.
+"""
+Damage like a lab's: runs that end early, frames the motion capture dropped.
 
 A run that leaves the capture volume early is written as poses NaN after its end (the runs of
 a `Paths` share one time grid). A dropped frame is filled the way the bag readers fill it: by
@@ -24,7 +25,8 @@ class DamageDone(NamedTuple):
 
 def cut_runs_short(poses: np.ndarray, t: np.ndarray, share: float, cut_at: Draw,
                    rng: np.random.Generator) -> tuple[np.ndarray, int]:
-    """End round(share * n) runs, chosen at random, at a drawn share of the duration.
+    """
+    End round(share * n) runs, chosen at random, at a drawn share of the duration.
 
     Their poses after that time are NaN. Returns the new poses and how many runs were cut.
     """
@@ -40,7 +42,8 @@ def cut_runs_short(poses: np.ndarray, t: np.ndarray, share: float, cut_at: Draw,
 
 def drop_frames(poses: np.ndarray, share: float,
                 rng: np.random.Generator) -> tuple[np.ndarray, int]:
-    """Lose each inner frame with probability `share`, filled as the readers fill it.
+    """
+    Lose each inner frame with probability `share`, filled as the readers fill it.
 
     A lost frame is replaced by linear interpolation between the kept frames around it; the
     first and last frames of a run are always kept.
@@ -59,7 +62,8 @@ def drop_frames(poses: np.ndarray, share: float,
 
 
 def damage_paths(paths: Paths, damage: DamageSpec, seed: np.random.SeedSequence) -> DamageDone:
-    """Apply the spec's damage to `paths`: frames dropped first, then runs cut.
+    """
+    Apply the spec's damage to `paths`: frames dropped first, then runs cut.
 
     The damage is drawn from `seed`, the replicate's damage seed, so every arm of a
     replicate gets the same damage.

@@ -1,4 +1,5 @@
-"""The design of a study: its tasks (one data set each) and what each replicate draws.
+"""
+The design of a study: its tasks (one data set each) and what each replicate draws.
 
 Seeding (docs/studies.md): replicate r of a study with seed S owns
 `np.random.SeedSequence([S, r])`, whose children draw, in a fixed order, the robot, the data
@@ -24,7 +25,8 @@ ROBOT, DATA, DAMAGE, SIGNS = range(4)
 
 @dataclass(frozen=True)
 class Task:
-    """One data set to simulate and diagnose: an arm at a run count for one replicate.
+    """
+    One data set to simulate and diagnose: an arm at a run count for one replicate.
 
     `runs_cell` is the run count of the design (None where each replicate draws its own);
     `depends_on` is the key of the null task whose detection limits a relative arm reads.
@@ -100,7 +102,8 @@ def task_key(arm: Arm, runs_cell: int | None, replicate: int) -> str:
 
 
 def build_tasks(spec: StudySpec) -> list[Task]:
-    """List every task of the study in its canonical order (replicate, run count, arm).
+    """
+    List every task of the study in its canonical order (replicate, run count, arm).
 
     This is the order of the final table and the order in which tasks are handed out, so a
     study stopped early holds whole replicates.

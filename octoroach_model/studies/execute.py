@@ -1,4 +1,5 @@
-"""Where tasks run: in this process one after another, or as tasks on Dask distributed.
+"""
+Where tasks run: in this process one after another, or as tasks on Dask distributed.
 
 Dask does the distribution, the retries and the recovery from lost workers: each task is a
 `client.submit` of `replicate.run_task` with `retries=RETRIES`; a relative task is handed the
@@ -35,7 +36,8 @@ def default_workers() -> int:
 @contextlib.contextmanager
 def dask_client(scheduler: str | None = None, workers: int | None = None,
                 connect_timeout_s: float = CONNECT_TIMEOUT_S) -> Iterator[Any]:
-    """Yield a distributed Client to `scheduler`, or to a new LocalCluster.
+    """
+    Yield a distributed Client to `scheduler`, or to a new LocalCluster.
 
     The LocalCluster has `workers` processes with one thread each and is closed again on
     exit. An address that does not answer within `connect_timeout_s` is a ParameterError.
@@ -82,7 +84,8 @@ def check_where(client: Any | None, scheduler: str | None, workers: int | None) 
 def where_to_run(client: Any | None = None, scheduler: str | None = None,
                  workers: int | None = None, connect_timeout_s: float = CONNECT_TIMEOUT_S
                  ) -> contextlib.AbstractContextManager:
-    """Return the context in which tasks run.
+    """
+    Return the context in which tasks run.
 
     That is a given client, a new one (to `scheduler`, or a LocalCluster of `workers`), or
     None (this process) for `workers=0`.
@@ -121,7 +124,8 @@ def check_workers(client: Any) -> None:
 
 def run_tasks(tasks: Sequence[Task], spec: StudySpec, *, client: Any | None,
               done: Mapping[str, dict[str, Any]], on_row: OnRow) -> None:
-    """Run `tasks`, handing every new row to `on_row` (rows in `done` are not recomputed).
+    """
+    Run `tasks`, handing every new row to `on_row` (rows in `done` are not recomputed).
 
     `client` None runs them here, in order; otherwise they are Dask tasks on `client`.
     """

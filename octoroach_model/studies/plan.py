@@ -1,4 +1,5 @@
-"""`plan_runs`: how many runs an experiment needs to detect a cause of a given size.
+"""
+`plan_runs`: how many runs an experiment needs to detect a cause of a given size.
 
 How it decides (docs/studies.md, "How plan decides"):
 
@@ -96,7 +97,8 @@ def plan_runs(cause: str, size: float, *, power: float = 0.8,
               scheduler: str | None = None, workers: int | None = None,
               progress: Progress | None = None, out: str | Path | None = None,
               connect_timeout_s: float = CONNECT_TIMEOUT_S) -> PlanResult:
-    """Find the number of runs needed to name `cause` at `size` with probability `power`.
+    """
+    Find the number of runs needed to name `cause` at `size` with probability `power`.
 
     `size` is the cause's main parameter, in its unit; `robot` defaults to Table II (10
     cycles at 50 Hz).
@@ -200,7 +202,8 @@ def _pilot(base: StudySpec, run: Callable, min_runs: int, max_runs: int) -> dict
 
 
 def _coarse_grid(guess: float, min_runs: int, max_runs: int) -> list[int]:
-    """Return the run counts guess / 4 ... 2 guess within the bounds.
+    """
+    Return the run counts guess / 4 ... 2 guess within the bounds.
 
     At least three counts where the bounds allow: a guess at a bound grows away from it by
     doubling (or halving).
@@ -215,7 +218,8 @@ def _coarse_grid(guess: float, min_runs: int, max_runs: int) -> list[int]:
 
 
 class PowerFit(NamedTuple):
-    """The fit power(n) = expit(a + b ln n) and the n where it reaches the target.
+    """
+    The fit power(n) = expit(a + b ln n) and the n where it reaches the target.
 
     `interval_95` is a bootstrap 95 % interval of that n (inf where a refit never reaches
     the target).
@@ -255,7 +259,8 @@ def fit_power_curve(rows: Sequence[Mapping[str, Any]], cause: str, target: float
 
 
 def _logistic(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
-    """Fit expit(a + b (x - mean x)) by maximum likelihood; return (a, b) on x itself.
+    """
+    Fit expit(a + b (x - mean x)) by maximum likelihood; return (a, b) on x itself.
 
     Newton steps with a halving line search; b is kept in [0, MAX_SLOPE] and a small ridge
     keeps the fit finite when every data set agrees. The outcomes are counted per distinct x
@@ -308,7 +313,8 @@ def _crossing(intercept: float, slope: float, target: float) -> float:
 
 
 def _next_counts(fit: PowerFit, counts: list[int], min_runs: int, max_runs: int) -> list[int]:
-    """Return the run counts of the next round ([] when the answer is pinned down).
+    """
+    Return the run counts of the next round ([] when the answer is pinned down).
 
     The grid grows or shrinks toward the answer, or gains the answer itself; nothing is
     added beyond the bounds.

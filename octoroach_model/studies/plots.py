@@ -1,4 +1,5 @@
-"""The plots of a study, drawn from its summary: every axis, line and colour labelled.
+"""
+The plots of a study, drawn from its summary: every axis, line and colour labelled.
 
 - false_positive.png: false-positive rate per run count, 95 % intervals, the 5 % target;
 - power.png: power against size for each cause (one panel) and run count (one line);

@@ -1,4 +1,5 @@
-"""One task of a study: simulate a data set, diagnose it, and say what came out as a row.
+"""
+One task of a study: simulate a data set, diagnose it, and say what came out as a row.
 
 `run_task` is what the Dask workers run (and what the in-process run calls in a loop): a pure
 function of the task and the spec (and, for a limit multiple, the row of the replicate's null
@@ -84,7 +85,8 @@ def _limit_size(task: Task, null_row: Mapping[str, Any] | None) -> float:
 
 def simulate_data(spec: StudySpec, draw: RobotDraw, runs: int,
                   effects: Mapping[str, Mapping[str, float]], row: dict[str, Any]) -> Paths:
-    """Simulate the replicate's robot with `effects`, damaged as the spec says.
+    """
+    Simulate the replicate's robot with `effects`, damaged as the spec says.
 
     The damage counts and the duration go into `row`.
     """

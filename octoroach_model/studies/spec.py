@@ -1,4 +1,5 @@
-"""A study spec: which robots, causes, sizes and run counts to diagnose, checked before work.
+"""
+A study spec: which robots, causes, sizes and run counts to diagnose, checked before work.
 
 A spec is a YAML mapping (docs/studies.md lists every key, its default and unit). Loading it
 gives a frozen `StudySpec` whose every value has been checked, so that a study never starts on
@@ -31,7 +32,8 @@ DIAGNOSIS_DEFAULTS: dict[str, Any] = {'validate_models': False, 'workers': 1}
 
 @dataclass(frozen=True)
 class Draw:
-    """A value of the robot space.
+    """
+    A value of the robot space.
 
     Fixed (low == high), uniform on [low, high], or one of `choices` with equal chances.
     `at(u)` maps one uniform number u in [0, 1) to the value, so every key consumes exactly
@@ -64,7 +66,8 @@ class Draw:
 
 @dataclass(frozen=True)
 class RobotSpec:
-    """The robot space replicates are drawn from; every key a `Draw`, in the units named.
+    """
+    The robot space replicates are drawn from; every key a `Draw`, in the units named.
 
     touchdown_angles_deg are the base angles phi1..phi4 (default Table II); each gets its own
     draw of touchdown_offset_deg added. spread_scale multiplies Table III's (sigma1, sigma2).
@@ -91,7 +94,8 @@ class RobotSpec:
 
 @dataclass(frozen=True)
 class Arm:
-    """One kind of data set of the design.
+    """
+    One kind of data set of the design.
 
     The paper's model ('null'), one cause at an absolute size ('absolute'), one cause at a
     multiple of the limit the diagnosis reported on the same replicate's null data
@@ -116,7 +120,8 @@ class Arm:
 
 @dataclass(frozen=True)
 class DamageSpec:
-    """Damage applied to each simulated data set.
+    """
+    Damage applied to each simulated data set.
 
     A share of runs end early (poses NaN after their end) somewhere in `cut_at` of the
     duration, and a share of frames are dropped (filled by linear interpolation, as the bag
@@ -138,7 +143,8 @@ class DamageSpec:
 
 @dataclass(frozen=True)
 class StudySpec:
-    """A whole study: robots, arms (causes and sizes), run counts, replicates, damage, seed.
+    """
+    A whole study: robots, arms (causes and sizes), run counts, replicates, damage, seed.
 
     `runs` is either a tuple of run counts (a factor of the design: every arm at every count)
     or a `Draw` (each replicate draws its own count). Every arm is run on every replicate.

@@ -1,4 +1,5 @@
-"""`run_study`: a spec's every data set diagnosed, the table, the summary and the plots.
+"""
+`run_study`: a spec's every data set diagnosed, the table, the summary and the plots.
 
 Everything that can be checked is checked before the first task: the spec (on loading), the
 output directory, the scheduler (reached, workers able to run this package). Rows are
@@ -58,7 +59,8 @@ def run_study(spec: StudySpec | str | Path | Mapping[str, Any], out: str | Path,
               workers: int | None = None, resume: bool = False,
               progress: StudyProgress | None = None, plots: bool = True,
               connect_timeout_s: float = CONNECT_TIMEOUT_S) -> StudyResult:
-    """Run the study `spec` into directory `out`.
+    """
+    Run the study `spec` into directory `out`.
 
     Where tasks run: `client` (a distributed.Client) if given; else the Dask scheduler at
     `scheduler`; else a new LocalCluster of `workers` single-threaded processes (default one
@@ -100,7 +102,8 @@ def run_study(spec: StudySpec | str | Path | Mapping[str, Any], out: str | Path,
 
 
 def _rows_done(out: Path, spec: StudySpec, resume: bool) -> dict[str, dict[str, Any]]:
-    """Check `out` without writing anything; return the rows it holds already.
+    """
+    Check `out` without writing anything; return the rows it holds already.
 
     Without `resume` it must be new or empty; with `resume`, a directory of this same spec.
     """
@@ -129,7 +132,8 @@ def _rows_done(out: Path, spec: StudySpec, resume: bool) -> dict[str, dict[str, 
 
 def _write_directory(out: Path, spec: StudySpec, n_tasks: int,
                      done: dict[str, dict[str, Any]]) -> None:
-    """Write a new directory's manifest and table header, or rewrite a resumed table.
+    """
+    Write a new directory's manifest and table header, or rewrite a resumed table.
 
     A resumed table is rewritten with the rows kept, without a line a kill cut off, so that
     new rows start on a line of their own.

@@ -1,4 +1,5 @@
-"""What a study measured: false-positive rate, power, estimation error, two-cause recovery.
+"""
+What a study measured: false-positive rate, power, estimation error, two-cause recovery.
 
 Every rate comes with its 95 % Wilson score interval (scipy's `binomtest(...).proportion_ci`),
 which keeps its coverage at the small counts and the rates near 0 or 1 that studies give.
@@ -143,7 +144,8 @@ def _relative_power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[di
 
 
 def _estimation(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """Summarise the main parameter's errors where the true cause was named.
+    """
+    Summarise the main parameter's errors where the true cause was named.
 
     Also how often the reported 95 % interval held the truth.
     """

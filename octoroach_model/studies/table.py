@@ -1,4 +1,5 @@
-"""The tidy table of a study (one row per diagnosed data set) and its manifest.
+"""
+The tidy table of a study (one row per diagnosed data set) and its manifest.
 
 `table.csv` is appended one row at a time, each row flushed to disk as it arrives, so a study
 that is stopped keeps every row it finished; a row cut off by a kill (no line end) is dropped
@@ -79,7 +80,8 @@ def parse_cell(text: str, kind: type) -> Any:
 
 
 def typed_row(row: Mapping[str, Any]) -> dict[str, Any]:
-    """Return a row exactly as it reads back from the table.
+    """
+    Return a row exactly as it reads back from the table.
 
     Lists become ';'-joined text and missing numbers NaN: the one in-memory form of a row,
     whether just computed or read.

@@ -1,4 +1,5 @@
-"""The nominal fit (eq. 9): the deterministic model closest to the average measured path.
+"""
+The nominal fit (eq. 9): the deterministic model closest to the average measured path.
 
 docs/validation.md ("The nominal fit") describes it for users.
 
@@ -61,7 +62,8 @@ class FreeEffect:
 
 @dataclass(frozen=True)
 class NominalFit:
-    """Fitted deterministic model and how well it matches the average path.
+    """
+    Fitted deterministic model and how well it matches the average path.
 
     `jacobian` is d(residual)/d(vector) at the solution, vector = [l, phi1..phi4, f, free
     effects...] and residuals in cm (the average path, then the weighted heading): with
@@ -88,7 +90,8 @@ class NominalFit:
 
 @dataclass(frozen=True)
 class MeanPathSettings:
-    """Fit the mean of `runs` simulated runs at `sigmas` (rad), drawn from `seed`.
+    """
+    Fit the mean of `runs` simulated runs at `sigmas` (rad), drawn from `seed`.
 
     With `sway`, the runs' mean sway (heading sway amplitude, sideways sway at f and 2f: what
     one run does within a stride, which an average over runs blurs) is matched to the data's
@@ -105,7 +108,8 @@ class MeanPathSettings:
 
 @dataclass(frozen=True)
 class SwayTarget:
-    """The data's mean sway (heading sway amplitude [rad], sideways sway at f and 2f [m]),
+    """
+    The data's mean sway (heading sway amplitude [rad], sideways sway at f and 2f [m]),
     measured on the runs as recorded (`t`, each run `lengths[i]` samples long): the model's
     runs are simulated on the same grid and cut to the same lengths before they are compared.
     """
@@ -123,7 +127,8 @@ class SwayTarget:
 
 @dataclass(frozen=True)
 class ResidualScales:
-    """Standard errors that make the fit's residuals dimensionless: of the average path at
+    """
+    Standard errors that make the fit's residuals dimensionless: of the average path at
     each time (G, 2) [m], of the average heading change (G,) [rad] and of the mean sway (3,).
 
     From the data's own run-to-run spread: where the runs scatter widely (late in a run, or
@@ -139,7 +144,8 @@ class ResidualScales:
 def residual_vector(path_gap: np.ndarray, turn_gap: np.ndarray | None,
                     sway_gap: np.ndarray | None, heading_weight_m: float,
                     scales: ResidualScales | None) -> np.ndarray:
-    """The fit's residuals from model-minus-data gaps: in standard errors with `scales`,
+    """
+    The fit's residuals from model-minus-data gaps: in standard errors with `scales`,
     else in cm (heading through `heading_weight_m`, sway through `sway_weights`)."""
     if scales is not None:
         parts = [(path_gap / scales.path).ravel()]
@@ -160,7 +166,8 @@ SWAY_WEIGHT = 5.0
 
 
 def sway_weights(heading_weight_m: float, samples: int) -> np.ndarray:
-    """Weights of the sway residuals: a mismatch counts SWAY_WEIGHT times as much as a path
+    """
+    Weights of the sway residuals: a mismatch counts SWAY_WEIGHT times as much as a path
     offset of its size held over the `samples` of the average path (heading through
     `heading_weight_m`). At weight 1 the path outweighs the sway and the fitted angles leave
     the heading sway several standard errors off on robots away from Table II; at 5 it is
@@ -170,7 +177,8 @@ def sway_weights(heading_weight_m: float, samples: int) -> np.ndarray:
 
 def simulated_runs(parameters: ModelParameters, start_pose, t: np.ndarray,
                    effects: dict | None, settings: MeanPathSettings) -> np.ndarray:
-    """(runs, T, 3) runs for a mean path: common random numbers, drawn in antithetic pairs
+    """
+    (runs, T, 3) runs for a mean path: common random numbers, drawn in antithetic pairs
     so that their mean has no random tilt of its own."""
     return model_poses(parameters, RandomStreams(settings.seed, antithetic=True),
                        settings.runs, t, settings.sigmas[0], settings.sigmas[1], 'stance',
@@ -219,7 +227,8 @@ def mean_start_pose(measured: Paths) -> tuple[float, float, float]:
 
 @dataclass(frozen=True)
 class AverageTarget:
-    """What the fit matches: times (G,), the average path (G, 2) and average heading change
+    """
+    What the fit matches: times (G,), the average path (G, 2) and average heading change
     (G,), with the runs they average (`runs_xy` (n, G, 2), `runs_turn` (n, G); NaN where a
     run has ended) so that a resampling of the runs gives a resampled target."""
 
@@ -238,7 +247,8 @@ class AverageTarget:
 
     def scales(self, sway_per_run: np.ndarray | None = None,
                floor_m: float = 1e-5) -> ResidualScales:
-        """Standard errors of this target's averages (and of the mean of `sway_per_run`),
+        """
+        Standard errors of this target's averages (and of the mean of `sway_per_run`),
         never below `floor_m` (positions; the same in rad for the heading)."""
         def standard_error(values: np.ndarray) -> np.ndarray:
             count = np.maximum(np.isfinite(values).sum(axis=0), 2)
@@ -265,7 +275,8 @@ def _nanmean_rows(values: np.ndarray) -> np.ndarray:
 
 def average_target(measured: Paths, start_pose, guess_hz: float,
                    align_gait: bool) -> AverageTarget:
-    """The average path of `measured` (on a common gait clock with `align_gait`), over the
+    """
+    The average path of `measured` (on a common gait clock with `align_gait`), over the
     times that at least a tenth of the runs reach."""
     if align_gait:
         t, xy, turn, _ = aligned_runs(measured, guess_hz)
@@ -284,7 +295,8 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
                 start_pose: tuple[float, float, float] | None = None,
                 target: AverageTarget | None = None, refine: bool = False,
                 tolerance: float = 1e-8) -> NominalFit:
-    """Solve eq. (9) on the average of `measured`; see the module docstring for the options.
+    """
+    Solve eq. (9) on the average of `measured`; see the module docstring for the options.
 
     `multistart` also starts from the spectral guess of the stride frequency; a refit from a
     good `initial` can skip it. `align_gait` fits the average taken on a common gait clock

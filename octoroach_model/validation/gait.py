@@ -1,4 +1,5 @@
-"""The gait seen in measured poses.
+"""
+The gait seen in measured poses.
 
 Per-run stride frequency from the heading's sway, and the average path on a common gait clock
 (docs/validation.md, "The nominal fit").
@@ -44,7 +45,8 @@ def detrended(values: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def band_spectrum(signal: np.ndarray, t: np.ndarray, frequencies: np.ndarray) -> np.ndarray:
-    """|DFT| of each (windowed, zero-filled) run at `frequencies` (Hz): (n, K).
+    """
+    |DFT| of each (windowed, zero-filled) run at `frequencies` (Hz): (n, K).
 
     A DFT on a few frequencies in a band costs n T K, far less than a finely zero-padded FFT
     of every run, and its frequency grid is the same whatever the sample rate."""
@@ -54,7 +56,8 @@ def band_spectrum(signal: np.ndarray, t: np.ndarray, frequencies: np.ndarray) ->
 
 def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-run stride frequency (Hz) and sway amplitude (rad) of the heading.
+    """
+    Per-run stride frequency (Hz) and sway amplitude (rad) of the heading.
 
     The body sways once per cycle (the right stance turns it one way, the left the other);
     how far depends on the leg geometry. Heading, unlike a speed from differenced positions,
@@ -82,7 +85,8 @@ def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float
 
 def lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
                  frequency: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Amplitudes (m) of the sideways sway of G (across the run's mean heading, linear trend
+    """
+    Amplitudes (m) of the sideways sway of G (across the run's mean heading, linear trend
     removed) at each run's stride frequency and twice it: the shape of a stance."""
     mask = valid_mask(heading)
     count = np.maximum(mask.sum(axis=1, keepdims=True), 1)
@@ -107,7 +111,8 @@ def sway_features(t: np.ndarray, xy: np.ndarray, heading: np.ndarray,
 
 
 def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
-    """The stride frequency (Hz) of a set of runs, with no prior guess: the peak of the mean
+    """
+    The stride frequency (Hz) of a set of runs, with no prior guess: the peak of the mean
     power spectrum of the heading's sway, whitened by f^2 so that the slow wander of a
     random-walk heading (power falling as 1/f^2) cannot outweigh the once-per-cycle sway.
 
@@ -132,7 +137,8 @@ def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
 
 def aligned_runs(measured: Paths, guess_hz: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Every run on a common gait clock: the grid (G,), the runs' (x, y) on it (n, G, 2), their
+    """
+    Every run on a common gait clock: the grid (G,), the runs' (x, y) on it (n, G, 2), their
     heading change since their start (n, G) and the mean stride frequency.
 
     Runs whose strides are faster or slower than the mean would smear the plain average over
@@ -157,7 +163,8 @@ def aligned_runs(measured: Paths, guess_hz: float
 
 def gait_aligned_average(measured: Paths, guess_hz: float
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Average path on a common gait clock (`aligned_runs`): the times, the average (x, y),
+    """
+    Average path on a common gait clock (`aligned_runs`): the times, the average (x, y),
     the average heading change since the start and the mean stride frequency. At each time
     only the runs still present are averaged; times no run reaches are left out."""
     grid, xy, turn, mean_frequency = aligned_runs(measured, guess_hz)
@@ -169,7 +176,8 @@ def gait_aligned_average(measured: Paths, guess_hz: float
 
 
 def _interp_rows(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """Row-wise linear interpolation of values (n, T) sampled at t, at times at (n, G); NaN
+    """
+    Row-wise linear interpolation of values (n, T) sampled at t, at times at (n, G); NaN
     beyond a run's end (no extrapolation)."""
     dt = float(t[1] - t[0])
     position = at / dt

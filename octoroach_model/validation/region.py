@@ -1,4 +1,5 @@
-"""The confidence region a multisample defines and the decision g (eq. 13).
+"""
+The confidence region a multisample defines and the decision g (eq. 13).
 
 Choice (docs/validation.md, "The confidence region"): per time sample and per coordinate,
 the Student-t prediction interval for one new run, mean +- t_{(1+gamma)/2, k-1} * s *
@@ -18,7 +19,8 @@ def t_multiplier(k: int, gamma: float) -> float:
 
 
 def prediction_region(samples: np.ndarray, gamma: float) -> tuple[np.ndarray, np.ndarray]:
-    """Centre and half-width of the region.
+    """
+    Centre and half-width of the region.
 
     samples : (..., k, T, C) measured runs of each multisample (C coordinates).
     Returns centre and half-width, each (..., T, C).
@@ -30,7 +32,8 @@ def prediction_region(samples: np.ndarray, gamma: float) -> tuple[np.ndarray, np
 
 
 def violations(model_runs: np.ndarray, centre: np.ndarray, half_width: np.ndarray) -> np.ndarray:
-    """Decide g for each model run: 1 if it leaves its region anywhere.
+    """
+    Decide g for each model run: 1 if it leaves its region anywhere.
 
     model_runs: (..., T, C), centre and half_width broadcastable to it.
     """

@@ -1,4 +1,5 @@
-"""Probabilistic validation (eqs. 13-16) and the search (15) for the widest admissible spread.
+"""
+Probabilistic validation (eqs. 13-16) and the search (15) for the widest admissible spread.
 
 The method, its choices and what its guarantee says are in docs/validation.md.
 
@@ -50,7 +51,8 @@ class FourBarModel:
 
 @dataclass(frozen=True)
 class ValidationSettings:
-    """The paper's constants (section V) and the search grid; sigmas in radians.
+    """
+    The paper's constants (section V) and the search grid; sigmas in radians.
 
     resolution_m is the narrowest half-width a region may have (the motion capture's
     resolution): without it, runs that all start at one point would make any model fail there.
@@ -141,7 +143,8 @@ class SigmaSearch:
 
 def search_sigmas(validation: Validation, model: ModelPlugin,
                   progress: Progress | None = None) -> SigmaSearch:
-    """Largest sigma1 + sigma2 with E^_k <= rho (problem 15), on a grid with CRN.
+    """
+    Largest sigma1 + sigma2 with E^_k <= rho (problem 15), on a grid with CRN.
 
     E_k grows with the spreads, so the raw estimates are replaced by their running maximum
     over all smaller (sigma1, sigma2): the admissible set is then a staircase and the answer
@@ -181,7 +184,8 @@ def guarantee_text(violation: float, settings: ValidationSettings) -> str:
 
 @dataclass(frozen=True)
 class ValidationResult:
-    """The paper's validation of one model against measured runs (JSON: `to_json`).
+    """
+    The paper's validation of one model against measured runs (JSON: `to_json`).
 
     `mode` is 'search' (problem 15 over the grid; `grid` holds E^_k at every point) or
     'fixed' (E^_k at the given spreads only). Spreads in radians.
@@ -232,7 +236,8 @@ class SearchGrid:
 def validate(measured: Paths, settings: ValidationSettings | None = None,
              model: ModelPlugin | None = None, sigmas: tuple[float, float] | None = None,
              progress: Progress | None = None) -> ValidationResult:
-    """Validate `model` against measured runs by the paper's method.
+    """
+    Validate `model` against measured runs by the paper's method.
 
     With `sigmas`, only E^_k at those spreads; otherwise the search (15) for the widest
     admissible spreads. `model` defaults to the paper's model at Table II.
@@ -264,7 +269,8 @@ def validate(measured: Paths, settings: ValidationSettings | None = None,
 
 
 def common_duration(measured: Paths) -> tuple[Paths, str | None]:
-    """The runs on the common duration that keeps the most samples (the paper compares runs
+    """
+    The runs on the common duration that keeps the most samples (the paper compares runs
     sample by sample, so they need one duration): the duration D maximising D x (runs that
     reach D). Runs ending before D are left out rather than every run cut to the shortest;
     the note says how many and where they ended."""
@@ -291,7 +297,8 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
                       sigmas: tuple[float, float] | None = None,
                       sources: Sequence[str] = (), progress: Progress | None = None
                       ) -> ValidationResult:
-    """Run the whole chain a user asks for (CLI `validate`, the validator's ~/validate).
+    """
+    Run the whole chain a user asks for (CLI `validate`, the validator's ~/validate).
 
     Check the run count, build the nominal model (eq. 9 fit, or Table II at the measured
     mean start pose), validate, and say where the runs came from and what was repaired.
