@@ -7,10 +7,10 @@ Run: .venv/bin/python benchmarks/bench_diagnose.py
 """
 from __future__ import annotations
 
+from pathlib import Path
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -18,13 +18,13 @@ from __future__ import annotations
 import argparse
 import csv
 import multiprocessing
+from pathlib import Path
 import resource
 import sys
 import tempfile
 import time
 import tracemalloc
 import warnings
-from pathlib import Path
 
 import numpy as np
 
@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from octoroach_model.recordings.c3d_file import iter_c3d_pose_chunks  # noqa: E402
 from octoroach_model.recordings.options import ReadOptions  # noqa: E402
-from octoroach_model.recordings.runs import RunSet, _StreamSplitter  # noqa: E402
+from octoroach_model.recordings.runs import _StreamSplitter, RunSet  # noqa: E402
 from octoroach_model.recordings.vicon_csv import iter_csv_pose_chunks  # noqa: E402
 
 RATE_HZ = 50

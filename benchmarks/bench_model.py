@@ -6,8 +6,9 @@ closure (3) as the paper writes it, two equations in (q1, phi2), with scipy's fs
 touchdown configuration; a tuned one reduces (3) to |O2 - O1| = aR in phi2 alone and brackets
 it for brentq. Both then apply the same pose formulas (rear foot fixed in the world, heading
 from the foot-to-foot segment) and chain the stances. All run on the same seeded angle draws;
-the benchmark checks that they agree, then prints pose samples per second for each and their ratio, and times
-`om.simulate(20000, seed=2)` (10 cycles, 251 samples per run: the issue's target, ~1 s).
+the benchmark checks that they agree, then prints pose samples per second for each and their
+ratio, and times `om.simulate(20000, seed=2)` (10 cycles, 251 samples per run: the issue's
+target, ~1 s).
 
 Run: .venv/bin/python benchmarks/bench_model.py [--runs N] [--seed S]
 """

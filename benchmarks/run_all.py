@@ -5,9 +5,9 @@ Benchmarks measure; they are not timed tests and never fail on a number.
 """
 from __future__ import annotations
 
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 BENCHMARKS = ['bench_model.py', 'bench_diagnose.py', 'bench_nodes.py',

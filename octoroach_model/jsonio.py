@@ -9,12 +9,12 @@ programming error and raises TypeError, so a live object never slips into a repo
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 import dataclasses
+from enum import Enum
 import json
 import math
 import os
-from collections.abc import Mapping
-from enum import Enum
 from typing import Any
 
 import numpy as np

@@ -8,8 +8,8 @@ the `ezc3d` package (the reader uses the `c3d` package).
 """
 from __future__ import annotations
 
-import csv
 from collections.abc import Iterable, Sequence
+import csv
 from pathlib import Path
 
 import ezc3d
@@ -17,7 +17,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from octoroach_model.recordings.bags import PoseChunk
-from octoroach_model.recordings.runs import RunSet, _StreamSplitter
+from octoroach_model.recordings.runs import _StreamSplitter, RunSet
 
 # A marker plate on the robot, metres in the body frame (x forward, z up): not symmetric, so
 # every pose is distinct, and not flat, like real markers on posts.

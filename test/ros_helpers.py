@@ -255,7 +255,7 @@ class Client:
         response, seconds = self.call(Trigger, name, timeout=timeout)
         return response.success, json.loads(response.message), seconds
 
-    def get(self, node: str, name: str) -> tuple[Any, float]:
+    def get_parameter(self, node: str, name: str) -> tuple[Any, float]:
         from rcl_interfaces.srv import GetParameters
         from rclpy.parameter import Parameter
 
@@ -263,7 +263,7 @@ class Client:
                                       GetParameters.Request(names=[name]))
         return Parameter.from_parameter_msg(_msg(name, response.values[0])).value, seconds
 
-    def set(self, node: str, name: str, value: Any) -> tuple[Any, float]:
+    def set_parameter(self, node: str, name: str, value: Any) -> tuple[Any, float]:
         """(SetParametersResult, seconds)."""
         from rcl_interfaces.srv import SetParameters
         from rclpy.parameter import Parameter

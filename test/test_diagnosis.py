@@ -14,17 +14,17 @@ Sizes come from HIDDEN_RANGE, where 300 runs of 10 cycles find a cause reliably 
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import json
 import math
 import os
 import random
-from dataclasses import replace
 
 import numpy as np
 import pytest
 
 import octoroach_model as om
-from octoroach_model.diagnosis import DiagnosisSettings, diagnose, write_report
+from octoroach_model.diagnosis import diagnose, DiagnosisSettings, write_report
 from octoroach_model.validation import ValidationSettings
 
 N_RUNS = 300
@@ -125,7 +125,6 @@ def test_a_null_from_a_randomly_drawn_robot_names_no_cause():
     report = diagnose(measured, settings(8))
     case = f'robot {robot.table()}, {cycles} cycles, {runs} runs, spread x{scale:.2f}'
     assert report.causes == (), f'{replay(case)}: named {named_sizes(report)}'
-
 
 
 def wobble(paths: om.Paths, amplitude_deg: float, period_s: float, seed: int) -> om.Paths:

@@ -7,8 +7,8 @@ the spectrum of the average speed.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import replace
+import math
 
 import numpy as np
 import pytest

@@ -3,12 +3,19 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
+from mocap_helpers import (
+    BODY_LAYOUT_M,
+    body_rotations,
+    markers_on_body,
+    runs_from_chunks,
+    write_c3d,
+)
 import octoroach_model as om
 from octoroach_model.errors import BagError
 from octoroach_model.paths import Paths
@@ -20,13 +27,6 @@ from octoroach_model.recordings.rigid import (
     forward_heading,
     layout_from_frames,
     layout_spans_a_plane,
-)
-from mocap_helpers import (
-    BODY_LAYOUT_M,
-    body_rotations,
-    markers_on_body,
-    runs_from_chunks,
-    write_c3d,
 )
 
 RATE_HZ = 50.0
@@ -124,9 +124,9 @@ def test_fewer_than_three_markers_on_the_body_name_what_to_pass(tmp_path, model_
     path = write_c3d(tmp_path / 'sparse.c3d', RATE_HZ,
                      {'octoroach:front': markers['front'], 'octoroach:left': markers['left'],
                       'wand:tip': markers['top']})
-    with pytest.raises(BagError, match=r"2 marker\(s\) on the body \(octoroach:front, "
-                                       r"octoroach:left\); a rigid fit needs at least 3: "
-                                       r"pass --subject NAME or --markers") as raised:
+    with pytest.raises(BagError, match=r'2 marker\(s\) on the body \(octoroach:front, '
+                                       r'octoroach:left\); a rigid fit needs at least 3: '
+                                       r'pass --subject NAME or --markers') as raised:
         read_c3d(path, ReadOptions(subject='octoroach'))
     assert '\n' not in str(raised.value)
     with pytest.raises(BagError, match=r"no marker 'rear'; it has octoroach:front"):

@@ -5,17 +5,16 @@ take Vicon CSV exports and C3D files like bags (one trial per file, one run per 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from mocap_helpers import body_rotations, markers_on_body, write_c3d, write_vicon_csv
 import octoroach_model as om
 from octoroach_model.recordings import read_runs
-
-from mocap_helpers import body_rotations, markers_on_body, write_c3d, write_vicon_csv
 
 REPO = Path(__file__).resolve().parents[1]
 LAYOUT_M = {'front': (0.05, 0.0, 0.03), 'left': (-0.03, 0.02, 0.03),

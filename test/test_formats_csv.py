@@ -6,12 +6,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import octoroach_model as om
-from octoroach_model.errors import BagError
-from octoroach_model.paths import Paths
-from octoroach_model.recordings import read_runs, write_paths_bag
-from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.recordings.vicon_csv import iter_csv_pose_chunks, read_csv_sections
 from mocap_helpers import (
     BODY_LAYOUT_M,
     body_rotations,
@@ -20,6 +14,12 @@ from mocap_helpers import (
     write_marker_csv,
     write_vicon_csv,
 )
+import octoroach_model as om
+from octoroach_model.errors import BagError
+from octoroach_model.paths import Paths
+from octoroach_model.recordings import read_runs, write_paths_bag
+from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.recordings.vicon_csv import iter_csv_pose_chunks, read_csv_sections
 
 RATE_HZ = 50.0
 SEED = 12

@@ -153,11 +153,11 @@ def test_validate_answers_json_and_latches_the_statistics(start_node, client, da
 def test_a_fixed_point_is_evaluated_and_a_half_set_pair_is_refused(start_node, client, data60):
     start_node(bags=[str(data60)], nominal='table2', **SMALL)
     # one at a time, as `ros2 param set` does
-    assert client.set('validator', 'sigma1', 0.12)[0].successful
+    assert client.set_parameter('validator', 'sigma1', 0.12)[0].successful
     ok, answer, _ = client.trigger('/validator/validate')
     assert not ok and 'set both >= 0' in answer['error']
 
-    assert client.set('validator', 'sigma2', 0.15)[0].successful
+    assert client.set_parameter('validator', 'sigma2', 0.15)[0].successful
     ok, result, _ = client.trigger('/validator/validate')
     assert ok, result
     assert (result['mode'], result['sigma1'], result['sigma2']) == ('fixed', 0.12, 0.15)
@@ -169,7 +169,7 @@ def test_runs_are_reloaded_when_bags_change(start_node, client, data60, tmp_path
     assert client.trigger('/validator/validate')[1]['paths_available'] == 60
 
     other = dataset(tmp_path, 50, seed=4)
-    assert client.set('validator', 'bags', [str(other)])[0].successful
+    assert client.set_parameter('validator', 'bags', [str(other)])[0].successful
     ok, result, _ = client.trigger('/validator/validate')
 
     assert ok and result['paths_available'] == 50 and result['sources'] == [str(other)]
@@ -181,14 +181,14 @@ def test_parameters_out_of_range_are_rejected_with_a_reason(start_node, client):
     for name, value, words in [('rho', 2.0, 'rho'), ('k', 1, 'k'),
                                ('nominal', 'best', 'nominal'), ('gap_s', 0.0, 'gap_s'),
                                ('bags', ['a.npz', ''], 'empty')]:
-        result, _ = client.set('validator', name, value)
+        result, _ = client.set_parameter('validator', name, value)
         assert not result.successful, name
         assert words in result.reason, (name, result.reason)
-    assert client.get('validator', 'rho')[0] == 0.35
+    assert client.get_parameter('validator', 'rho')[0] == 0.35
 
-    result, _ = client.set('validator', 'rho', 0.2)
+    result, _ = client.set_parameter('validator', 'rho', 0.2)
     assert result.successful, result.reason
-    assert client.get('validator', 'rho')[0] == 0.2
+    assert client.get_parameter('validator', 'rho')[0] == 0.2
 
 
 def test_validate_without_bags_says_what_is_missing(start_node, client):
@@ -205,7 +205,7 @@ def test_a_missing_file_is_a_one_line_error_and_the_node_goes_on(start_node, cli
     ok, answer, _ = client.trigger('/validator/validate')
 
     assert not ok and 'nothing.npz' in answer['error'] and '\n' not in answer['error']
-    assert client.get('validator', 'k')[0] == 4
+    assert client.get_parameter('validator', 'k')[0] == 4
 
 
 def test_parameters_and_a_second_call_are_answered_at_once_while_a_validation_runs(
@@ -219,15 +219,15 @@ def test_parameters_and_a_second_call_are_answered_at_once_while_a_validation_ru
                            *overrides({'bags': [str(data)], **LONG}))
         client = client_on(nodes.domain)
         node.wait_for_log('ready')
-        client.get('validator', 'rho')          # discovery and a first answer of both
-        client.set('validator', 'seed', 0)      # parameter services, before the clock runs
+        client.get_parameter('validator', 'rho')      # discovery and a first answer of both
+        client.set_parameter('validator', 'seed', 0)  # parameter services, before the clock runs
         long_call = client.start(Trigger, '/validator/validate')
         node.wait_for_log('validation +[0-9.]+%: sigma search', timeout=60)
 
         get_s, set_s, busy_s = [], [], []
         for i in range(5):
-            get_s.append(client.get('validator', 'rho')[1])
-            result, seconds = client.set('validator', 'seed', i + 1)
+            get_s.append(client.get_parameter('validator', 'rho')[1])
+            result, seconds = client.set_parameter('validator', 'seed', i + 1)
             assert result.successful, result.reason
             set_s.append(seconds)
             ok, answer, seconds = client.trigger('/validator/validate', timeout=5)

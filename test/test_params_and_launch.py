@@ -99,11 +99,11 @@ def test_launch_file_starts_simulator_recorder_and_validator_and_the_graph_comes
 
         wait_until(up, 60, f'the launched graph\n{graph()}\n{nodes.logs()}')
         # the parameters of the launch file are in force, over the params files' defaults
-        assert client.get('validator', 'bags')[0] == ['octoroach_runs']
-        assert client.get('validator', 'min_duration_s')[0] == 4.9
-        assert client.get('validator', 'rho')[0] == 0.35
-        assert client.get('recorder', 'output')[0] == 'octoroach_runs'
-        assert client.get('simulator', 'wait_subscribers')[0] == 1
+        assert client.get_parameter('validator', 'bags')[0] == ['octoroach_runs']
+        assert client.get_parameter('validator', 'min_duration_s')[0] == 4.9
+        assert client.get_parameter('validator', 'rho')[0] == 0.35
+        assert client.get_parameter('recorder', 'output')[0] == 'octoroach_runs'
+        assert client.get_parameter('simulator', 'wait_subscribers')[0] == 1
         # the simulator waited for the recorder: run 0 goes to the bag
         processes['recorder'].wait_for_log(r'recording /vicon/octoroach/octoroach', 30)
         processes['simulator'].wait_for_log(r'run 0: 1 x 251 poses', 30)
@@ -170,7 +170,7 @@ def test_the_validator_starts_on_its_params_file_alone_with_no_bags(tmp_path, cl
                            str(REPO / 'config' / 'validator.yaml'))
         node.wait_for_log(r'ready: 0 source\(s\) in bags')
         client = client_on(nodes.domain)
-        assert client.get('validator', 'k')[0] == 11
+        assert client.get_parameter('validator', 'k')[0] == 11
         ok, answer, _ = client.trigger('/validator/validate')
         assert not ok and 'set the parameter bags' in answer['error']
         assert node.stop(signal.SIGTERM) == 0, node.log

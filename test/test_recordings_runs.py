@@ -9,12 +9,12 @@ import pytest
 from octoroach_model.errors import DataError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import (
-    PoseBagWriter,
-    Run,
-    RunSet,
     load_dataset,
     load_measured,
+    PoseBagWriter,
     read_runs,
+    Run,
+    RunSet,
     save_dataset,
     write_paths_bag,
 )

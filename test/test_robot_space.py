@@ -15,16 +15,16 @@ replays with the same OCTOROACH_TEST_SEED; Hypothesis also prints the failing ex
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 import os
-from dataclasses import replace
 
+from hypothesis import given, HealthCheck, seed, settings, strategies as st
 import numpy as np
-from hypothesis import HealthCheck, given, seed, settings, strategies as st
 
 import octoroach_model as om
-from octoroach_model.diagnosis import DiagnosisSettings, diagnose, write_report
-from octoroach_model.validation import ValidationSettings, fit_nominal, validate
+from octoroach_model.diagnosis import diagnose, DiagnosisSettings, write_report
+from octoroach_model.validation import fit_nominal, validate, ValidationSettings
 
 PROFILES = {
     'quick': {'examples': 6, 'max_runs': 90, 'max_samples': 1200},

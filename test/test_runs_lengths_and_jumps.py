@@ -15,7 +15,7 @@ import pytest
 import octoroach_model as om
 from octoroach_model.recordings import load_measured, write_paths_bag
 from octoroach_model.recordings.runs import JUMP_LIMIT_M, reachable
-from octoroach_model.validation import ValidationSettings, validate_measured
+from octoroach_model.validation import validate_measured, ValidationSettings
 from octoroach_model.validation.validate import common_duration
 
 SMALL = ValidationSettings(k=4, seed=2)                      # n = 45: 180 of the 200 runs
@@ -53,7 +53,7 @@ def test_the_damaged_frame_is_dropped_and_said_and_the_short_run_kept_to_its_end
     assert measured.n_paths == runs.n_paths and measured.well_formed
     assert np.nanmax(np.abs(measured.positions)) < 1.0
     notes = ' '.join(measured.info['notes'])
-    assert "1 frame(s) no robot could reach" in notes
+    assert '1 frame(s) no robot could reach' in notes
     assert sorted(measured.lengths)[0] == len(runs.t) // 2
     assert (np.sort(measured.lengths)[1:] == len(runs.t)).all()   # nobody else was cut
 

@@ -12,6 +12,9 @@ from pathlib import Path
 import random
 
 import numpy as np
+import pytest
+import yaml
+
 import octoroach_model as om
 from octoroach_model.errors import DataError, ParameterError
 from octoroach_model.recordings.runs import RunSet
@@ -23,8 +26,6 @@ from octoroach_model.studies.spec import DamageSpec, Draw, parse_spec
 from octoroach_model.studies.summary import summarize, wilson
 from octoroach_model.studies.table import (
     append_row, COLUMN_NAMES, read_table, row_line, start_table, TABLE_NAME, typed_row)
-import pytest
-import yaml
 
 
 def suite_seed() -> int:

@@ -18,11 +18,12 @@ import subprocess
 import sys
 import time
 
+import pytest
+import yaml
+
 import octoroach_model as om
 from octoroach_model.errors import ParameterError
 from octoroach_model.studies.table import TIMING_COLUMNS
-import pytest
-import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 300

@@ -8,9 +8,9 @@ paper's own numbers appear only where they are the point.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import json
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -19,11 +19,11 @@ from scipy import stats
 import octoroach_model as om
 from octoroach_model.errors import DataError, ParameterError
 from octoroach_model.validation import (
-    FourBarModel, Validation, ValidationSettings, chernoff_sample_size, disjoint_multisamples,
-    guarantee_text, prediction_region, search_sigmas, t_multiplier, validate, violations)
+    chernoff_sample_size, disjoint_multisamples, FourBarModel, guarantee_text, prediction_region,
+    search_sigmas, t_multiplier, validate, Validation, ValidationSettings, violations)
 
 # Small settings: n = ceil(ln(10) / 0.08) = 29 multisamples of k = 4 runs, 116 runs in all.
-SMALL = dict(epsilon=0.2, delta=0.2, k=4)
+SMALL = {'epsilon': 0.2, 'delta': 0.2, 'k': 4}
 REQUIRED_KEYS = {'n', 'k', 'sigma1', 'sigma2', 'violation', 'rho', 'epsilon', 'delta', 'gamma',
                  'paths_used', 'guarantee'}
 
@@ -59,8 +59,8 @@ def unicycle_data(sigmas, n_runs=300, seed=99) -> om.Paths:
     return om.Paths(t, unicycle(sigmas, np.random.SeedSequence(seed), n_runs, t))
 
 
-UNICYCLE_SETTINGS = dict(epsilon=0.2, delta=0.2, k=10, grid_points=13, sigma1_max=0.6,
-                         sigma2_max=0.6)
+UNICYCLE_SETTINGS = {'epsilon': 0.2, 'delta': 0.2, 'k': 10, 'grid_points': 13,
+                     'sigma1_max': 0.6, 'sigma2_max': 0.6}
 
 
 # --------------------------------------------------------------------------------------------

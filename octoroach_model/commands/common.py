@@ -8,11 +8,11 @@ Exit codes (README, "Offline programs"): 0 success, 1 the data or a value cannot
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 import math
+from pathlib import Path
 import sys
 import time
-from collections.abc import Callable
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from octoroach_model.errors import ParameterError

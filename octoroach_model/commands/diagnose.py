@@ -2,12 +2,12 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from dataclasses import replace
 from pathlib import Path
+import sys
 
 from octoroach_model.commands.common import (
-    OneLineParser, add_input_arguments, new_output, nonnegative_int, positive_int,
+    add_input_arguments, new_output, nonnegative_int, OneLineParser, positive_int,
     progress_printer, read_options)
 
 

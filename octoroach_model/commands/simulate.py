@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from octoroach_model.commands.common import (
-    OneLineParser, finite_float, new_output, nonnegative_int, positive_int)
+    finite_float, new_output, nonnegative_int, OneLineParser, positive_int)
 from octoroach_model.errors import ParameterError
 
 
@@ -71,7 +71,7 @@ def parser() -> argparse.ArgumentParser:
     result.add_argument('--effect', action=OrderedEffectAction, dest='effect',
                         help='a cause from the table of causes (docs/causes.md); repeatable')
     result.add_argument('--effect-param', action=OrderedEffectAction, dest='effect_param',
-                        metavar='KEY=VALUE', help="a parameter of the preceding --effect, in "
+                        metavar='KEY=VALUE', help='a parameter of the preceding --effect, in '
                         "the table's units (e.g. heading_std_deg=4.5)")
     result.add_argument('--dataset', type=Path, default=None,
                         help='also save the runs as a multisample data set (.npz)')

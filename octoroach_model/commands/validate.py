@@ -2,8 +2,9 @@
 from __future__ import annotations
 
 import argparse
+
 from octoroach_model.commands.common import (
-    OneLineParser, add_input_arguments, finite_float, nonnegative_int, positive_int,
+    add_input_arguments, finite_float, nonnegative_int, OneLineParser, positive_int,
     progress_printer, read_options)
 from octoroach_model.errors import ParameterError
 

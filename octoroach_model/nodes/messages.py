@@ -19,7 +19,7 @@ from octoroach_model.recordings import heading_to_quaternion, quaternion_to_head
 
 if TYPE_CHECKING:
     from builtin_interfaces.msg import Time
-    from diagnostic_msgs.msg import DiagnosticArray
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
     from geometry_msgs.msg import TransformStamped
     from std_msgs.msg import UInt32
 

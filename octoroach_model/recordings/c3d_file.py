@@ -22,11 +22,11 @@ converted in bounded memory (one chunk of frames at a time). The mapping (docs/f
 """
 from __future__ import annotations
 
-import struct
-import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+import struct
+import warnings
 
 import c3d
 import numpy as np
@@ -34,13 +34,13 @@ import numpy as np
 from octoroach_model.errors import BagError
 from octoroach_model.recordings.bags import PoseChunk
 from octoroach_model.recordings.mocap import (
-    LAYOUT_FRAMES,
-    LENGTH_UNITS,
-    MarkerBody,
     axis_words,
     check_rate,
-    length_words,
     complete_frames,
+    LAYOUT_FRAMES,
+    LENGTH_UNITS,
+    length_words,
+    MarkerBody,
     pose_chunk,
     select_body_markers,
     split_label,

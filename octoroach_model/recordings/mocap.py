@@ -14,9 +14,9 @@ a capture into `PoseChunk` streams. This module holds the facts they have in com
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 
@@ -24,11 +24,11 @@ from octoroach_model.errors import BagError
 from octoroach_model.recordings.bags import PoseChunk
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.rigid import (
-    MIN_MARKERS,
     fit_rigid,
     forward_heading,
     layout_from_frames,
     layout_spans_a_plane,
+    MIN_MARKERS,
 )
 
 # Unit words as motion-capture exports write them, and their value in SI units.
@@ -250,7 +250,7 @@ class MarkerBody:
         layout = layout_from_frames(complete_frames_m)
         self._set_layout(layout, f'the layout of the first {len(complete_frames_m)} complete '
                                  f'frame(s) from frame {first_frame} (body axes = world axes '
-                                 'there, origin at the markers\' centroid)')
+                                 "there, origin at the markers' centroid)")
 
     def poses(self, markers_m: np.ndarray) -> tuple[np.ndarray, ...]:
         """Return x [m], y [m], heading [rad] and validity of (F, M, 3) frames in metres."""

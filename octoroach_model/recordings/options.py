@@ -7,8 +7,8 @@ everywhere. A reader uses the fields that apply to its format and ignores the ot
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 from octoroach_model.errors import ParameterError
 

@@ -34,10 +34,10 @@ import numpy as np
 from octoroach_model.errors import DataError
 from octoroach_model.paths import HEADING, Paths
 from octoroach_model.recordings.bags import (
-    PoseChunk,
-    Sources,
     expand_sources,
     iter_pose_samples,
+    PoseChunk,
+    Sources,
 )
 from octoroach_model.recordings.dataset import is_dataset_file, load_dataset
 from octoroach_model.recordings.options import ReadOptions

@@ -28,12 +28,12 @@ splitter at gaps longer than gap_s.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 import csv
 import itertools
 import math
-import re
-from collections.abc import Iterator
 from pathlib import Path
+import re
 from typing import NamedTuple
 
 import numpy as np
@@ -42,13 +42,13 @@ from octoroach_model.errors import BagError
 from octoroach_model.recordings.bags import PoseChunk
 from octoroach_model.recordings.mocap import (
     ANGLE_UNITS,
-    LAYOUT_FRAMES,
-    LENGTH_UNITS,
-    MarkerBody,
     axis_words,
     check_rate,
-    length_words,
     complete_frames,
+    LAYOUT_FRAMES,
+    LENGTH_UNITS,
+    length_words,
+    MarkerBody,
     pose_chunk,
     select_body_markers,
     split_label,

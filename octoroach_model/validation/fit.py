@@ -31,14 +31,14 @@ the fit is then unbiased for the stochastic model.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
+import math
 
 import numpy as np
 from scipy import optimize
 
 from octoroach_model.errors import DataError
-from octoroach_model.model import ModelParameters, RandomStreams, check_effects, model_poses
+from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
 from octoroach_model.model.kinematics import integrate_stances
 from octoroach_model.paths import Paths
 from octoroach_model.validation.gait import (
@@ -124,6 +124,7 @@ class SwayTarget:
         cut = np.arange(len(self.t))[None, :] >= picks[:, None]
         runs = np.where(cut[..., None], np.nan, runs)
         return sway_features(self.t, runs[..., :2], runs[..., 2], guess_hz)
+
 
 @dataclass(frozen=True)
 class ResidualScales:

@@ -10,16 +10,16 @@ numbers and the result is reproducible.
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+import math
 from typing import Protocol
 
 import numpy as np
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import fields_jsonable
-from octoroach_model.model import ModelParameters, RandomStreams, check_effects, model_poses
+from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
 from octoroach_model.paths import Paths
 from octoroach_model.validation.multisample import chernoff_sample_size, disjoint_multisamples
 from octoroach_model.validation.region import prediction_region, t_multiplier, violations
@@ -288,7 +288,7 @@ def common_duration(measured: Paths) -> tuple[Paths, str | None]:
     dt = float(measured.t[1] - measured.t[0])
     return chosen, (f'{short.size} of {measured.n_paths} runs end before '
                     f'{(best - 1) * dt:.2f} s (between {(short[0] - 1) * dt:.2f} and '
-                    f'{(short[-1] - 1) * dt:.2f} s) and were left out of the paper\'s '
+                    f"{(short[-1] - 1) * dt:.2f} s) and were left out of the paper's "
                     f'validation, which compares runs on one duration')
 
 
