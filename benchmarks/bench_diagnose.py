@@ -1,6 +1,7 @@
 """
-Time of the main job: `diagnose` on the reference data in bags/ (500 runs), end to end
-from the bag (reading, diagnosis with both validations, report and plots), with the default
+Time of the main job: `diagnose` on the reference data in bags/ (500 runs), end to end.
+
+From the bag: reading, diagnosis with both validations, report and plots; with the default
 two worker processes, and with one (all in this process) for comparison.
 
 Run: .venv/bin/python benchmarks/bench_diagnose.py

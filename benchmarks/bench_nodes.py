@@ -111,8 +111,10 @@ def bench_simulator(robots: int, cycles: int, workdir: Path) -> dict[str, float]
 
 def _stop_recorder(recorder: subprocess.Popen, log: Path, expected: int, bag: Path) -> int:
     """
-    Wait (10 s at most) until the recorder logs `expected` messages, stop it with SIGINT,
-    and return the message count of the bag it closed."""
+    Stop the recorder with SIGINT once it logs `expected` messages (10 s at most).
+
+    Return the message count of the bag it closed.
+    """
     import yaml
 
     deadline = time.monotonic() + 10
@@ -159,7 +161,7 @@ def bench_replay(rate: float, runs: int, workdir: Path) -> dict[str, float]:
 
 
 def bench_live_recording(robots: int, cycles: int, workdir: Path) -> dict[str, float]:
-    """Simulator with `robots` robots (one run each) into a recorder: messages lost."""
+    """Count the messages lost from a simulator of `robots` robots (a run each) to a recorder."""
     copy = workdir / f'live_{robots}'
     topics = '[/vicon/*,/*/run_start]'
     recorder, recorder_log = _start('recorder', ['-o', str(copy), '--ros-args', '-p',

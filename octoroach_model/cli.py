@@ -73,7 +73,7 @@ def plan_main(argv: list[str] | None = None) -> int:
 
 
 def usage() -> str:
-    """What `python -m octoroach_model --help` prints."""
+    """Return what `python -m octoroach_model --help` prints."""
     offline = _offline()
     lines = ['usage: python -m octoroach_model {' + ','.join((*NODES, *offline)) + '} ...',
              '  ROS nodes: ' + ', '.join(NODES),

@@ -51,7 +51,7 @@ def jsonable(value: Any) -> Any:
 
 
 def fields_jsonable(record: Any) -> dict[str, Any]:
-    """A dataclass's fields as a JSON object (the default `to_json` of a typed result)."""
+    """Return a dataclass's fields as a JSON object (the default `to_json` of a typed result)."""
     return {field.name: jsonable(getattr(record, field.name))
             for field in dataclasses.fields(record) if field.metadata.get('json', True)}
 

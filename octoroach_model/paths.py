@@ -29,6 +29,7 @@ class Paths:
     poses : (n, T, 3) x [m], y [m], heading [rad] (unwrapped along time); NaN after the end
         of a run shorter than the grid.
     info : provenance (seed, parameters, source bags, notes on skipped data); JSON-ready.
+
     """
 
     t: np.ndarray
@@ -72,18 +73,21 @@ class Paths:
                     and (np.isfinite(self.poses).any(axis=2) == finite).all())
 
     def subset(self, index) -> Paths:
-        """The runs selected by `index` (an index array, slice or boolean mask)."""
+        """Return the runs selected by `index` (an index array, slice or boolean mask)."""
         return Paths(self.t, self.poses[index], dict(self.info))
 
     def truncated(self, duration_s: float) -> Paths:
-        """The runs cut to their first `duration_s` seconds (inclusive)."""
+        """Return the runs cut to their first `duration_s` seconds (inclusive)."""
         keep = self.t <= duration_s + 1e-9
         return Paths(self.t[keep], self.poses[:, keep], dict(self.info))
 
     def cut_to(self, lengths: np.ndarray) -> Paths:
         """
-        The runs with run i ending after lengths[i] samples (NaN after), as measured runs
-        that left the capture volume early would; lengths beyond the grid change nothing."""
+        Return the runs with run i ending after lengths[i] samples (NaN after).
+
+        Measured runs that left the capture volume early end so; lengths beyond the grid
+        change nothing.
+        """
         index = np.arange(len(self.t))
         cut = index[None, :] >= np.asarray(lengths)[:, None]
         poses = np.where(cut[..., None], np.nan, self.poses)

@@ -68,7 +68,7 @@ def write_vicon_csv(path: Path, frames: np.ndarray, rates: dict, objects: dict, 
                     quaternion_first: bool = False, delimiter: str = ',',
                     end_with_newline: bool = True, extra_sections: Sequence[str] = ()) -> Path:
     """
-    A Vicon CSV export of rigid objects, written as Vicon's documentation lays it out.
+    Write a Vicon CSV export of rigid objects, laid out as Vicon's documentation shows.
 
     `objects` maps the name cell (e.g. 'Global Angle octo:octo' or 'octo:octo') to
     (positions (F, 3) in metres, Rotation of F, tracked (F,) bool). `rotation` is 'helical'
@@ -126,7 +126,7 @@ def write_vicon_csv(path: Path, frames: np.ndarray, rates: dict, objects: dict, 
 
 def write_marker_csv(path: Path, frames: np.ndarray, rate_hz: float,
                      markers: dict[str, np.ndarray]) -> Path:
-    """A Vicon CSV Trajectories section: per marker X Y Z in mm, NaN written as empty."""
+    """Write a Vicon CSV Trajectories section: per marker X Y Z in mm, NaN as empty cells."""
     names_row, columns_row, units_row = ['', ''], ['Frame', 'Sub Frame'], ['', '']
     for name in markers:
         names_row += [name, '', '']
@@ -157,7 +157,7 @@ def write_c3d(path: Path, rate_hz: float, markers: dict[str, np.ndarray], *,
               units: str = 'mm', first_frame: int = 1, subjects: Sequence[str] = (),
               model_outputs: dict[str, np.ndarray] | None = None) -> Path:
     """
-    A C3D file written by ezc3d: markers (F, 3) in metres, NaN where not seen.
+    Write a C3D file with ezc3d: markers (F, 3) in metres, NaN where not seen.
 
     Not-seen points are written with residual -1 (how C3D marks them); `model_outputs`
     are extra points listed in POINT:ANGLES, as Nexus stores joint angles.

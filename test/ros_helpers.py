@@ -35,7 +35,7 @@ _NODE_SETS = itertools.count()
 
 def fresh_domain() -> int:
     """
-    A ROS domain for one test's node processes, not this process's own one.
+    Pick a ROS domain for one test's node processes, not this process's own one.
 
     Derived from this process's domain (pid and worker, see conftest.py), so in-process rclpy
     tests of the same worker (their participants may outlive a test until garbage
@@ -46,7 +46,7 @@ def fresh_domain() -> int:
 
 
 def ros_env(domain: int | None = None, **extra: str) -> dict[str, str]:
-    """The environment for a node process: ROS isolation (localhost, `domain`), plain logs."""
+    """Return a node process's environment: ROS isolation (localhost, `domain`), plain logs."""
     env = dict(os.environ)
     env['ROS_DOMAIN_ID'] = str(domain if domain is not None else os.environ['ROS_DOMAIN_ID'])
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -132,8 +132,10 @@ class NodeProcess:
 
 class NodeSet:
     """
-    Node processes of one test, on a ROS domain of their own (`domain`; pass it to
-    `call_trigger`); whatever is still running at the end is killed."""
+    Node processes of one test, on a ROS domain of their own (`domain`).
+
+    Pass the domain to `call_trigger`; whatever is still running at the end is killed.
+    """
 
     def __init__(self, log_dir: Path) -> None:
         self.log_dir = log_dir
@@ -159,8 +161,10 @@ class NodeSet:
 
 def call_trigger(service: str, domain: int, timeout: float = 20.0) -> tuple[bool, str]:
     """
-    Call a std_srvs/Trigger service on `domain` from a throwaway rclpy context:
-    (success, message)."""
+    Call a std_srvs/Trigger service on `domain` from a throwaway rclpy context.
+
+    Return (success, message).
+    """
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -357,7 +361,7 @@ _SUBSTITUTION = re.compile(r'\$\((var|find-pkg-share) ([A-Za-z0-9_]+)\)')
 def read_launch_file(path: Path, share: Path, package: str = 'octoroach_model',
                      **arguments: str) -> list[LaunchedNode]:
     """
-    The nodes of an XML launch file, with the parameters files and remappings it names.
+    Read the nodes of an XML launch file, with the parameters files and remappings it names.
 
     `share` stands for `$(find-pkg-share PACKAGE)` (the checkout: its config/ and launch/ are
     laid out as in share/PACKAGE); launch arguments take their defaults unless given. Only the

@@ -43,7 +43,7 @@ def finish(process: subprocess.Popen) -> subprocess.CompletedProcess:
 
 
 def run_all(commands: dict[str, list]) -> dict[str, subprocess.CompletedProcess]:
-    """Starts every command at once and waits for all of them."""
+    """Start every command at once and wait for all of them."""
     processes = {name: launch(*args) for name, args in commands.items()}
     return {name: finish(process) for name, process in processes.items()}
 
@@ -67,8 +67,10 @@ def assert_one_line_error(result: subprocess.CompletedProcess) -> str:
 @pytest.fixture(scope='module')
 def simulated(tmp_path_factory):
     """
-    Bags written by `simulate`: plain (twice), with lateral slip, with two effects, and
-    60 runs for `validate`."""
+    Write bags with `simulate`.
+
+    Plain (twice), with lateral slip, with two effects, and 60 runs for `validate`.
+    """
     folder = tmp_path_factory.mktemp('simulated')
     common = ['--paths', 30, '--seed', 1]
     commands = {
@@ -278,7 +280,7 @@ MORE_BAD_INPUT = {
 
 @pytest.fixture(scope='module')
 def bad_inputs(tmp_path_factory, simulated):
-    """A folder of things that are not bags, and the plain simulated bag."""
+    """Make a folder of things that are not bags, and the plain simulated bag."""
     folder = tmp_path_factory.mktemp('bad_input')
     (folder / 'random.mcap').write_bytes(np.random.default_rng(0).bytes(4096))
     (folder / 'random').write_bytes(np.random.default_rng(1).bytes(4096))

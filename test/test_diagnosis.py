@@ -59,7 +59,7 @@ def named_sizes(report) -> dict[str, float]:
 
 
 def replay(what: str) -> str:
-    """The failure message's first words: how to draw the same case again."""
+    """Begin a failure message with how to draw the same case again."""
     return f'OCTOROACH_TEST_SEED={SEED} ({what})'
 
 
@@ -99,9 +99,12 @@ def test_two_causes_at_once_are_both_named_with_their_sizes():
 
 def random_robot(rng: random.Random) -> tuple[om.ModelParameters, int, int, float]:
     """
-    A robot of README's false-positive table: touchdown angles within 5 deg of Table II,
-    leg 1.8-2.6 cm, strides 1.5-3.5 Hz, 8-14 cycles, 50/100/200 Hz, 150-600 runs (up to 1000
-    in the benchmark; fewer here for time), spreads 0.3-1.5 x Table III."""
+    Draw a robot of README's false-positive table.
+
+    Touchdown angles within 5 deg of Table II, leg 1.8-2.6 cm, strides 1.5-3.5 Hz, 8-14
+    cycles, 50/100/200 Hz, 150-600 runs (up to 1000 in the benchmark; fewer here for time),
+    spreads 0.3-1.5 x Table III.
+    """
     nominal = om.ModelParameters.nominal()
     angles = tuple(a + math.radians(rng.uniform(-5, 5)) for a in nominal.touchdown_angles)
     robot = replace(nominal, touchdown_angles=angles, leg_length=rng.uniform(0.018, 0.026),
@@ -129,8 +132,11 @@ def test_a_null_from_a_randomly_drawn_robot_names_no_cause():
 
 def wobble(paths: om.Paths, amplitude_deg: float, period_s: float, seed: int) -> om.Paths:
     """
-    An effect outside the table of causes: a slow yaw wobble (a tether, an uneven floor),
-    heading + A sin(2 pi t / P + phase_i) - A sin(phase_i), each step turned with it."""
+    Add an effect outside the table of causes: a slow yaw wobble, from a tether or an uneven floor.
+
+    The heading becomes heading + A sin(2 pi t / P + phase_i) - A sin(phase_i), and each step
+    is turned with it.
+    """
     rng = np.random.default_rng(seed)
     t = paths.t
     phase = rng.uniform(0, 2 * np.pi, paths.n_paths)

@@ -34,7 +34,7 @@ def read(page: str) -> str:
 
 
 def github_anchor(heading: str) -> str:
-    """The anchor GitHub gives a heading: lower case, punctuation dropped, spaces to '-'."""
+    """Return the anchor GitHub gives a heading: lower case, no punctuation, spaces to '-'."""
     text = re.sub(r'[^\w\- ]', '', heading.strip().lower())
     return text.replace(' ', '-')
 

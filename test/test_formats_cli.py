@@ -1,6 +1,8 @@
 """
-Motion-capture files straight into the programs: `validate`, `convert` and `diagnose`
-take Vicon CSV exports and C3D files like bags (one trial per file, one run per trial).
+Motion-capture files straight into the programs.
+
+`validate`, `convert` and `diagnose` take Vicon CSV exports and C3D files like bags (one
+trial per file, one run per trial).
 """
 from __future__ import annotations
 
@@ -28,7 +30,7 @@ def run(*args) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope='module')
 def trials(tmp_path_factory) -> tuple[Path, Path, om.Paths]:
-    """The same 48 model runs as 48 Vicon CSV trials and 48 C3D trials (markers on a body)."""
+    """Write 48 model runs (markers on a body) as 48 Vicon CSV trials and as 48 C3D trials."""
     folder = tmp_path_factory.mktemp('trials')
     runs = om.simulate(48, seed=4, cycles=4)
     csv_folder, c3d_folder = folder / 'csv', folder / 'c3d'

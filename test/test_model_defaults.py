@@ -41,19 +41,19 @@ EDITED = {
 
 
 def shipped_values() -> dict:
-    """The section of the repository's config/table2.yaml."""
+    """Read the section of the repository's config/table2.yaml."""
     return yaml.safe_load((REPO / 'config' / 'table2.yaml').read_text())['octoroach_model']
 
 
 def write_table(path: Path, values: dict) -> Path:
-    """A table2.yaml of the shipped form with `values` in its section."""
+    """Write a table2.yaml of the shipped form with `values` in its section."""
     path.write_text(yaml.safe_dump({'octoroach_model': values}, sort_keys=False))
     return path
 
 
 @pytest.fixture
 def edited_copy(tmp_path) -> Path:
-    """A copy of the shipped file with every value changed."""
+    """Write a copy of the shipped file with every value changed."""
     return write_table(tmp_path / 'table2.yaml', {**shipped_values(), **EDITED})
 
 
@@ -116,8 +116,11 @@ def test_simulate_without_spreads_is_table_iii():
 
 def check_every_path_follows(edited: ModelParameters, **where) -> None:
     """
-    ModelParameters.nominal, nominal_sigmas, simulate and the validation's default model
-    all give the edited values (`where`: the path argument, or nothing for the environment)."""
+    Check that every reader of the defaults gives the edited values.
+
+    ModelParameters.nominal, nominal_sigmas, simulate and the validation's default model;
+    `where` is the path argument, or nothing for the environment.
+    """
     assert ModelParameters.nominal(**where) == edited
     assert nominal_sigmas(**where) == (EDITED['sigma1'], EDITED['sigma2'])
     if where:

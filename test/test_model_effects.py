@@ -89,7 +89,7 @@ def test_adding_an_effect_leaves_the_angle_draws_unchanged(plain):
 
 
 def deterministic_at(times):
-    """The deterministic (Table II) model sampled at the given times, (len(times), 3)."""
+    """Sample the deterministic (Table II) model at the given times: (len(times), 3)."""
     return om.simulate(1, seed=0, t=np.asarray(times, dtype=float), **DETERMINISTIC).poses[0]
 
 

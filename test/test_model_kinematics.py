@@ -33,7 +33,7 @@ def random_angles(seed, n_runs=40, n_stances=6, sigma=0.1):
 
 
 def pair_angles(angles, stance):
-    """rear touchdown, front touchdown, rear liftoff and mirror sign of one stance: (n,) each."""
+    """Return rear touchdown, front touchdown, rear liftoff, mirror sign of a stance: (n,) each."""
     pair = stance % 2
     return (angles[:, stance, 2 * pair], angles[:, stance, 2 * pair + 1],
             angles[:, stance, 4 + pair], 1.0 if pair == RIGHT else -1.0)
@@ -47,7 +47,7 @@ def body_to_world(pose, x, y):
 
 
 def closure_ratio(rear_angle, span):
-    """c / hypot(a, b) of the closure; |ratio| > 1 where the stance cannot be closed."""
+    """Return c / hypot(a, b) of the closure; |ratio| > 1 where the stance cannot be closed."""
     px = L * np.cos(rear_angle)
     py = D - L * np.sin(rear_angle)
     return (span ** 2 - px ** 2 - py ** 2 - L ** 2) / np.hypot(2 * L * px, 2 * L * py)

@@ -28,8 +28,10 @@ FAST = [Parameter('rate', value=100.0), Parameter('pause_s', value=0.5),
 @pytest.fixture
 def ros():
     """
-    An rclpy context and executor of this test alone; its nodes are destroyed after it,
-    so no publisher of this test stays visible to later ones."""
+    Give this test an rclpy context and executor of its own.
+
+    Its nodes are destroyed after it, so no publisher of this test stays visible to later ones.
+    """
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor

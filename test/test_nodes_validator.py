@@ -64,7 +64,7 @@ def overrides(values: dict[str, Any]) -> list[str]:
 
 @pytest.fixture
 def client() -> Iterator[Client]:
-    """A client on this process's domain, for in-process nodes."""
+    """Make a client on this process's domain, for in-process nodes."""
     client = Client()
     yield client
     client.close()
@@ -264,7 +264,7 @@ def test_diagnose_answers_the_report_with_its_cause_without_blocking(
     from octoroach_model.diagnosis import DiagnosisSettings
 
     def quick(job: validation_jobs.Job) -> DiagnosisSettings:
-        """The library's diagnosis with fewer model runs, so the test stays short."""
+        """Use the library's diagnosis with fewer model runs, so the test stays short."""
         names = {f.name for f in fields(DiagnosisSettings)}
         return replace(DiagnosisSettings(seed=job.settings.seed),
                        **{k: v for k, v in QUICK_DIAGNOSIS.items() if k in names})
@@ -327,8 +327,11 @@ def test_bad_start_up_input_is_one_error_line(rule, words):
 def test_a_bag_growing_inside_its_directory_changes_the_stamps_the_directory_does_not(
         tmp_path):
     """
-    Why the validator once kept answering with 3 runs while 50 were on disk: it watched
-    the bag directory, whose time stamp a recorder appending to the .mcap never changes."""
+    Show why the validator once kept answering with 3 runs while 50 were on disk.
+
+    It watched the bag directory, whose time stamp a recorder appending to the .mcap never
+    changes.
+    """
     bag = tmp_path / 'bag'
     bag.mkdir()
     data = bag / 'bag_0.mcap'

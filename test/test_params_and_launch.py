@@ -42,7 +42,7 @@ def flatten(parameters: dict[str, Any], prefix: str = '') -> dict[str, Any]:
 
 
 def params_file(node: str) -> dict[str, Any]:
-    """The parameters of config/NODE.yaml, checked for the ROS params-file shape."""
+    """Read the parameters of config/NODE.yaml, checked for the ROS params-file shape."""
     content = yaml.safe_load((REPO / 'config' / f'{node}.yaml').read_text())
     assert list(content) == [node], f'config/{node}.yaml must hold only `{node}:`'
     assert list(content[node]) == ['ros__parameters'], content[node].keys()

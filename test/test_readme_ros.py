@@ -23,7 +23,7 @@ SECTION = '## With ROS'
 
 
 def walk_through() -> str:
-    """The first ```bash block of README's "With ROS" section."""
+    """Return the first ```bash block of README's "With ROS" section."""
     text = (REPO / 'README.md').read_text()
     start = text.index(SECTION + '\n')
     end = text.find('\n## ', start + len(SECTION))

@@ -1,6 +1,8 @@
 """
-No crash anywhere in the robot space: every robot the model can describe gets a result, or
-the package's DataError with a one-line reason naming the limit its data miss.
+No crash anywhere in the robot space.
+
+Every robot the model can describe gets a result, or the package's DataError with a one-line
+reason naming the limit its data miss.
 
 Hypothesis draws robots (strides 0.5-6 Hz, 30-500 Hz sampling, 3-40 cycles, touchdown angles
 within 10 deg of Table II, leg 1.5-3 cm), data sets (40-3000 runs; here capped for time, see

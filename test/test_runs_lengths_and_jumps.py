@@ -35,8 +35,10 @@ def test_a_frame_far_from_its_neighbours_is_unreachable_and_nothing_else_is() ->
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, om.Paths]:
     """
-    The same 200 runs as an intact bag and as one with a frame 881 m off and a run that
-    ended at half its duration."""
+    Write 200 runs as an intact bag, and as one with damage.
+
+    The damaged bag has a frame 881 m off and a run that ended at half its duration.
+    """
     folder = tmp_path_factory.mktemp('damage')
     runs = om.simulate(200, seed=5, cycles=6)
     damaged = runs.poses.copy()

@@ -270,8 +270,10 @@ def test_a_file_that_is_not_a_study_table_is_refused(tmp_path):
 
 class TypedReport:
     """
-    A report's JSON as `diagnose` returns it (`to_json()`), written out so that the columns
-    it gives can be checked by hand."""
+    A report's JSON as `diagnose` returns it (`to_json()`).
+
+    Written out so that the columns it gives can be checked by hand.
+    """
 
     def to_json(self):
         return {'cause': 'speed_decay', 'parameters': {'fraction': 0.21},

@@ -44,8 +44,10 @@ UNICYCLE_SPEED = 0.12   # m/s
 
 def unicycle(sigmas, seed, n_runs, t):
     """
-    Straight runs along +y; each run's heading ~ N(pi/2, sigma1^2) and speed
-    ~ v (1 + sigma2 N(0, 1)). (n_runs, T, 3), drawn from `seed` alone."""
+    Draw (n_runs, T, 3) straight runs along +y from `seed` alone.
+
+    Each run's heading is ~ N(pi/2, sigma1^2) and its speed ~ v (1 + sigma2 N(0, 1)).
+    """
     rng = np.random.default_rng(seed)
     heading = math.pi / 2 + sigmas[0] * rng.standard_normal(n_runs)
     speed = UNICYCLE_SPEED * (1 + sigmas[1] * rng.standard_normal(n_runs))

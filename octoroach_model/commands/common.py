@@ -63,7 +63,7 @@ def progress_printer(label: str) -> Progress:
 
 
 def positive_int(text: str) -> int:
-    """argparse type: a whole number >= 1."""
+    """Read a whole number >= 1 (an argparse type)."""
     value = _whole(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f'must be a positive whole number, got {text}')
@@ -71,7 +71,7 @@ def positive_int(text: str) -> int:
 
 
 def nonnegative_int(text: str) -> int:
-    """argparse type: a whole number >= 0 (seeds)."""
+    """Read a whole number >= 0, such as a seed (an argparse type)."""
     value = _whole(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f'must be a non-negative whole number, got {text}')
@@ -79,7 +79,7 @@ def nonnegative_int(text: str) -> int:
 
 
 def finite_float(text: str) -> float:
-    """argparse type: a finite number."""
+    """Read a finite number (an argparse type)."""
     try:
         value = float(text)
     except ValueError:
@@ -98,8 +98,11 @@ def _whole(text: str) -> int:
 
 def new_output(path: Path, option: str, *, directory_ok: bool = False) -> Path:
     """
-    Check before any work that `path` can be written: not an existing file (or, unless
-    `directory_ok`, an existing directory), and its parent can be created."""
+    Check before any work that `path` can be written.
+
+    It must not be an existing file (nor, unless `directory_ok`, an existing directory), and
+    its parent must be creatable.
+    """
     if path.exists() and not (directory_ok and path.is_dir()):
         raise ParameterError(f'{option} {path} exists already; choose a new path')
     parent = path.resolve().parent
@@ -111,7 +114,7 @@ def new_output(path: Path, option: str, *, directory_ok: bool = False) -> Path:
 
 
 def add_input_arguments(parser: argparse.ArgumentParser) -> None:
-    """The measured runs: bags, motion-capture files or data sets, and how to split them."""
+    """Add the arguments of the measured runs: bags, mocap files or data sets, how to split."""
     parser.add_argument('bags', nargs='+', type=Path, metavar='BAG',
                         help='rosbag2 bags (MCAP or sqlite3), .mcap files, ROS 1 .bag files, '
                         'Vicon .csv exports, .c3d files or .npz data sets (docs/formats.md)')
@@ -137,7 +140,7 @@ def add_pose_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def read_options(args: argparse.Namespace) -> ReadOptions:
-    """The ReadOptions of parsed pose arguments."""
+    """Return the ReadOptions of parsed pose arguments."""
     from octoroach_model.recordings.options import ReadOptions
 
     markers = tuple(name.strip() for name in (args.markers or '').split(',') if name.strip())

@@ -12,7 +12,7 @@ from octoroach_model.commands.common import (
 
 
 def parser() -> argparse.ArgumentParser:
-    """The `diagnose` command line."""
+    """Build the `diagnose` command line."""
     result = OneLineParser(
         prog='diagnose', description='The main job: calibrates the paper model on measured '
         'runs, shows where it disagrees with them, names the causes, extends the model with '

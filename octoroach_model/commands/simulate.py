@@ -12,8 +12,10 @@ from octoroach_model.errors import ParameterError
 
 def parse_effects(pairs: list[tuple[str, str]]) -> dict[str, dict[str, float]]:
     """
-    --effect NAME and --effect-param KEY=VALUE, in command-line order: a parameter belongs
-    to the --effect before it (or, written NAME.KEY=VALUE, to NAME)."""
+    Group --effect NAME and --effect-param KEY=VALUE pairs, in command-line order, by cause.
+
+    A parameter belongs to the --effect before it (or, written NAME.KEY=VALUE, to NAME).
+    """
     effects: dict[str, dict[str, float]] = {}
     current = None
     for option, value in pairs:
@@ -45,7 +47,7 @@ class OrderedEffectAction(argparse.Action):
 
 
 def parser() -> argparse.ArgumentParser:
-    """The `simulate` command line."""
+    """Build the `simulate` command line."""
     from octoroach_model.model import ModelParameters, nominal_sigmas
 
     sigma1, sigma2 = nominal_sigmas()

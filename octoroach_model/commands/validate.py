@@ -10,7 +10,7 @@ from octoroach_model.errors import ParameterError
 
 
 def parser() -> argparse.ArgumentParser:
-    """The `validate` command line."""
+    """Build the `validate` command line."""
     from octoroach_model.validation import ValidationSettings
 
     defaults = ValidationSettings()

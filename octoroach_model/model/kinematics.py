@@ -65,15 +65,22 @@ def stance_motion(rear_touchdown, front_touchdown, rear_liftoff, phase, mirror,
 
     Parameters
     ----------
-    rear_touchdown, front_touchdown, rear_liftoff : angles (rad) of the stance, any shape
-        broadcastable with `phase`.
-    phase : fraction of the stance elapsed, in [0, 1].
-    mirror : +1 right pair, -1 left pair (broadcastable).
+    rear_touchdown, front_touchdown, rear_liftoff : array_like
+        Angles (rad) of the stance, any shape broadcastable with `phase`.
+    phase : array_like
+        Fraction of the stance elapsed, in [0, 1].
+    mirror : array_like
+        +1 right pair, -1 left pair (broadcastable).
+    leg_length : float
+        l, metres.
+    hip_distance : float
+        d, the distance between the hips A and B, metres.
 
     Returns
     -------
     dx, dy : displacement of G in the touchdown body frame (x right, y forward), metres.
     dheading : heading change since touchdown, radians (counter-clockwise positive).
+
     """
     rear0, front0 = feet_in_body(rear_touchdown, front_touchdown, mirror,
                                  leg_length, hip_distance)
@@ -111,11 +118,18 @@ def integrate_stances(angles, phase, start_pose, leg_length, hip_distance):
 
     Parameters
     ----------
-    angles : (n, S, 6) angles [phi1, phi2, phi3, phi4, phi_R^lo, phi_L^lo] per stance; a
-        right stance (even index) uses phi1, phi2, phi_R^lo, a left one phi3, phi4, phi_L^lo.
-    phase : (n, T) or (T,) elapsed stances at each sample (2 * stride frequency * t for a
-        constant gait); values beyond S are held at the end of the last stance.
-    start_pose : (n, 3) or (3,) x, y, heading at phase 0.
+    angles : (n, S, 6) array
+        Angles [phi1, phi2, phi3, phi4, phi_R^lo, phi_L^lo] per stance; a right stance (even
+        index) uses phi1, phi2, phi_R^lo, a left one phi3, phi4, phi_L^lo.
+    phase : (n, T) or (T,) array
+        Elapsed stances at each sample (2 * stride frequency * t for a constant gait);
+        values beyond S are held at the end of the last stance.
+    start_pose : (n, 3) or (3,) array
+        x, y, heading at phase 0.
+    leg_length : float
+        l, metres.
+    hip_distance : float
+        d, the distance between the hips A and B, metres.
 
     Returns
     -------
@@ -130,6 +144,7 @@ def integrate_stances(angles, phase, start_pose, leg_length, hip_distance):
     front foot comes from the closure's closed form without evaluating the front angle
     (cos and sin of atan2(b, a) +- acos(ratio) by the addition formulas), and G from the
     fixed rear foot seen along the fixed foot-to-foot segment.
+
     """
     angles = np.asarray(angles, dtype=float)
     n_runs, n_stances = angles.shape[:2]

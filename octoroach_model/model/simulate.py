@@ -27,9 +27,11 @@ DEFAULT_START_POSE = (0.0, 0.0, math.pi / 2)
 
 class AntitheticNormal:
     """
-    Standard normals in mirrored pairs along the first axis (run i + n/2 gets -z of run i):
-    every odd moment of a mean over runs is then exactly zero, so a mean path shows no
-    random rotation or drift of its own (variance reduction by antithetic variates)."""
+    Standard normals in mirrored pairs along the first axis (run i + n/2 gets -z of run i).
+
+    Every odd moment of a mean over runs is then exactly zero, so a mean path shows no
+    random rotation or drift of its own (variance reduction by antithetic variates).
+    """
 
     def __init__(self, generator: np.random.Generator) -> None:
         self.generator = generator
@@ -77,17 +79,26 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
 
     Parameters
     ----------
-    n_paths : number of runs.
-    seed : seed of all random draws (None: fresh entropy, recorded in the result's info).
-    sigma1, sigma2 : spread (rad) of the touchdown and of the liftoff angles (eq. 11); None
-        means Table III as config/table2.yaml gives it (`nominal_sigmas`).
-    cycles : gait cycles per run; sets the time grid unless `t` is given.
-    parameters : geometry, nominal angles and timing (default Table II from
-        config/table2.yaml, `ModelParameters.nominal`).
-    draws : 'stance' draws new angles at every stance, 'run' once per run.
-    effects : {cause: {parameter: value}} from the table of causes (docs/causes.md).
-    start_pose : x [m], y [m], heading [rad] at t = 0 (before any initial_pose_error).
-    t : (T,) sample times in seconds starting at 0; default `parameters.time_grid(cycles)`.
+    n_paths : int
+        Number of runs.
+    seed : int or None
+        Seed of all random draws (None: fresh entropy, recorded in the result's info).
+    sigma1, sigma2 : float or None
+        Spread (rad) of the touchdown and of the liftoff angles (eq. 11); None means
+        Table III as config/table2.yaml gives it (`nominal_sigmas`).
+    cycles : float
+        Gait cycles per run; sets the time grid unless `t` is given.
+    parameters : ModelParameters or None
+        Geometry, nominal angles and timing (default Table II from config/table2.yaml,
+        `ModelParameters.nominal`).
+    draws : {'stance', 'run'}
+        'stance' draws new angles at every stance, 'run' once per run.
+    effects : dict or None
+        {cause: {parameter: value}} from the table of causes (docs/causes.md).
+    start_pose : sequence of 3 floats
+        x [m], y [m], heading [rad] at t = 0 (before any initial_pose_error).
+    t : (T,) array or None
+        Sample times in seconds starting at 0; default `parameters.time_grid(cycles)`.
 
     Returns
     -------
@@ -98,6 +109,7 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
     >>> paths = simulate(3, seed=1)
     >>> paths.poses.shape
     (3, 251, 3)
+
     """
     parameters = parameters or ModelParameters.nominal()
     default_sigma1, default_sigma2 = nominal_sigmas()

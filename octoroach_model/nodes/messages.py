@@ -170,8 +170,11 @@ def diagnosis_fields(report: Mapping[str, Any]) -> tuple[bool, str, list[tuple[s
 def diagnosis_status(report: Mapping[str, Any], name: str,
                      hardware_id: str) -> DiagnosticStatus:
     """
-    Make the status of a diagnosis: OK when the paper's model explains the runs, WARN when
-    it needed causes or still misses something."""
+    Make the status of a diagnosis.
+
+    OK when the paper's model explains the runs, WARN when it needed causes or still misses
+    something.
+    """
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
     sufficient, message, values = diagnosis_fields(report)

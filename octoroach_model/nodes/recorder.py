@@ -179,7 +179,7 @@ class Recorder(Node):  # type: ignore[misc,valid-type]
 
     @property
     def bag_path(self) -> Path:
-        """The bag directory being written."""
+        """Return the bag directory being written."""
         return self._bag.path
 
     def _resolve(self, topic: str) -> str:

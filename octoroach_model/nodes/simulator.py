@@ -307,7 +307,7 @@ class Simulator(Node):  # type: ignore[misc,valid-type]
 
     @property
     def settings(self) -> RunSettings:
-        """Settings of the current (or last) run."""
+        """Return the settings of the current (or last) run."""
         return self._settings
 
 

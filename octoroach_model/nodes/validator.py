@@ -251,7 +251,7 @@ class Validator(Node):  # type: ignore[misc,valid-type]
 
     @property
     def running(self) -> str | None:
-        """What the node is busy with ('validation', 'diagnosis'), or None."""
+        """Return what the node is busy with ('validation', 'diagnosis'), or None."""
         running = self._running
         return running.kind if running is not None else None
 

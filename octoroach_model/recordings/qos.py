@@ -93,7 +93,7 @@ class QosProfile:
 
     @property
     def keeps_last(self) -> bool:
-        """True when the depth means something (history keep_last and depth > 0)."""
+        """Tell whether the depth means something (history keep_last and depth > 0)."""
         return self.history == 'keep_last' and self.depth > 0
 
 

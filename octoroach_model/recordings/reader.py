@@ -310,7 +310,7 @@ class BagReader:
 
     @property
     def fielddefs(self) -> Any:
-        """The type definitions messages decode with (after topics() or messages() began)."""
+        """Return the type definitions messages decode with (once topics() or messages() ran)."""
         if self._rosbags_types is not None:
             return self._rosbags_types[0].fielddefs
         return self.types.store.fielddefs

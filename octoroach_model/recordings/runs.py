@@ -114,7 +114,7 @@ class RunSet:
     def to_paths(self, rate_hz: float = DEFAULT_RATE_HZ,
                  min_duration_s: float | None = None) -> Paths:
         """
-        The runs on one grid t = 0, 1/rate_hz, ... up to the longest run's end.
+        Put the runs on one grid t = 0, 1/rate_hz, ... up to the longest run's end.
 
         Every run keeps all of its samples; one that ends earlier is NaN after its end. With
         `min_duration_s`, shorter runs are dropped (with a note) first. Each coordinate is
@@ -166,9 +166,12 @@ class RunSet:
 
 def reachable(poses: np.ndarray) -> np.ndarray:
     """
-    (k,) False for frames more than JUMP_LIMIT_M / JUMP_LIMIT_RAD away from the median of
-    the JUMP_WINDOW frames around them (themselves included): a single damaged frame, or two
-    in a row, cannot move that median."""
+    Return a (k,) mask, False for the frames a robot could not have reached.
+
+    Those are more than JUMP_LIMIT_M / JUMP_LIMIT_RAD away from the median of the JUMP_WINDOW
+    frames around them (themselves included): a single damaged frame, or two in a row,
+    cannot move that median.
+    """
     if len(poses) < 3:
         return np.ones(len(poses), dtype=bool)
     half = JUMP_WINDOW // 2
@@ -238,7 +241,7 @@ class _StreamSplitter:
 
     def _drop_strays(self, sequence: np.ndarray, stamp: np.ndarray,
                      poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Drops single samples whose stamp jumps away and straight back (a corrupt stamp)."""
+        """Drop single samples whose stamp jumps away and straight back (a corrupt stamp)."""
         if len(stamp) < 3:
             return sequence, stamp, poses
         before = np.abs(stamp[1:-1] - stamp[:-2])
@@ -329,7 +332,7 @@ class _StreamSplitter:
 def read_runs(sources: Sources, *, topic: str | None = None, gap_s: float = DEFAULT_GAP_S,
               use_markers: bool = True, options: ReadOptions | None = None) -> RunSet:
     """
-    Runs of every pose stream in `sources` (bags, motion-capture files, folders of them).
+    Read the runs of every pose stream in `sources` (bags, motion-capture files, folders).
 
     `options` says where the pose is (topic, /tf frame, subject, forward axis); `topic` is
     the same as ``ReadOptions(topic=...)``. Splitting, cleaning and what is noted: see the

@@ -265,7 +265,7 @@ class BagWriter:
 
     @property
     def file_path(self) -> Path:
-        """The MCAP file inside the bag directory, named as rosbag2 names it."""
+        """Return the MCAP file inside the bag directory, named as rosbag2 names it."""
         return self.path / f'{self.path.name}_0.mcap'
 
     def create(self) -> BagWriter:

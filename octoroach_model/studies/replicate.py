@@ -30,7 +30,7 @@ class Skip(Exception):
 
 
 def report_fields(report: Any) -> dict[str, Any]:
-    """The report's JSON fields, which a row reads (the one place a study meets a report)."""
+    """Return the report's JSON fields, which a row reads (where a study meets a report)."""
     return jsonable(report.to_json())
 
 

@@ -109,8 +109,9 @@ class MeanPathSettings:
 @dataclass(frozen=True)
 class SwayTarget:
     """
-    The data's mean sway (heading sway amplitude [rad], sideways sway at f and 2f [m]),
-    measured on the runs as recorded (`t`, each run `lengths[i]` samples long): the model's
+    The data's mean sway: heading sway amplitude [rad], sideways sway at f and 2f [m].
+
+    Measured on the runs as recorded (`t`, each run `lengths[i]` samples long): the model's
     runs are simulated on the same grid and cut to the same lengths before they are compared.
     """
 
@@ -119,7 +120,7 @@ class SwayTarget:
     lengths: np.ndarray
 
     def of_runs(self, runs: np.ndarray, guess_hz: float) -> np.ndarray:
-        """(runs, 3) sway of simulated runs on `t`, cut like the data's runs."""
+        """Return the (runs, 3) sway of simulated runs on `t`, cut like the data's runs."""
         picks = self.lengths[np.arange(runs.shape[0]) % len(self.lengths)]
         cut = np.arange(len(self.t))[None, :] >= picks[:, None]
         runs = np.where(cut[..., None], np.nan, runs)
@@ -129,8 +130,10 @@ class SwayTarget:
 @dataclass(frozen=True)
 class ResidualScales:
     """
-    Standard errors that make the fit's residuals dimensionless: of the average path at
-    each time (G, 2) [m], of the average heading change (G,) [rad] and of the mean sway (3,).
+    Standard errors that make the fit's residuals dimensionless.
+
+    They are those of the average path at each time (G, 2) [m], of the average heading change
+    (G,) [rad] and of the mean sway (3,).
 
     From the data's own run-to-run spread: where the runs scatter widely (late in a run, or
     under a random turning rate), the average is uncertain and a gap there weighs little, so
@@ -146,8 +149,11 @@ def residual_vector(path_gap: np.ndarray, turn_gap: np.ndarray | None,
                     sway_gap: np.ndarray | None, heading_weight_m: float,
                     scales: ResidualScales | None) -> np.ndarray:
     """
-    The fit's residuals from model-minus-data gaps: in standard errors with `scales`,
-    else in cm (heading through `heading_weight_m`, sway through `sway_weights`)."""
+    Return the fit's residuals from model-minus-data gaps.
+
+    In standard errors with `scales`, else in cm (heading through `heading_weight_m`, sway
+    through `sway_weights`).
+    """
     if scales is not None:
         parts = [(path_gap / scales.path).ravel()]
         if turn_gap is not None:
@@ -168,19 +174,25 @@ SWAY_WEIGHT = 5.0
 
 def sway_weights(heading_weight_m: float, samples: int) -> np.ndarray:
     """
-    Weights of the sway residuals: a mismatch counts SWAY_WEIGHT times as much as a path
-    offset of its size held over the `samples` of the average path (heading through
-    `heading_weight_m`). At weight 1 the path outweighs the sway and the fitted angles leave
-    the heading sway several standard errors off on robots away from Table II; at 5 it is
-    matched within its error (and the angles come closer to the truth)."""
+    Weigh the sway residuals against the path's.
+
+    A mismatch counts SWAY_WEIGHT times as much as a path offset of its size held over the
+    `samples` of the average path (heading through `heading_weight_m`). At weight 1 the path
+    outweighs the sway and the fitted angles leave the heading sway several standard errors
+    off on robots away from Table II; at 5 it is matched within its error (and the angles
+    come closer to the truth).
+    """
     return np.array([max(heading_weight_m, 0.0), 1.0, 1.0]) * SWAY_WEIGHT * math.sqrt(samples)
 
 
 def simulated_runs(parameters: ModelParameters, start_pose, t: np.ndarray,
                    effects: dict | None, settings: MeanPathSettings) -> np.ndarray:
     """
-    (runs, T, 3) runs for a mean path: common random numbers, drawn in antithetic pairs
-    so that their mean has no random tilt of its own."""
+    Simulate the (runs, T, 3) runs of a mean path.
+
+    Common random numbers, drawn in antithetic pairs so that their mean has no random tilt of
+    its own.
+    """
     return model_poses(parameters, RandomStreams(settings.seed, antithetic=True),
                        settings.runs, t, settings.sigmas[0], settings.sigmas[1], 'stance',
                        effects or {}, None, start_pose)
@@ -229,9 +241,11 @@ def mean_start_pose(measured: Paths) -> tuple[float, float, float]:
 @dataclass(frozen=True)
 class AverageTarget:
     """
-    What the fit matches: times (G,), the average path (G, 2) and average heading change
-    (G,), with the runs they average (`runs_xy` (n, G, 2), `runs_turn` (n, G); NaN where a
-    run has ended) so that a resampling of the runs gives a resampled target."""
+    What the fit matches: times (G,), the average path (G, 2) and average heading change (G,).
+
+    With the runs they average (`runs_xy` (n, G, 2), `runs_turn` (n, G); NaN where a run has
+    ended), so that a resampling of the runs gives a resampled target.
+    """
 
     t: np.ndarray
     runs_xy: np.ndarray
@@ -249,8 +263,10 @@ class AverageTarget:
     def scales(self, sway_per_run: np.ndarray | None = None,
                floor_m: float = 1e-5) -> ResidualScales:
         """
-        Standard errors of this target's averages (and of the mean of `sway_per_run`),
-        never below `floor_m` (positions; the same in rad for the heading)."""
+        Return the standard errors of this target's averages (and of `sway_per_run`'s mean).
+
+        Never below `floor_m` (positions; the same in rad for the heading).
+        """
         def standard_error(values: np.ndarray) -> np.ndarray:
             count = np.maximum(np.isfinite(values).sum(axis=0), 2)
             with np.errstate(invalid='ignore'):
@@ -263,7 +279,7 @@ class AverageTarget:
                               np.maximum(sway, 1e-12))
 
     def resampled(self, index: np.ndarray) -> AverageTarget:
-        """The target of the runs picked by `index` (a bootstrap resample)."""
+        """Return the target of the runs picked by `index` (a bootstrap resample)."""
         return AverageTarget(self.t, self.runs_xy[index], self.runs_turn[index],
                              self.start_heading[index])
 
@@ -277,8 +293,10 @@ def _nanmean_rows(values: np.ndarray) -> np.ndarray:
 def average_target(measured: Paths, start_pose, guess_hz: float,
                    align_gait: bool) -> AverageTarget:
     """
-    The average path of `measured` (on a common gait clock with `align_gait`), over the
-    times that at least a tenth of the runs reach."""
+    Average the paths of `measured` over the times that at least a tenth of the runs reach.
+
+    With `align_gait`, on a common gait clock.
+    """
     if align_gait:
         t, xy, turn, _ = aligned_runs(measured, guess_hz)
     else:

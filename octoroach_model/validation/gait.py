@@ -49,7 +49,8 @@ def band_spectrum(signal: np.ndarray, t: np.ndarray, frequencies: np.ndarray) ->
     |DFT| of each (windowed, zero-filled) run at `frequencies` (Hz): (n, K).
 
     A DFT on a few frequencies in a band costs n T K, far less than a finely zero-padded FFT
-    of every run, and its frequency grid is the same whatever the sample rate."""
+    of every run, and its frequency grid is the same whatever the sample rate.
+    """
     phase = np.exp(-2j * np.pi * np.outer(t, frequencies))
     return np.abs(signal @ phase)
 
@@ -86,8 +87,11 @@ def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float
 def lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
                  frequency: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
-    Amplitudes (m) of the sideways sway of G (across the run's mean heading, linear trend
-    removed) at each run's stride frequency and twice it: the shape of a stance."""
+    Measure the sideways sway of G (m) at each run's stride frequency and twice it.
+
+    Sideways is across the run's mean heading, linear trend removed; the two amplitudes are
+    the shape of a stance.
+    """
     mask = valid_mask(heading)
     count = np.maximum(mask.sum(axis=1, keepdims=True), 1)
     mean_heading = np.where(mask, heading, 0.0).sum(axis=1, keepdims=True) / count
@@ -112,9 +116,11 @@ def sway_features(t: np.ndarray, xy: np.ndarray, heading: np.ndarray,
 
 def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
     """
-    The stride frequency (Hz) of a set of runs, with no prior guess: the peak of the mean
-    power spectrum of the heading's sway, whitened by f^2 so that the slow wander of a
-    random-walk heading (power falling as 1/f^2) cannot outweigh the once-per-cycle sway.
+    Estimate the stride frequency (Hz) of a set of runs, with no prior guess.
+
+    It is the peak of the mean power spectrum of the heading's sway, whitened by f^2 so that
+    the slow wander of a random-walk heading (power falling as 1/f^2) cannot outweigh the
+    once-per-cycle sway.
 
     Searched from 1.5 cycles per run up to a third of the sample rate.
     """
@@ -138,8 +144,10 @@ def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
 def aligned_runs(measured: Paths, guess_hz: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """
-    Every run on a common gait clock: the grid (G,), the runs' (x, y) on it (n, G, 2), their
-    heading change since their start (n, G) and the mean stride frequency.
+    Put every run on a common gait clock.
+
+    Return the grid (G,), the runs' (x, y) on it (n, G, 2), their heading change since their
+    start (n, G) and the mean stride frequency.
 
     Runs whose strides are faster or slower than the mean would smear the plain average over
     the stance pattern; resampling run i at t * f_mean / f_i puts every run at the same gait
@@ -164,9 +172,12 @@ def aligned_runs(measured: Paths, guess_hz: float
 def gait_aligned_average(measured: Paths, guess_hz: float
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """
-    Average path on a common gait clock (`aligned_runs`): the times, the average (x, y),
-    the average heading change since the start and the mean stride frequency. At each time
-    only the runs still present are averaged; times no run reaches are left out."""
+    Average the paths on a common gait clock (`aligned_runs`).
+
+    Return the times, the average (x, y), the average heading change since the start and the
+    mean stride frequency. At each time only the runs still present are averaged; times no
+    run reaches are left out.
+    """
     grid, xy, turn, mean_frequency = aligned_runs(measured, guess_hz)
     with np.errstate(invalid='ignore'):
         average = np.nanmean(xy, axis=0)
@@ -177,8 +188,10 @@ def gait_aligned_average(measured: Paths, guess_hz: float
 
 def _interp_rows(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
     """
-    Row-wise linear interpolation of values (n, T) sampled at t, at times at (n, G); NaN
-    beyond a run's end (no extrapolation)."""
+    Interpolate values (n, T) sampled at t linearly, row by row, at times at (n, G).
+
+    NaN beyond a run's end (no extrapolation).
+    """
     dt = float(t[1] - t[0])
     position = at / dt
     left = np.clip(np.floor(position).astype(int), 0, len(t) - 2)

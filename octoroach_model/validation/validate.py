@@ -90,7 +90,7 @@ class ValidationSettings:
 
     @property
     def n(self) -> int:
-        """Number of multisamples, from eq. (16)."""
+        """Return the number of multisamples, from eq. (16)."""
         return chernoff_sample_size(self.epsilon, self.delta)
 
     @property
@@ -270,10 +270,12 @@ def validate(measured: Paths, settings: ValidationSettings | None = None,
 
 def common_duration(measured: Paths) -> tuple[Paths, str | None]:
     """
-    The runs on the common duration that keeps the most samples (the paper compares runs
-    sample by sample, so they need one duration): the duration D maximising D x (runs that
-    reach D). Runs ending before D are left out rather than every run cut to the shortest;
-    the note says how many and where they ended."""
+    Keep the runs on the common duration that keeps the most samples.
+
+    The paper compares runs sample by sample, so they need one duration: the duration D
+    maximising D x (runs that reach D). Runs ending before D are left out rather than every
+    run cut to the shortest; the note says how many and where they ended.
+    """
     lengths = measured.lengths
     if lengths.min() == len(measured.t):
         return measured, None
