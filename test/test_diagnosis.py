@@ -220,3 +220,25 @@ def test_the_diagnosis_is_reproducible_for_a_seed():
     for volatile in ('elapsed_s',):
         first_json.pop(volatile), second_json.pop(volatile)
     assert first_json == second_json
+
+
+@pytest.mark.parametrize('effects', [
+    {'speed_decay': {'fraction': 0.2}},
+    {'persistent_turning': {'yaw_rate_std_deg_s': 8.0}},
+])
+def test_runs_that_end_early_keep_the_sizes_of_the_full_duration(effects):
+    """A quarter of the runs leaving the capture volume at 70-95 % of the duration must not
+    bend the sizes (with a common duration, speed_decay 0.2 was once read as 0.139)."""
+    cause = next(iter(effects))
+    truth = effects[cause][main_parameter(cause)]
+    full = om.simulate(N_RUNS, seed=SEED + 12, effects=effects)
+    rng = np.random.default_rng(SEED)
+    lengths = np.full(full.n_paths, len(full.t))
+    early = rng.permutation(full.n_paths)[:full.n_paths // 4]
+    lengths[early] = (rng.uniform(0.7, 0.95, len(early)) * len(full.t)).astype(int)
+    report = diagnose(full.cut_to(lengths), settings(12))
+    found = named_sizes(report)
+    message = f'{replay(f"{effects} with {len(early)} runs cut short")}: named {found}'
+    assert set(found) == {cause}, message
+    assert abs(found[cause] - truth) <= 0.15 * truth, message
+    assert report.runs.ended_early == len(early)

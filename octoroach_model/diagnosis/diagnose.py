@@ -49,6 +49,7 @@ from octoroach_model.validation.gait import stride_frequency_estimate
 Progress = Callable[[float, str], None]
 MIN_RUNS = 40
 MIN_SAMPLES_PER_CYCLE = 8
+MAX_SAMPLES_PER_CYCLE = 64
 MIN_CYCLES = 3
 SCORE_PURPOSE = 31
 DISCREPANCY_PURPOSE = 32
@@ -112,9 +113,10 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     say = progress or (lambda fraction, message: None)
     started = time.monotonic()
     check_runs(measured)
+    resolved, resolution_note = decimated(measured)
     with executor_for(executor, settings.workers) as pool, single_threaded():
         say(0.02, 'preparing the runs (features, gait clock)')
-        halves = _prepare(measured, settings)
+        halves = _prepare(resolved, settings)
         say(0.08, 'fitting the baseline (geometry on the mean path, spread scale)')
         baseline_fit = _baseline(halves, settings)
         baseline = baseline_fit.model
@@ -181,7 +183,8 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         gain=_gain_summary(baseline_scores, current_scores, halves),
         extended_discrepancies=tuple(final_rows), adequate=not unexplained, unexplained=tuple(unexplained),
         adequacy_bound_z=bound, settings=settings,
-        notes=tuple(measured.info.get('notes', ())),
+        notes=tuple(measured.info.get('notes', ())) + (
+            (resolution_note,) if resolution_note else ()),
         elapsed_s=round(time.monotonic() - started, 2))
     say(1.0, 'causes: ' + (', '.join(c.cause for c in named) or 'none')
         + ('' if report.adequate else '; the extended model still misses '
@@ -211,6 +214,21 @@ def check_runs(measured: Paths) -> None:
     if cycles < MIN_CYCLES:
         raise DataError(f'the runs last {cycles:.1f} gait cycles (median); the diagnosis '
                         f'needs at least {MIN_CYCLES}')
+
+
+def decimated(measured: Paths) -> tuple[Paths, str | None]:
+    """The runs at no more than MAX_SAMPLES_PER_CYCLE samples per stride cycle (every k-th
+    sample, so white noise stays white and its size unchanged): a faster recording adds
+    nothing the gait shows, only memory and time. The paper's validation keeps every sample.
+    """
+    frequency = stride_frequency_estimate(measured.poses[..., 2], measured.t)
+    step = int(measured.rate_hz / (MAX_SAMPLES_PER_CYCLE * frequency))
+    if step < 2:
+        return measured, None
+    kept = Paths(measured.t[::step], measured.poses[:, ::step], dict(measured.info))
+    return kept, (f'the diagnosis used every {step}th sample ({measured.rate_hz / step:.0f} Hz, '
+                  f'{measured.rate_hz / step / frequency:.0f} samples per stride cycle); the '
+                  f"paper's validation used all {measured.rate_hz:.0f} Hz")
 
 
 def _prepare(measured: Paths, settings: DiagnosisSettings) -> _Halves:

@@ -15,6 +15,7 @@ from octoroach_model.paths import Paths
 
 BAND = (0.6, 1.4)         # the stride frequency is sought within this factor of the guess
 BAND_POINTS = 33          # DFT frequencies across the band (then a parabolic refinement)
+SPECTRUM_RUNS = 400       # runs averaged for the set's stride frequency (plenty for a peak)
 
 
 def valid_mask(values: np.ndarray) -> np.ndarray:
@@ -122,15 +123,17 @@ def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
     the slow wander of a random-walk heading (power falling as 1/f^2) cannot outweigh the
     once-per-cycle sway.
 
-    Searched from 1.5 cycles per run up to a third of the sample rate.
+    Searched from 1.5 cycles per run up to a third of the sample rate, on the first
+    SPECTRUM_RUNS runs.
     """
     lengths = valid_mask(heading).sum(axis=1)
-    usable = lengths >= 8
-    if not usable.any():
+    usable = np.flatnonzero(lengths >= 8)[:SPECTRUM_RUNS]
+    if not usable.size:
         return float('nan')
     heading, lengths = heading[usable], lengths[usable]
     sway = detrended(heading, t) * hann_windows(lengths, heading.shape[1])
     n_fft = 1 << int(np.ceil(np.log2(heading.shape[1] * 8)))
+    n_fft = max(min(n_fft, 1 << 17), 1 << int(np.ceil(np.log2(heading.shape[1]))))
     dt = float(t[1] - t[0])
     power = (np.abs(np.fft.rfft(sway, n=n_fft, axis=1)) ** 2).mean(axis=0)
     frequencies = np.fft.rfftfreq(n_fft, dt)
