@@ -186,13 +186,13 @@ def test_the_report_has_the_documented_fields_a_summary_and_plots(tmp_path):
         assert key in loaded['baseline'] and key in loaded['extended'], key
     for key in ('metric', 'baseline', 'extended', 'relative'):
         assert key in loaded['gain'], key
-    assert loaded['gain']['extended'] < loaded['gain']['baseline']      # lower is better
+    assert loaded['gain']['extended'] > loaded['gain']['baseline']   # log score: higher is better
     assert 0 < loaded['gain']['relative'] <= 1.5
     assert set(loaded['discrepancies'][0]) >= {'statistic', 'data', 'model', 'z'}
     assert {c['cause'] for c in loaded['candidates']} == set(om.EFFECT_NAMES)
     for candidate in loaded['candidates']:
         assert set(candidate) >= {'cause', 'parameters', 'gain', 'p_value', 'detectable',
-                                  'detectable_method'}
+                                  'detectable_method', 'detectable_power'}
     summary = written['summary'].read_text()
     assert 'initial_pose_error' in summary and 'would go unseen' in summary
     for name in ('paths.png', 'violation_grid.png', 'deciding_statistic.png',

@@ -8,8 +8,9 @@ Method (docs/diagnosis.md has it in full):
 3. Forward selection: every cause not yet in the model is added in turn and all included
    sizes refit together (modelfit.fit_causes); each extended model is scored on the held-out
    runs (scoring.py). A cause enters when (a) its size's lower confidence bound clears its
-   floor (decide.py), (b) it improves the held-out score significantly (one-sided paired
-   t-test at level alpha / m) and (c) by at least `min_gain`; of those, the largest gain
+   floor (decide.py), (b) it improves the held-out log score of the features significantly
+   (one-sided paired t-test at level alpha / m) and (c) by at least `min_gain`; of those, the
+   largest gain
    enters. The search stops when no remaining cause qualifies.
 4. The final model is refit on all runs: sizes with 95 % intervals.
 5. Discrepancies: every statistic of all runs against the baseline; adequacy: the same
@@ -26,17 +27,19 @@ from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy import stats
 
 from octoroach_model.diagnosis.causes import BY_NAME, CAUSES, RunScale
 from octoroach_model.diagnosis.decide import SizeVerdict, decision_z, judge
 from octoroach_model.diagnosis.executors import executor_for, single_threaded
+from octoroach_model.diagnosis.features import run_features
+from octoroach_model.diagnosis.limits import Limit, detection_limit
 from octoroach_model.diagnosis.modelfit import (
     CausesFit, FitSettings, FittedModel, GeometryUncertainty, RunData, Simulator, fit_causes)
 from octoroach_model.diagnosis.report import (
     CandidateResult, DiagnosisReport, NamedCause, RunLengths, ScoreSummary, StepResult)
 from octoroach_model.diagnosis.scoring import (
-    PairedGain, Scores, energy_score, feature_scales, log_scores, position_points_cm,
-    score_model)
+    PairedGain, Scores, feature_scales, position_points_cm, score_model)
 from octoroach_model.diagnosis.statistics import (
     STATISTICS, critical_z, discrepancies, statistic_values)
 from octoroach_model.errors import DataError
@@ -61,7 +64,7 @@ class DiagnosisSettings:
 
     alpha: family level of the held-out tests (divided among the candidates of a step);
     decision_alpha: family level of the size bounds (likewise); min_gain: smallest held-out
-    gain (feature score: summed CRPS, data spreads per run) a cause must bring; adequacy_alpha:
+    gain (feature log score, nats per run) a cause must bring; adequacy_alpha:
     family level over the discrepancy statistics; moment_runs / mean_path_runs / score_runs:
     simulated runs per moment point / per mean path / per scored model; workers: processes
     (1: in this process), ignored when an executor is passed to `diagnose`.
@@ -125,13 +128,14 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         baseline_scores = current_scores
         say(0.15, f'baseline: sigma1 = {baseline.sigmas[0]:.3f}, '
                   f'sigma2 = {baseline.sigmas[1]:.3f} rad')
-        model, steps, last_seen = baseline, [], {}
+        model, steps, last_seen, last_evaluated = baseline, [], {}, {}
         remaining = [cause.name for cause in CAUSES]
         while remaining:
             step = len(steps) + 1
             futures = [pool.submit(evaluate_candidate, halves, model, current_scores, cause,
                                    settings) for cause in remaining]
             evaluated = [future.result() for future in futures]
+            last_evaluated.update({evaluation.cause: evaluation for evaluation in evaluated})
             result, chosen = _step_result(step, evaluated, halves, settings)
             for candidate in result.candidates:
                 last_seen[candidate.cause] = candidate
@@ -152,6 +156,9 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             validations = {name: pool.submit(paper_validation, measured, fitted,
                                              settings.validation)
                            for name, fitted in (('baseline', baseline), ('extended', model))}
+        limit_futures = {cause: pool.submit(_limit, halves, model, last_evaluated[cause],
+                                            last_seen[cause], settings)
+                         for cause in last_seen}
         final_fit = final_future.result()
         final, final_estimates = final_fit.model, final_fit.estimates
         say(0.85, 'discrepancies and adequacy')
@@ -169,6 +176,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         bound = critical_z(settings.adequacy_alpha, len(STATISTICS))
         unexplained = [row for row in final_rows if abs(row.z) > bound and row.material]
         validation_results = {name: future.result() for name, future in validations.items()}
+        limits = {cause: future.result() for cause, future in limit_futures.items()}
     named = _named_causes(steps, final, final_estimates, halves, settings)
     report = DiagnosisReport(
         paths=measured.n_paths, duration_s=float(measured.t[-1]), seed=settings.seed,
@@ -178,7 +186,8 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         baseline=_model_summary(baseline, validation_results.get('baseline')),
         extended=_model_summary(final, validation_results.get('extended')),
         discrepancies=tuple(baseline_rows), candidates=tuple(
-            last_seen[cause.name] for cause in CAUSES if cause.name in last_seen),
+            last_seen[cause.name].with_limit(limits[cause.name])
+            for cause in CAUSES if cause.name in last_seen),
         causes=tuple(named), steps=tuple(steps),
         gain=_gain_summary(baseline_scores, current_scores, halves),
         extended_discrepancies=tuple(final_rows), adequate=not unexplained, unexplained=tuple(unexplained),
@@ -274,7 +283,6 @@ class Evaluation:
     scores: Scores
     gain: PairedGain
     gain_cm: float
-    log_gain: float
 
 
 def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Scores,
@@ -286,26 +294,20 @@ def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Sc
     fitted = fit_causes(halves.train, current, causes, settings.fit(), geometry=geometry,
                         rounds=1)
     model, estimates = fitted.model, fitted.estimates
-    simulator = Simulator(halves.test, settings.seed)
-    scores, features = _score(simulator, model, halves, settings, with_features=True)
-    current_features = simulator.features(current, settings.score_runs, SCORE_PURPOSE)
-    first, second, _ = log_scores(current_features, features, halves.test.features,
-                                  halves.scales)
+    scores = _score(Simulator(halves.test, settings.seed), model, halves, settings)
     return Evaluation(cause, model, estimates, scores,
-                      PairedGain.of(current_scores.features - scores.features),
-                      float(np.mean(current_scores.energy_cm - scores.energy_cm)),
-                      float(np.mean(second - first)))
+                      PairedGain.of(scores.log - current_scores.log),
+                      float(np.mean(current_scores.energy_cm - scores.energy_cm)))
 
 
 def _score(simulator: Simulator, model: FittedModel, halves: _Halves,
-           settings: DiagnosisSettings, with_features: bool = False):
+           settings: DiagnosisSettings) -> Scores:
+    """The held-out runs' scores under `model` (its runs cut to the held-out lengths)."""
     paths = simulator.paths(model, settings.score_runs, SCORE_PURPOSE)
-    from octoroach_model.diagnosis.features import run_features
     features = run_features(paths, halves.all.stride_frequency, halves.all.reference_heading)
     points = position_points_cm(paths.positions, paths.lengths)
-    scores = score_model(features, points, halves.test.features, halves.test_points_cm,
-                         halves.scales)
-    return (scores, features) if with_features else scores
+    return score_model(features, points, halves.test.features, halves.test_points_cm,
+                       halves.scales)
 
 
 def _step_result(step: int, evaluated: list[Evaluation], halves: _Halves,
@@ -329,10 +331,10 @@ def _step_result(step: int, evaluated: list[Evaluation], halves: _Halves,
 
 
 def _excess_share(evaluation: Evaluation, halves: _Halves) -> float:
-    """Share of the current model's excess score (over data predicting data) removed."""
-    before = float(np.mean(evaluation.scores.features)) + evaluation.gain.mean
-    excess = before - float(np.mean(halves.ideal.features))
-    return evaluation.gain.mean / excess if excess > 1e-12 else 0.0
+    """Share of the current model's gap to the ideal (data predicting data) closed."""
+    before = float(np.mean(evaluation.scores.log)) - evaluation.gain.mean
+    gap = float(np.mean(halves.ideal.log)) - before
+    return evaluation.gain.mean / gap if gap > 1e-12 else 0.0
 
 
 def _step_message(result: StepResult) -> str:
@@ -363,6 +365,20 @@ def fit_errors(simulator: Simulator, model: FittedModel,
                                                     np.maximum(errors, 1e-300))
     variance = np.einsum('is,ij,js->s', changes, correlation, changes)
     return np.sqrt(np.maximum(variance, 0.0) / data_share)
+
+
+def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
+           seen: CandidateResult, settings: DiagnosisSettings) -> Limit:
+    """A cause's detection limit against `model` without it (a task for the pool)."""
+    cause = BY_NAME[evaluation.cause]
+    without = replace(model, effects={name: values for name, values in model.effects.items()
+                                      if name != cause.name})
+    everyone = len(CAUSES)
+    return detection_limit(
+        Simulator(halves.test, settings.seed), without, evaluation.estimates[cause.name],
+        cause.floor(halves.run_scale), decision_z(settings.decision_alpha, everyone),
+        float(stats.norm.isf(settings.alpha / everyone)), halves.scales, halves.test.n,
+        settings.score_runs, seen.detectable[cause.parameter])
 
 
 def _final_fit(halves: _Halves, model: FittedModel, settings: DiagnosisSettings

@@ -8,13 +8,14 @@ on the record (for plots and re-use) but written as their tables only.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from octoroach_model.diagnosis.causes import BY_NAME
+from octoroach_model.diagnosis.limits import METHOD as LIMIT_METHOD, Limit
 from octoroach_model.diagnosis.statistics import Discrepancy
 from octoroach_model.jsonio import dumps, fields_jsonable, jsonable
 from octoroach_model.paths import Paths
@@ -25,9 +26,6 @@ if TYPE_CHECKING:
     from octoroach_model.diagnosis.modelfit import FittedModel
     from octoroach_model.diagnosis.scoring import Scores
 
-LIMIT_METHOD = ('size at which the lower confidence bound of the main parameter (at the '
-                'step\'s level) clears its floor with 80 % power, from the measured runs\' own '
-                'bootstrap error and the simulation\'s (docs/diagnosis.md)')
 
 
 @dataclass(frozen=True)
@@ -56,18 +54,18 @@ class CandidateResult:
 
     cause: str
     parameters: dict
-    gain: float                  # held-out feature score gain (summed CRPS), data spreads/run
+    gain: float                  # held-out feature log score gain, nats per run
     gain_se: float
     p_value: float
-    relative: float              # share of the current model's excess score removed
+    relative: float              # share of the current model's gap to the ideal closed
     gain_cm: float               # held-out position energy score gain, cm per run
-    log_score_gain: float        # nats per run, over the features both models spread
     interval: dict               # main parameter: 95 % interval (calibration half)
     standard_error: float
     lower_bound: float           # one-sided, at the step's level
     floor: float
     detectable: dict             # main parameter: 80 %-power limit (None: none found)
     detectable_method: str
+    detectable_power: dict       # at the limit: P(size bound clears), P(held-out test)
     clears_floor: bool
     significant: bool
     named_here: bool
@@ -81,10 +79,18 @@ class CandidateResult:
         values = dict(evaluation.model.effects[evaluation.cause])
         return cls(evaluation.cause, values, evaluation.gain.mean, evaluation.gain.standard_error,
                    evaluation.gain.p_value, relative, evaluation.gain_cm,
-                   evaluation.log_gain, {cause.parameter: list(verdict.interval)},
+                   {cause.parameter: list(verdict.interval)},
                    verdict.standard_error, verdict.lower_bound, verdict.floor,
-                   {cause.parameter: verdict.limit}, LIMIT_METHOD, verdict.clears_floor,
+                   {cause.parameter: verdict.limit}, 'size bound only (before the limit '
+                   'of the whole decision is computed)', {}, verdict.clears_floor,
                    significant, named_here, step, cause.statistic_name)
+
+    def with_limit(self, limit: Limit) -> CandidateResult:
+        """This result with the detection limit of the whole decision (limits.py)."""
+        return replace(self, detectable={BY_NAME[self.cause].parameter: limit.size},
+                       detectable_method=LIMIT_METHOD,
+                       detectable_power={'size_bound': limit.size_bound_power,
+                                         'held_out_test': limit.test_power})
 
 
 @dataclass(frozen=True)
@@ -110,7 +116,6 @@ class NamedCause:
     p_value: float
     relative: float
     gain_cm: float
-    log_score_gain: float
     step: int
 
     @classmethod
@@ -120,7 +125,7 @@ class NamedCause:
         interval = {parameter: list(verdict.interval)} if verdict else entry.interval
         error = {parameter: verdict.standard_error if verdict else entry.standard_error}
         return cls(cause, dict(values), interval, error, entry.gain, entry.p_value,
-                   entry.relative, entry.gain_cm, entry.log_score_gain, entry.step)
+                   entry.relative, entry.gain_cm, entry.step)
 
 
 @dataclass(frozen=True)
@@ -137,16 +142,16 @@ class ScoreSummary:
     @classmethod
     def of(cls, baseline: Scores, extended: Scores, ideal: Scores) -> ScoreSummary:
         def share(before: float, after: float, best: float) -> float:
-            excess = before - best
-            return float((before - after) / excess) if excess > 1e-12 else 0.0
+            gap = best - before
+            return float((after - before) / gap) if abs(gap) > 1e-12 else 0.0
 
-        b, e, i = (float(np.mean(s.features)) for s in (baseline, extended, ideal))
+        b, e, i = (float(np.mean(s.log)) for s in (baseline, extended, ideal))
         bc, ec, ic = (float(np.mean(s.energy_cm)) for s in (baseline, extended, ideal))
-        return cls('held-out CRPS of the run features, each feature in units of its spread '
-                   'in the calibration half, summed over the features; per run, lower is '
-                   'better. ideal: the '
-                   'calibration runs themselves as the model. relative: share of the '
-                   "baseline's excess over the ideal that the extended model removes",
+        return cls('held-out log score of the run features (each in units of its spread in '
+                   'the calibration half, a normal for each under the model, summed), nats '
+                   'per run, higher is better. ideal: the calibration runs themselves as the '
+                   "model. relative: the share of the baseline's gap to the ideal that the "
+                   'extended model closes',
                    b, e, i, share(b, e, i),
                    {'metric': 'held-out energy score of positions at 20/40/60/80/100 % of '
                               'each run, cm per run, lower is better',
@@ -277,16 +282,16 @@ def summary_text(report: DiagnosisReport) -> str:
         values = ', '.join(f'{key} = {_number(value)}' for key, value in named.parameters.items())
         lines.append(f'{number}. **{named.cause}** ({values}; 95 % interval of {parameter}: '
                      f'{_number(low)} to {_number(high)}). Adding it improved the held-out '
-                     f'score by {_number(named.gain)} data spreads per run (p = '
+                     f'log score by {_number(named.gain)} nats per run (p = '
                      f'{named.p_value:.2g}), {_percent(named.relative)} of what the model '
                      f'lacked then; positions {_number(named.gain_cm)} cm per run closer.')
     gain = report.gain
-    lines += ['', f'Held-out score: baseline {_number(gain.baseline)}, extended '
-                  f'{_number(gain.extended)}, the data themselves {_number(gain.ideal)} '
-                  f'(lower is better): the extended model removes '
-                  f'{_percent(gain.relative)} of the baseline\'s excess. Positions: '
+    lines += ['', f'Held-out log score per run: baseline {_number(gain.baseline)}, extended '
+                  f'{_number(gain.extended)}, the data themselves {_number(gain.ideal)} nats '
+                  f'(higher is better): the extended model closes '
+                  f'{_percent(gain.relative)} of the baseline\'s gap. Positions: '
                   f"{_number(gain.energy_score_cm['baseline'])} -> "
-                  f"{_number(gain.energy_score_cm['extended'])} cm."]
+                  f"{_number(gain.energy_score_cm['extended'])} cm (energy score, lower is better)."]
     lines += ['', '## What the extended model still misses', '']
     if report.adequate:
         lines.append('Nothing material: every statistic of the data agrees with the extended '

@@ -1,20 +1,20 @@
 """How well a model predicts held-out runs: proper scores per run, and their comparison.
 
-- **Feature score** (the decision's score): the continuous ranked probability score (CRPS) of
-  each of a run's features against the model's simulated runs, every feature divided by its
-  spread in the calibration half (so no feature's unit decides), summed over the features.
-  It is proper, it stays finite where a model has no spread at all (a model that starts every
-  run at one point), and a gain in one feature is not diluted by the others' noise, as it is
-  in a multivariate energy score. Unit: the data's spread.
-- **Position energy score** (cm): the same on the run's positions at 20/40/60/80/100 % of
-  its duration, for a reader who thinks in centimetres.
-- **Log score** (nats): the Gaussian synthetic likelihood of the features, over the features
-  in which both models predict a spread of at least a tenth of the data's (a model with no
-  spread in a feature has no finite log score there; those features are scored by the energy
-  score only, so no floor decides the number).
+- **Feature log score** (nats per run, higher is better; the one that decides): the log
+  density of each of a run's features under a normal distribution with the mean and spread
+  of the model's simulated runs, every feature in units of its spread in the calibration
+  half, summed over the features. A model is never credited with less than a quarter of the
+  data's spread in any feature (FLOOR): a model that predicts no spread at all (the paper's
+  model starts every run at one point) then costs at most about 8 nats per run in that
+  feature instead of an unbounded amount, so no floor dominates a reported gain. Summing
+  per feature keeps a gain in one feature from being diluted by the others' noise, and the
+  log score is the most powerful of the proper scores for a change of spread.
+- **Position energy score** (cm per run, lower is better): the energy score of the run's
+  positions at 20/40/60/80/100 % of its duration against the model's, for a reader who thinks
+  in centimetres.
 - **Ideal**: the same scores of the held-out runs against the calibration runs themselves
-  (data predicting data). `relative` gains are the share of the baseline's excess over this
-  ideal that a model removes.
+  (data predicting data). A relative gain is the share of the gap between a model and this
+  ideal that another model closes.
 
 Every comparison is paired run by run: the per-run gain's mean, and a one-sided t-test.
 """
@@ -30,17 +30,16 @@ from octoroach_model.diagnosis.features import RESOLUTION
 
 ENERGY_FRACTIONS = (0.2, 0.4, 0.6, 0.8, 1.0)
 PAIR_RUNS = 400           # model runs used for the energy score's spread term
-LOG_SCORE_MIN_SPREAD = 0.1
+FLOOR = 0.25              # smallest spread (in data spreads) a model is credited with
 NUMERICAL_NOISE = 1e-6    # per-run score differences below this are rounding, not evidence
 
 
 @dataclass(frozen=True)
 class Scores:
-    """Per held-out run scores of one model (lower is better for energy, higher for log)."""
+    """Per held-out run scores of one model."""
 
-    features: np.ndarray            # feature score (summed CRPS), data spreads
-    energy_cm: np.ndarray           # position energy score, cm
-    model_spread: np.ndarray        # (F,) the model's standardised feature spreads
+    log: np.ndarray                 # feature log score, nats (higher is better)
+    energy_cm: np.ndarray           # position energy score, cm (lower is better)
 
 
 def feature_scales(calibration_features: np.ndarray) -> np.ndarray:
@@ -48,21 +47,12 @@ def feature_scales(calibration_features: np.ndarray) -> np.ndarray:
     return np.maximum(np.std(calibration_features, axis=0, ddof=1), RESOLUTION)
 
 
-def crps_sum(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    """Sum over columns of the CRPS of each observed row against the sample (lower is
-    better): E|X - y| - E|X - X'| / 2 per column, from the sorted sample in O(n log n)."""
-    n = sample.shape[0]
-    total = np.zeros(observed.shape[0])
-    weights = (2 * np.arange(1, n + 1) - n - 1) / n ** 2
-    for column in range(sample.shape[1]):
-        ordered = np.sort(sample[:, column])
-        sums = np.concatenate([[0.0], np.cumsum(ordered)])
-        y = observed[:, column]
-        below = np.searchsorted(ordered, y, side='right')
-        to_observed = (y * below - sums[below] + (sums[-1] - sums[below])
-                       - y * (n - below)) / n
-        total += to_observed - weights @ ordered
-    return total
+def feature_log_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """Sum over columns of the normal log density of each observed row under the sample's
+    column mean and spread (spread never below FLOOR); columns in data spreads."""
+    mean = sample.mean(axis=0)
+    spread = np.maximum(sample.std(axis=0, ddof=1), FLOOR)
+    return stats.norm.logpdf(observed, mean, spread).sum(axis=1)
 
 
 def energy_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
@@ -89,34 +79,8 @@ def score_model(model_features: np.ndarray, model_points_cm: np.ndarray,
                 observed_features: np.ndarray, observed_points_cm: np.ndarray,
                 scales: np.ndarray) -> Scores:
     """Scores of the observed (held-out) runs under a model's simulated runs."""
-    model_standard = model_features / scales
-    observed_standard = observed_features / scales
-    return Scores(crps_sum(model_standard, observed_standard),
-                  energy_score(model_points_cm, observed_points_cm),
-                  np.std(model_standard, axis=0, ddof=1))
-
-
-def log_scores(first: np.ndarray, second: np.ndarray, observed: np.ndarray,
-               scales: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """Gaussian log scores (nats, higher is better) of the observed runs under two models'
-    simulated features, over the features where both have at least LOG_SCORE_MIN_SPREAD of
-    the data's spread; returns both score arrays and the features used."""
-    first, second, observed = first / scales, second / scales, observed / scales
-    usable = [index for index in range(first.shape[1])
-              if min(np.std(first[:, index]), np.std(second[:, index])) >= LOG_SCORE_MIN_SPREAD]
-    if not usable:
-        zero = np.zeros(observed.shape[0])
-        return zero, zero.copy(), []
-    return (_gaussian_log_score(first[:, usable], observed[:, usable]),
-            _gaussian_log_score(second[:, usable], observed[:, usable]), usable)
-
-
-def _gaussian_log_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    mean = sample.mean(axis=0)
-    covariance = np.atleast_2d(np.cov(sample, rowvar=False))
-    covariance = covariance + np.eye(len(mean)) * 1e-6 * np.trace(covariance) / len(mean)
-    return np.atleast_1d(stats.multivariate_normal(mean, covariance,
-                                                   allow_singular=True).logpdf(observed))
+    return Scores(feature_log_score(model_features / scales, observed_features / scales),
+                  energy_score(model_points_cm, observed_points_cm))
 
 
 @dataclass(frozen=True)
