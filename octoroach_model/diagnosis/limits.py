@@ -72,23 +72,27 @@ def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float) -> 
     return float(stats.norm.cdf((size - floor - z * se) / se))
 
 
-def expected_t(simulator: Simulator, without: FittedModel, cause: Cause, size: float,
-               scales: np.ndarray, held_out: int, score_runs: int) -> float:
-    """Expected t statistic of the held-out test for a cause of `size` (module docstring)."""
+def _features(simulator: Simulator, model: FittedModel, runs: int, purpose: int,
+              scales: np.ndarray) -> np.ndarray:
+    paths = simulator.paths(model, runs, purpose)
     data = simulator.data
+    return run_features(paths, data.stride_frequency, data.reference_heading) / scales
+
+
+def expected_t(simulator: Simulator, without: FittedModel, without_features: np.ndarray,
+               cause: Cause, size: float, scales: np.ndarray, held_out: int,
+               score_runs: int) -> float:
+    """Expected t statistic of the held-out test for a cause of `size` (module docstring);
+    `without_features` are the scored runs of the model without the cause."""
     values = {cause.parameter: size}
     if cause.name == 'initial_pose_error':
         values['position_std_cm'] = float((without.effects.get(cause.name) or {}).get(
             'position_std_cm', 0.0))
     extended = without.with_effect(cause.name, values)
-
-    def features(model: FittedModel, runs: int, purpose: int) -> np.ndarray:
-        paths = simulator.paths(model, runs, purpose)
-        return run_features(paths, data.stride_frequency, data.reference_heading) / scales
-
-    pseudo = features(extended, PSEUDO_RUNS, PSEUDO_PURPOSE)
-    gain = (feature_log_score(features(extended, score_runs, MODEL_PURPOSE), pseudo)
-            - feature_log_score(features(without, score_runs, MODEL_PURPOSE), pseudo))
+    pseudo = _features(simulator, extended, PSEUDO_RUNS, PSEUDO_PURPOSE, scales)
+    gain = (feature_log_score(_features(simulator, extended, score_runs, MODEL_PURPOSE,
+                                        scales), pseudo)
+            - feature_log_score(without_features, pseudo))
     spread = float(np.std(gain, ddof=1))
     if spread <= 0:
         return math.inf if gain.mean() > 0 else 0.0
@@ -103,7 +107,8 @@ def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEs
     cause = BY_NAME[estimate.cause]
     first = max(start or 0.0, 2 * floor, 1e-9)
     sizes = [first, 3 * first]
-    t_values = [max(expected_t(simulator, without, cause, size, scales, held_out,
+    base = _features(simulator, without, score_runs, MODEL_PURPOSE, scales)
+    t_values = [max(expected_t(simulator, without, base, cause, size, scales, held_out,
                                score_runs), 1e-9) for size in sizes]
     slope = (math.log(t_values[1]) - math.log(t_values[0])) / math.log(sizes[1] / sizes[0])
     slope = max(slope, 0.1)
