@@ -75,7 +75,8 @@ def _paths_plot(report, measured: Paths, path: Path) -> bool:
     ax.set_title(f'{len(shown)} of {measured.n_paths} measured runs (Fig. 5a)')
     names = ', '.join(c.cause for c in report.causes) or 'no cause'
     for ax, (label, model) in zip(axes[1:], (('paper model (baseline)', report.baseline_model),
-                                             (f'extended: {names}', report.extended_model))):
+                                             (f'extended model\n({names})',
+                                              report.extended_model))):
         ax.fill_betweenx(centre[:, 1], centre[:, 0] - half[:, 0], centre[:, 0] + half[:, 0],
                          color='tab:orange', alpha=0.25, label='95 % region of x (data)')
         simulated = _simulate(model, measured, N_SHOWN)
@@ -186,7 +187,7 @@ def _discrepancy_plot(report, measured: Paths, path: Path) -> bool:
     ax.set_yticks(positions, names)
     ax.invert_yaxis()
     ax.set_xlabel('z = (data - model) / standard error [-] (clipped at +-50)')
-    ax.set_title('Where the model disagrees with the data, before and after the extension')
+    ax.set_title('Where the model disagrees with the data,\nbefore and after the extension')
     ax.legend(fontsize=8, loc='lower right')
     fig.tight_layout()
     fig.savefig(path, dpi=110)

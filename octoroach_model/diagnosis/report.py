@@ -320,7 +320,9 @@ def summary_text(report: DiagnosisReport) -> str:
         unit = BY_NAME[candidate.cause].unit
         text = (f'below {_number(limit)} {unit}'.rstrip() if limit is not None
                 else 'of any size on the grid')
-        lines.append(f'- a {candidate.cause.replace("_", " ")} ({parameter}) {text} would go '
+        name = candidate.cause.replace('_', ' ')
+        article = 'an' if name[0] in 'aeiou' else 'a'
+        lines.append(f'- {article} {name} ({parameter}) {text} would go '
                      f'unseen in {report.paths} runs like these (80 % power; estimate here '
                      f'{_number(candidate.parameters[parameter])}).')
     if report.notes:

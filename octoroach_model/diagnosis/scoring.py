@@ -31,6 +31,7 @@ from octoroach_model.diagnosis.features import RESOLUTION
 ENERGY_FRACTIONS = (0.2, 0.4, 0.6, 0.8, 1.0)
 PAIR_RUNS = 400           # model runs used for the energy score's spread term
 FLOOR = 0.25              # smallest spread (in data spreads) a model is credited with
+CAP = 8.0                 # a feature further off than this (in predictive spreads) counts as CAP
 NUMERICAL_NOISE = 1e-6    # per-run score differences below this are rounding, not evidence
 
 
@@ -49,10 +50,12 @@ def feature_scales(calibration_features: np.ndarray) -> np.ndarray:
 
 def feature_log_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
     """Sum over columns of the normal log density of each observed row under the sample's
-    column mean and spread (spread never below FLOOR); columns in data spreads."""
+    column mean and spread (spread never below FLOOR, distance never beyond CAP spreads);
+    columns in data spreads."""
     mean = sample.mean(axis=0)
     spread = np.maximum(sample.std(axis=0, ddof=1), FLOOR)
-    return stats.norm.logpdf(observed, mean, spread).sum(axis=1)
+    z = np.clip((observed - mean) / spread, -CAP, CAP)
+    return (stats.norm.logpdf(z) - np.log(spread)).sum(axis=1)
 
 
 def energy_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
