@@ -33,7 +33,9 @@ class HelpFormatter(argparse.HelpFormatter):
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ''
-        if action.default not in (None, False, argparse.SUPPRESS) and '%(default)' not in text:
+        default = action.default
+        shown = not (default is None or default is False or default == argparse.SUPPRESS)
+        if shown and '%(default)' not in text:
             text += ' (default: %(default)s)'
         return text
 
