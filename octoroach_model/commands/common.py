@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 import sys
 import time
-from typing import TYPE_CHECKING
+from typing import NoReturn, TYPE_CHECKING
 
 from octoroach_model.errors import ParameterError
 
@@ -47,7 +47,7 @@ class OneLineParser(argparse.ArgumentParser):
         kwargs.setdefault('formatter_class', HelpFormatter)
         super().__init__(*args, **kwargs)
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f'error: {self.prog}: {message} (see --help)\n')
 
 

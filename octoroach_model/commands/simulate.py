@@ -26,8 +26,8 @@ def parse_effects(pairs: list[tuple[str, str]]) -> dict[str, dict[str, float]]:
         key, sep, number = value.partition('=')
         if not sep:
             raise ParameterError(f'--effect-param takes KEY=VALUE, got {value!r}')
-        name, dot, key = key.rpartition('.')
-        name = name if dot else current
+        prefix, dot, key = key.rpartition('.')
+        name = prefix if dot else current
         if name is None:
             raise ParameterError(f'--effect-param {value} comes before any --effect NAME')
         try:

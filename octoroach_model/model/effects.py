@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 import math
+from typing import Protocol
 
 import numpy as np
 
@@ -63,8 +64,15 @@ def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
     return {name: checked[name] for name in EFFECT_NAMES if name in checked}
 
 
+class NormalSource(Protocol):
+    """Where an effect draws its normals: a numpy Generator, or one giving antithetic pairs."""
+
+    def standard_normal(self, size: int | tuple[int, ...]) -> np.ndarray:
+        """Draw standard normals of shape `size`."""
+
+
 def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
-                rngs: Mapping[str, np.random.Generator]) -> np.ndarray:
+                rngs: Mapping[str, NormalSource]) -> np.ndarray:
     """
     Give the (n, T) gait clock: the times at which the unwarped model is evaluated.
 
@@ -84,7 +92,7 @@ def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
 
 
 def apply_pose_effects(poses: np.ndarray, t: np.ndarray, effects: Effects,
-                       rngs: Mapping[str, np.random.Generator]) -> np.ndarray:
+                       rngs: Mapping[str, NormalSource]) -> np.ndarray:
     """Apply the non-warp effects to runs, in canonical order. poses: (n, T, 3), SI."""
     poses = poses.copy()
     n_runs = poses.shape[0]

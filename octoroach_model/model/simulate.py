@@ -16,7 +16,8 @@ import numpy as np
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.model.effects import (
-    apply_pose_effects, check_effects, EFFECT_NAMES, Effects, TIME_WARPS, warped_time)
+    apply_pose_effects, check_effects, EFFECT_NAMES, Effects, NormalSource, TIME_WARPS,
+    warped_time)
 from octoroach_model.model.kinematics import integrate_stances, stance_angles
 from octoroach_model.model.parameters import ModelParameters, nominal_sigmas, SIGMA_LIMIT
 from octoroach_model.paths import Paths
@@ -36,7 +37,7 @@ class AntitheticNormal:
     def __init__(self, generator: np.random.Generator) -> None:
         self.generator = generator
 
-    def standard_normal(self, size) -> np.ndarray:
+    def standard_normal(self, size: int | tuple[int, ...]) -> np.ndarray:
         shape = (size,) if isinstance(size, int) else tuple(size)
         half = self.generator.standard_normal((-(-shape[0] // 2), *shape[1:]))
         return np.concatenate([half, -half], axis=0)[:shape[0]]
@@ -64,8 +65,9 @@ class RandomStreams:
         self.seed_entropy = sequence.entropy
         self.angles = wrap(np.random.default_rng(children[0]))
         self.extra_stances = wrap(np.random.default_rng(children[1]))
-        self.effects = {name: wrap(np.random.default_rng(child))
-                        for name, child in zip(EFFECT_NAMES, children[2:])}
+        self.effects: dict[str, NormalSource] = {
+            name: wrap(np.random.default_rng(child))
+            for name, child in zip(EFFECT_NAMES, children[2:])}
 
 
 def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = None,

@@ -150,9 +150,11 @@ def with_defaults(specs: Sequence[ParamSpec], defaults: dict[str, Any] | None
             else spec for spec in specs]
 
 
-def declare_parameters(node: Node, specs: Sequence[ParamSpec]) -> dict[str, ParamValue]:
+def declare_parameters(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """
     Declare every spec on `node`; the values in force (defaults or --ros-args overrides).
+
+    Each value has its spec's type (rclpy enforces it), which only the spec knows: hence Any.
 
     Raises ParameterError with a one-line reason when an override has the wrong type or lies
     outside its range.

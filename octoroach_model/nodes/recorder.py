@@ -146,7 +146,7 @@ except ImportError:  # pragma: no cover
     Node = object  # type: ignore[assignment,misc]
 
 
-class Recorder(Node):  # type: ignore[misc,valid-type]
+class Recorder(Node):
     """Records the configured topics; see the module docstring."""
 
     def __init__(self, defaults: dict[str, Any] | None = None, **node_options: Any) -> None:

@@ -101,7 +101,7 @@ except ImportError:  # pragma: no cover
     Node = object  # type: ignore[assignment,misc]
 
 
-class Replay(Node):  # type: ignore[misc,valid-type]
+class Replay(Node):
     """Plays one bag; see the module docstring. `done` holds the exit code when finished."""
 
     def __init__(self, defaults: dict[str, Any] | None = None, **node_options: Any) -> None:
@@ -208,9 +208,10 @@ class Replay(Node):  # type: ignore[misc,valid-type]
         reader = BagReader(self._source, notes)
         publishers, stop = self._outputs, self._stop
         rate = self._rate
-        wall0 = bag0 = None
+        wall0 = 0.0
+        bag0: int | None = None  # log time of the first message, played at wall0
         for message in reader.messages(list(publishers)):
-            if wall0 is None:
+            if bag0 is None:
                 wall0, bag0 = time.monotonic(), message.log_time_ns
             if self._rate != rate:
                 wall0, bag0, rate = time.monotonic(), message.log_time_ns, self._rate

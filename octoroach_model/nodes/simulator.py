@@ -143,7 +143,7 @@ class _PreparedRun:
     messages: list[Any]              # per robot, a TransformStamped filled at every sample
 
 
-class Simulator(Node):  # type: ignore[misc,valid-type]
+class Simulator(Node):
     """
     Publishes model runs as VICON poses; see the module docstring.
 

@@ -169,7 +169,7 @@ class _Running:
     message: str = ''
 
 
-class Validator(Node):  # type: ignore[misc,valid-type]
+class Validator(Node):
     """Validation and diagnosis services; see the module docstring."""
 
     def __init__(self, **node_options: Any) -> None:

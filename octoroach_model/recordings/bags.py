@@ -32,6 +32,7 @@ from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.pose_messages import (
     frame_getter,
     full_pose_getter,
+    FullPose,
     pose_getter,
     pose_layout,
     PoseLayout,
@@ -56,6 +57,7 @@ DEFAULT_CHUNK_SIZE = 10_000
 MOVING_M = 1e-3
 MOVING_RAD = 1e-3
 _PLAIN_TYPES = (TRANSFORM_STAMPED, POSE_STAMPED)
+Quaternion = tuple[float, float, float, float]  # qx, qy, qz, qw
 
 
 class PoseChunk(NamedTuple):
@@ -202,7 +204,7 @@ class _TfChoice:
     frame: str  # the followed frame
     moving_frame: str  # the frame found on /tf (== frame unless a static chain follows)
     parent: str
-    static: tuple[float, ...] | None = None  # x, y, z, qx, qy, qz, qw of frame in moving_frame
+    static: FullPose | None = None  # x, y, z, qx, qy, qz, qw of frame in moving_frame
 
 
 @dataclass
@@ -263,8 +265,8 @@ def _plan(reader: BagReader, topics: dict[str, TopicInfo], options: ReadOptions,
     if options.frame is not None:
         raise BagError(f'{name}: no /tf topic to find frame {options.frame} in; '
                        f'{describe_topics(topics)}')
-    unreadable = sorted(reader.types.unreadable)
-    why = f'; undecodable types: {", ".join(unreadable)}' if unreadable else ''
+    undecodable = sorted(reader.types.unreadable)
+    why = f'; undecodable types: {", ".join(undecodable)}' if undecodable else ''
     raise BagError(f'{name}: no pose topic ({TRANSFORM_STAMPED} or {POSE_STAMPED}, Odometry, '
                    f'TFMessage); {describe_topics(topics)}{why}')
 
@@ -300,7 +302,7 @@ def _choose_frame(reader: BagReader, dynamic: dict[str, TfLayout],
     name = reader.name
     statics = [topic for topic in lists if topic.endswith('_static')]
     seen: dict[str, _FrameSeen] = {}
-    static: dict[str, tuple[str, tuple[float, ...]]] = {}  # child -> (parent, pose)
+    static: dict[str, tuple[str, FullPose]] = {}  # child -> (parent, pose)
     getters = {topic: (attrgetter_list(layout.field), pose_getter(layout.element),
                        frame_getter(layout.element.child_frame),
                        frame_getter(layout.element.parent_frame),
@@ -333,10 +335,10 @@ def _choose_frame(reader: BagReader, dynamic: dict[str, TfLayout],
                 listed = ', '.join(sorted(seen)) or 'none'
                 raise BagError(f'{name}: no transform to child frame {wanted} on '
                                f'{", ".join(sorted(dynamic))} (child frames: {listed})')
-            moving, pose = chain
-            entry = seen[moving]
-            return _TfChoice([entry.topic], statics, dynamic[entry.topic], wanted, moving,
-                             entry.parent, pose)
+            moving_frame, frame_pose = chain
+            entry = seen[moving_frame]
+            return _TfChoice([entry.topic], statics, dynamic[entry.topic], wanted, moving_frame,
+                             entry.parent, frame_pose)
     else:
         moving = sorted(frame for frame, entry in seen.items() if entry.moves)
         candidates = moving or sorted(seen)
@@ -358,10 +360,10 @@ def attrgetter_list(path: str) -> Callable[[Any], list[Any]]:
     return lambda message: list(get(message))
 
 
-def _static_chain(frame: str, static: dict[str, tuple[str, tuple[float, ...]]],
-                  seen: dict[str, _FrameSeen]) -> tuple[str, tuple[float, ...]] | None:
+def _static_chain(frame: str, static: dict[str, tuple[str, FullPose]],
+                  seen: dict[str, _FrameSeen]) -> tuple[str, FullPose] | None:
     """Follow /tf_static up to a moving frame: (that frame, pose of `frame` in it) or None."""
-    pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    pose: FullPose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     current = frame
     for _ in range(32):
         if current not in static:
@@ -374,20 +376,20 @@ def _static_chain(frame: str, static: dict[str, tuple[str, tuple[float, ...]]],
     return None
 
 
-def _quaternion_product(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, ...]:
+def _quaternion_product(a: Quaternion, b: Quaternion) -> Quaternion:
     ax, ay, az, aw = a
     bx, by, bz, bw = b
     return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
             aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
 
 
-def _rotate(q: tuple[float, ...], v: tuple[float, ...]) -> tuple[float, ...]:
+def _rotate(q: Quaternion, v: tuple[float, float, float]) -> tuple[float, float, float]:
     x, y, z, _ = _quaternion_product(_quaternion_product(q, (*v, 0.0)),
                                      (-q[0], -q[1], -q[2], q[3]))
     return x, y, z
 
 
-def _compose(outer: tuple[float, ...], inner: tuple[float, ...]) -> tuple[float, ...]:
+def _compose(outer: FullPose, inner: FullPose) -> FullPose:
     """Pose `inner` (in the frame of `outer`) expressed in the parent of `outer`."""
     moved = _rotate(outer[3:], inner[:3])
     return (outer[0] + moved[0], outer[1] + moved[1], outer[2] + moved[2],

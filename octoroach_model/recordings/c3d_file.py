@@ -96,8 +96,8 @@ def _layout_rows(where: str, layout: Mapping[str, Sequence[float]],
                  labels: list[str], chosen: list[int]) -> np.ndarray:
     """Return the given layout as (M, 3) rows in the order of the chosen markers."""
     by_name: dict[str, Sequence[float]] = {}
-    for key, value in layout.items():
-        by_name[key.strip()] = value
+    for key, coordinates in layout.items():
+        by_name[key.strip()] = coordinates
     rows = []
     for index in chosen:
         label = labels[index].strip()

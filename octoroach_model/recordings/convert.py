@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+import os
 from pathlib import Path
 import shutil
 from typing import NamedTuple
@@ -76,7 +77,7 @@ def convert_to_bag(inputs: Sequence[PathLike] | PathLike, out: PathLike, *,
     target = Path(out)
     if target.exists():
         raise BagError(f'{target}: exists already; choose a new path')
-    paths = expand_sources([inputs] if isinstance(inputs, (str, Path)) else list(inputs))
+    paths = expand_sources([inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs))
     notes: list[str] = []
     try:
         return _convert(paths, target, options, subject, int(round(gap_s * 1e9)), notes,

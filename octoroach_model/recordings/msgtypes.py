@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import TYPE_CHECKING
+from typing import Any, TYPE_CHECKING
 
 from rosbags.typesys import (
     get_types_from_idl,
@@ -97,6 +97,6 @@ class BagTypes:
             return False
         return self.knows(msgtype)
 
-    def deserialize_cdr(self, data: bytes | memoryview, msgtype: str) -> object:
+    def deserialize_cdr(self, data: bytes | memoryview, msgtype: str) -> Any:
         """Decode a CDR message into a rosbags message object."""
         return self.store.deserialize_cdr(data, msgtype)

@@ -114,7 +114,8 @@ def tf_layout(msgtype: str, fielddefs: FieldDefs) -> TfLayout | None:
     return None
 
 
-Sample = tuple[int, float, float, float, float, float, float]
+Sample = tuple[int, float, float, float, float, float, float]  # stamp ns, x, y, qx, qy, qz, qw
+FullPose = tuple[float, float, float, float, float, float, float]  # x, y, z, qx, qy, qz, qw
 
 
 def pose_getter(layout: PoseLayout) -> Callable[[Any], Sample]:
@@ -132,12 +133,12 @@ def pose_getter(layout: PoseLayout) -> Callable[[Any], Sample]:
     return get
 
 
-def full_pose_getter(layout: PoseLayout) -> Callable[[Any], tuple[float, ...]]:
+def full_pose_getter(layout: PoseLayout) -> Callable[[Any], FullPose]:
     """Make a getter of (x, y, z, qx, qy, qz, qw), for composing transforms."""
     position = attrgetter(layout.position)
     orientation = attrgetter(layout.orientation)
 
-    def get(message: Any) -> tuple[float, ...]:
+    def get(message: Any) -> FullPose:
         p, q = position(message), orientation(message)
         return (float(p.x), float(p.y), float(p.z), float(q.x), float(q.y), float(q.z),
                 float(q.w))

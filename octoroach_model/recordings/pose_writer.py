@@ -9,6 +9,7 @@ make live: `TransformStamped` on ``/vicon/S/S`` (header frame ``vicon/world``, c
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -63,9 +64,9 @@ class PoseBagWriter:
         self._pose_channel: int | None = None
         self._marker_channel: int | None = None
         self._message = self._template(world_frame, child_frame)
-        self._marker = self._store.types[MARKER_TYPE](data=0)
+        self._marker: Any = self._store.types[MARKER_TYPE](data=0)
 
-    def _template(self, world_frame: str, child_frame: str) -> object:
+    def _template(self, world_frame: str, child_frame: str) -> Any:
         """One message object, mutated per sample: building five objects per pose is slow."""
         types = self._store.types
         header = types['std_msgs/msg/Header'](

@@ -109,16 +109,17 @@ def load_profiles(value: str | Sequence[Mapping[str, Any]] | None) -> tuple[QosP
     """Profiles from YAML text (channel metadata, old metadata.yaml) or a parsed list."""
     if not value:
         return ()
+    entries: Any = value  # YAML text parses to anything: checked below
     if isinstance(value, str):
         try:
-            value = yaml.safe_load(value)
+            entries = yaml.safe_load(value)
         except yaml.YAMLError:
             raise BagError('offered_qos_profiles is not valid YAML') from None
-        if not value:
+        if not entries:
             return ()
-    if not isinstance(value, Sequence):
+    if not isinstance(entries, Sequence):
         raise BagError('offered_qos_profiles is not a list')
-    return tuple(QosProfile.from_rosbag2(entry) for entry in value)
+    return tuple(QosProfile.from_rosbag2(entry) for entry in entries)
 
 
 @dataclass(frozen=True)

@@ -48,7 +48,9 @@ class TopicInfo(NamedTuple):
     """A topic of a bag: type, message count (-1: unknown), what the recording kept of it."""
 
     msgtype: str
-    count: int
+    # A field may shadow tuple.count, which mypy reports; the record is read by field name
+    # and `count` is public (recordings' API).
+    count: int  # type: ignore[assignment]
     offered_qos: tuple[QosProfile, ...] = ()
     type_hash: str = ''
     serialization_format: str = 'cdr'
@@ -299,7 +301,7 @@ class BagReader:
             self.notes.append(note)
             self.truncated = True
 
-    def decode(self, message: BagMessage) -> object:
+    def decode(self, message: BagMessage) -> Any:
         """Decode a message into a rosbags message object (raises on undecodable bytes)."""
         if self._rosbags_types is not None:
             store, ros1 = self._rosbags_types
@@ -330,6 +332,7 @@ class BagReader:
         default = get_typestore(Stores.ROS1_NOETIC if self.storage == 'ros1'
                                 else Stores.ROS2_JAZZY)
         target = self.path if self.storage == 'ros1' else self.directory
+        assert target is not None  # __init__ refused a sqlite3 bag without its directory
         return AnyReader([Path(target)], default_typestore=default)
 
     def _rosbags_call(self, work: Any) -> Any:
@@ -458,10 +461,12 @@ def _connection_topic(connection: Connection) -> TopicInfo:
         }) for q in profiles)
     except BagError:
         offered = ()
-    ros2 = hasattr(connection.ext, 'serialization_format')
-    return TopicInfo(connection.msgtype, int(connection.msgcount), offered,
-                     connection.digest if ros2 else '',
-                     connection.ext.serialization_format if ros2 else 'ros1')
+    from rosbags.interfaces import ConnectionExtRosbag2
+
+    if isinstance(connection.ext, ConnectionExtRosbag2):
+        return TopicInfo(connection.msgtype, int(connection.msgcount), offered,
+                         connection.digest, connection.ext.serialization_format)
+    return TopicInfo(connection.msgtype, int(connection.msgcount), offered, '', 'ros1')
 
 
 def _add_topic(topics: dict[str, TopicInfo], topic: str, info: TopicInfo) -> None:

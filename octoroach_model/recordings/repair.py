@@ -60,8 +60,8 @@ class RepairReport(NamedTuple):
 class _FileScan:
     """Channels, counts and times of one file, from a walk or from its copy."""
 
+    record: FileRecord
     topics: dict[int, TopicRecord] = field(default_factory=dict)
-    record: FileRecord | None = None
 
 
 def repair_bag(source: PathLike, out: PathLike | None = None) -> RepairReport:
@@ -129,7 +129,7 @@ def repair_bag(source: PathLike, out: PathLike | None = None) -> RepairReport:
 def _scan(file: Path) -> tuple[_FileScan, FileDamage]:
     """Walk one file: its topics, counts and time range, and what is damaged."""
     report = FileDamage(file)
-    scan = _FileScan()
+    topics: dict[int, TopicRecord] = {}
     schemas: dict[int, Schema] = {}
     counts: dict[int, int] = {}
     start, end = None, 0
@@ -150,13 +150,13 @@ def _scan(file: Path) -> tuple[_FileScan, FileDamage]:
             offered = load_profiles(channel.metadata.get('offered_qos_profiles'))
         except BagError:
             offered = ()
-        scan.topics[channel_id] = TopicRecord(
+        topics[channel_id] = TopicRecord(
             channel.topic, schema.name if schema is not None else '',
             channel.message_encoding, offered, channel.metadata.get('topic_type_hash', ''),
             counts.get(channel_id, 0))
     begin = start or 0
-    scan.record = FileRecord(file.name, begin, max(0, end - begin), sum(counts.values()))
-    return scan, report
+    record = FileRecord(file.name, begin, max(0, end - begin), sum(counts.values()))
+    return _FileScan(record, topics), report
 
 
 def _rewrite(source: Path, destination: Path) -> _FileScan:
@@ -181,8 +181,8 @@ def _rewrite(source: Path, destination: Path) -> _FileScan:
                     message_encoding=record.message_encoding, metadata=record.metadata)
             elif isinstance(record, Schema):
                 schemas[record.id] = record
-        scan = _FileScan(dict(enumerate(writer.topic_records())),
-                         writer.file_record(destination.name))
+        scan = _FileScan(topics=dict(enumerate(writer.topic_records())),
+                         record=writer.file_record(destination.name))
         writer.finish(sync=True)
     except BaseException:
         writer.abort()

@@ -10,6 +10,7 @@ The VICON convention of the package: topic and frame names, message types, headi
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 DEFAULT_SUBJECT = 'octoroach'
 DEFAULT_POSE_TOPIC = '/vicon/octoroach/octoroach'
@@ -59,20 +60,20 @@ def heading_to_quaternion(heading: np.ndarray) -> tuple[np.ndarray, ...]:
         return zeros, zeros.copy(), np.sin(half), np.cos(half)
 
 
-def quaternion_to_heading(qx: np.ndarray, qy: np.ndarray, qz: np.ndarray,
-                          qw: np.ndarray) -> np.ndarray:
+def quaternion_to_heading(qx: ArrayLike, qy: ArrayLike, qz: ArrayLike,
+                          qw: ArrayLike) -> np.ndarray:
     """
     Yaw in (-pi, pi] of any quaternion; non-unit ones are normalised first.
 
     A zero or non-finite quaternion gives NaN, so that sample is dropped downstream.
     """
-    qx, qy, qz, qw = (np.asarray(q, dtype=float) for q in (qx, qy, qz, qw))
+    x, y, z, w = (np.asarray(q, dtype=float) for q in (qx, qy, qz, qw))
     with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
-        norm = np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+        norm = np.sqrt(x * x + y * y + z * z + w * w)
         usable = np.isfinite(norm) & (norm > 0.0)
         norm = np.where(usable, norm, 1.0)
-        qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
-        yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        x, y, z, w = x / norm, y / norm, z / norm, w / norm
+        yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return np.where(usable, yaw, np.nan)
 
 

@@ -56,9 +56,10 @@ class RobotDraw:
 
     def parameters(self) -> ModelParameters:
         """Return the model of this robot (liftoff angles by the paper's eqs. 7-8)."""
-        angles = tuple(math.radians(a) for a in self.touchdown_angles_deg)
+        phi1, phi2, phi3, phi4 = (math.radians(a) for a in self.touchdown_angles_deg)
         return replace(ModelParameters.nominal(), leg_length=self.leg_length_cm / 100,
-                       hip_distance=self.hip_distance_cm / 100, touchdown_angles=angles,
+                       hip_distance=self.hip_distance_cm / 100,
+                       touchdown_angles=(phi1, phi2, phi3, phi4),
                        stride_frequency=self.stride_frequency_hz,
                        sample_rate=self.sample_rate_hz).with_paper_liftoff()
 
@@ -81,11 +82,12 @@ def draw_robot(spec: StudySpec, replicate: int) -> RobotDraw:
     values = {name: getattr(robot, name).at(float(u[i]))
               for i, name in enumerate(RobotSpec.DRAWN)}
     offsets = [robot.touchdown_offset_deg.at(float(x)) for x in u[len(RobotSpec.DRAWN):-1]]
-    angles = tuple(base + offset for base, offset in zip(robot.touchdown_angles_deg, offsets))
+    phi1, phi2, phi3, phi4 = (base + offset
+                              for base, offset in zip(robot.touchdown_angles_deg, offsets))
     runs = None if isinstance(spec.runs, tuple) else int(round(spec.runs.at(float(u[-1]))))
     data_seed = int(seeds[DATA].generate_state(1, np.uint32)[0])
-    return RobotDraw(replicate, touchdown_angles_deg=angles, runs=runs, data_seed=data_seed,
-                     **values)
+    return RobotDraw(replicate, touchdown_angles_deg=(phi1, phi2, phi3, phi4), runs=runs,
+                     data_seed=data_seed, **values)
 
 
 def draw_signs(spec: StudySpec, replicate: int) -> dict[str, float]:

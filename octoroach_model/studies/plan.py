@@ -340,6 +340,7 @@ def _result(base: StudySpec, cause: str, size: float, power: float,
     for runs in fit.counts:
         group = [row for row in rows if row['runs'] == runs and row['status'] == 'ok']
         rate = wilson(sum(bool(row[f'named_{cause}']) for row in group), len(group))
+        assert rate.rate is not None and rate.interval is not None  # fit.counts have ok rows
         curve.append(PowerPoint(runs, rate.successes, rate.trials, rate.rate, rate.interval))
     answer = fit.runs_at_target
     what = f'{cause} with {parameter} = {size:g}'
@@ -358,15 +359,15 @@ def _result(base: StudySpec, cause: str, size: float, power: float,
         statement = (f'about {needed} runs name {what} with {power:.0%} power (95 % '
                      f'interval {_runs_text(low)} to {_runs_text(high)} runs, from '
                      f'{len(rows)} diagnosed data sets)')
-    interval = tuple(float(max(v, min_runs)) if math.isfinite(v) else None
-                     for v in fit.interval_95)
+    interval_low, interval_high = (float(max(v, min_runs)) if math.isfinite(v) else None
+                                   for v in fit.interval_95)
     fit_json = {'model': 'power = 1 / (1 + exp(-(intercept + slope ln(runs))))',
                 'intercept': fit.intercept, 'slope': fit.slope,
                 'runs_at_target': fit.runs_at_target if math.isfinite(answer) else None,
                 'bootstrap': BOOTSTRAP}
-    return PlanResult(cause, parameter, size, power, needed, interval, status, statement,
-                      tuple(curve), fit_json, pilot, base.robot.to_json(), replicates, seed,
-                      round(elapsed_s, 2),
+    return PlanResult(cause, parameter, size, power, needed, (interval_low, interval_high),
+                      status, statement, tuple(curve), fit_json, pilot, base.robot.to_json(),
+                      replicates, seed, round(elapsed_s, 2),
                       tuple(sorted(rows, key=lambda row: (row['runs'], row['replicate']))))
 
 

@@ -40,6 +40,7 @@ def run_task(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None = N
     started = time.perf_counter()
     draw = draw_robot(spec, task.replicate)
     runs = task.runs_cell if task.runs_cell is not None else draw.runs
+    assert runs is not None  # without run-count cells, every replicate draws its own count
     row = _empty_row(task, spec, draw, runs)
     try:
         effects = task_effects(task, spec, null_row)

@@ -316,7 +316,8 @@ def _robot(values: Mapping[str, Any]) -> RobotSpec:
                         [math.degrees(a) for a in nominal.touchdown_angles])
     if not (isinstance(angles, list) and len(angles) == 4):
         raise ParameterError('robot.touchdown_angles_deg must be a list of 4 angles (deg)')
-    base = tuple(_number(a, 'robot.touchdown_angles_deg') for a in angles)
+    phi1, phi2, phi3, phi4 = (_number(a, 'robot.touchdown_angles_deg') for a in angles)
+    base = (phi1, phi2, phi3, phi4)
     if not all(0 < a < 90 for a in base):
         raise ParameterError(f'robot.touchdown_angles_deg must lie in (0, 90), got {list(base)}')
     return RobotSpec(touchdown_angles_deg=base, **draws)

@@ -393,20 +393,20 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
     guesses = {initial.stride_frequency}
     if multistart:
         guesses.add(stride_frequency_guess(average, t, initial.stride_frequency))
-    best = None
+    solutions = []
     for frequency in sorted(guesses):
-        start = [initial.leg_length, *initial.touchdown_angles,
-                 float(np.clip(frequency, LOWER[5] * 1.5, UPPER[5] * 0.95))]
-        start += [item.start for item in free]
-        start = np.clip(start, lower, upper)
+        values = [initial.leg_length, *initial.touchdown_angles,
+                  float(np.clip(frequency, LOWER[5] * 1.5, UPPER[5] * 0.95))]
+        values += [item.start for item in free]
+        start = np.clip(values, lower, upper)
         if refine:
             solution = optimize.least_squares(residuals, start, bounds=(lower, upper),
                                               x_scale=x_scale, ftol=tolerance, xtol=tolerance)
         else:
             solution = _two_stage_least_squares(residuals, start, lower, upper, x_scale,
                                                 tolerance)
-        if best is None or solution.cost < best.cost:
-            best = solution
+        solutions.append(solution)
+    best = min(solutions, key=lambda candidate: candidate.cost)  # the first of equal costs
     parameters, model_effects = build(best.x)
     path = path_of(parameters, model_effects)
     rms = float(np.sqrt(np.mean(np.sum((path[:, :2] - average) ** 2, axis=1))))
