@@ -177,11 +177,6 @@ class Recorder(Node):
 
         self.create_service(Trigger, '~/export', self._on_export)
 
-    @property
-    def bag_path(self) -> Path:
-        """Return the bag directory being written."""
-        return self._bag.path
-
     def _resolve(self, topic: str) -> str:
         if any(ch in topic for ch in '*?['):
             return topic

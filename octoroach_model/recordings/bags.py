@@ -90,11 +90,6 @@ class PoseChunk(NamedTuple):
         return self.stamp_ns / 1e9
 
     @property
-    def marker_stamp_s(self) -> np.ndarray:
-        """Marker times in seconds."""
-        return self.marker_log_time_ns / 1e9
-
-    @property
     def poses(self) -> np.ndarray:
         """(k, 3) x, y, heading."""
         return np.column_stack([self.x, self.y, self.heading])
@@ -199,7 +194,6 @@ class _TfChoice:
     """The /tf child frame to follow, and the static chain below it (if any)."""
 
     topics: list[str]  # transform-list topics holding `parent` (or the frame itself)
-    static_topics: list[str]
     layout: TfLayout
     frame: str  # the followed frame
     moving_frame: str  # the frame found on /tf (== frame unless a static chain follows)
@@ -337,7 +331,7 @@ def _choose_frame(reader: BagReader, dynamic: dict[str, TfLayout],
                                f'{", ".join(sorted(dynamic))} (child frames: {listed})')
             moving_frame, frame_pose = chain
             entry = seen[moving_frame]
-            return _TfChoice([entry.topic], statics, dynamic[entry.topic], wanted, moving_frame,
+            return _TfChoice([entry.topic], dynamic[entry.topic], wanted, moving_frame,
                              entry.parent, frame_pose)
     else:
         moving = sorted(frame for frame, entry in seen.items() if entry.moves)
@@ -349,7 +343,7 @@ def _choose_frame(reader: BagReader, dynamic: dict[str, TfLayout],
                            f'({", ".join(candidates)}); choose one with --frame')
         frame = candidates[0]
     entry = seen[frame]
-    return _TfChoice([entry.topic], statics, dynamic[entry.topic], frame, frame, entry.parent)
+    return _TfChoice([entry.topic], dynamic[entry.topic], frame, frame, entry.parent)
 
 
 def attrgetter_list(path: str) -> Callable[[Any], list[Any]]:

@@ -317,12 +317,6 @@ class BagReader:
             return self._rosbags_types[0].fielddefs
         return self.types.store.fielddefs
 
-    def can_decode(self, msgtype: str) -> bool:
-        """Whether messages of `msgtype` decode (after topics() or messages() started)."""
-        if self._rosbags_types is not None:
-            return msgtype in self._rosbags_types[0].fielddefs
-        return self.types.knows(msgtype)
-
     # --------------------------------------------------------- sqlite3 and ROS 1 (rosbags)
 
     def _any_reader(self) -> Any:

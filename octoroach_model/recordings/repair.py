@@ -14,7 +14,6 @@ repaired one takes its name; with `out`, the input is not touched at all.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import NamedTuple
@@ -230,12 +229,3 @@ def _custom_data(directory: Path | None) -> dict[str, str] | None:
     except (yaml.YAMLError, KeyError, TypeError, AttributeError):
         return None
     return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else None
-
-
-def describe(report: RepairReport) -> Sequence[str]:
-    """Plain-word lines about a repair, for the command's output."""
-    lines = [f'{file.name}: {file.messages} messages'
-             + (f' ({file.damage})' if file.damage else '')
-             + (f'; damaged original kept as {file.kept}' if file.kept else '')
-             for file in report.files]
-    return lines + list(report.notes)

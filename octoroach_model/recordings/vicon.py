@@ -25,8 +25,6 @@ POSE_TYPES = (TRANSFORM_STAMPED, POSE_STAMPED)
 MARKER_TYPE = 'std_msgs/msg/UInt32'
 TF_MESSAGE = 'tf2_msgs/msg/TFMessage'
 ODOMETRY = 'nav_msgs/msg/Odometry'
-TF_TOPIC = '/tf'
-TF_STATIC_TOPIC = '/tf_static'
 
 
 def pose_topic(subject: str) -> str:

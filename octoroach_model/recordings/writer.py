@@ -259,11 +259,6 @@ class BagWriter:
         self.closed = False
 
     @property
-    def crash_safe(self) -> bool:
-        """Whether writes flush the file every `flush_period_s`."""
-        return self.flush_period_s is not None
-
-    @property
     def file_path(self) -> Path:
         """Return the MCAP file inside the bag directory, named as rosbag2 names it."""
         return self.path / f'{self.path.name}_0.mcap'

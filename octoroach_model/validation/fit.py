@@ -25,7 +25,7 @@ run before the angles settle.
 The paper fits the deterministic path (every angle at its nominal value) to the average
 path. For a nonlinear model with random angles the two differ: the average of the model's
 runs is not the run of the average angles, and at Table III's spreads the deterministic fit
-misplaces the touchdown angles by 1-2 deg. `mean_path` fits instead the mean of simulated runs
+misplaces the touchdown angles by 1-2 deg. `mean` fits instead the mean of simulated runs
 at given spreads (common random numbers, so the mean is a smooth function of the geometry):
 the fit is then unbiased for the stochastic model.
 """
@@ -198,12 +198,6 @@ def simulated_runs(parameters: ModelParameters, start_pose, t: np.ndarray,
                        effects or {}, None, start_pose)
 
 
-def mean_path(parameters: ModelParameters, start_pose, t: np.ndarray, effects: dict | None,
-              settings: MeanPathSettings) -> np.ndarray:
-    """(T, 3) mean x, y and mean heading of `simulated_runs`."""
-    return simulated_runs(parameters, start_pose, t, effects, settings).mean(axis=0)
-
-
 def deterministic_path(parameters: ModelParameters, start_pose, t: np.ndarray,
                        effects: dict | None = None) -> np.ndarray:
     """(T, 3) pose of the model with every angle at its nominal value."""
@@ -319,7 +313,7 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None, *,
 
     `multistart` also starts from the spectral guess of the stride frequency; a refit from a
     good `initial` can skip it. `align_gait` fits the average taken on a common gait clock
-    (`gait.gait_aligned_average`), which stride-to-stride frequency spread does not smear.
+    (`gait.aligned_runs`), which stride-to-stride frequency spread does not smear.
     `mean` fits the mean of simulated runs instead of the deterministic path (module
     docstring); with `align_gait` the model's own stride-frequency spread is left out of it,
     as the alignment removes the data's. `free` effects are fitted with the geometry, the

@@ -172,23 +172,6 @@ def aligned_runs(measured: Paths, guess_hz: float
     return grid, aligned[..., :2], turn, mean_frequency
 
 
-def gait_aligned_average(measured: Paths, guess_hz: float
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """
-    Average the paths on a common gait clock (`aligned_runs`).
-
-    Return the times, the average (x, y), the average heading change since the start and the
-    mean stride frequency. At each time only the runs still present are averaged; times no
-    run reaches are left out.
-    """
-    grid, xy, turn, mean_frequency = aligned_runs(measured, guess_hz)
-    with np.errstate(invalid='ignore'):
-        average = np.nanmean(xy, axis=0)
-        mean_turn = np.nanmean(turn, axis=0)
-    present = np.isfinite(average[:, 0])
-    return grid[present], average[present], mean_turn[present], mean_frequency
-
-
 def _interp_rows(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
     """
     Interpolate values (n, T) sampled at t linearly, row by row, at times at (n, G).
