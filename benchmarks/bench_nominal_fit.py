@@ -1,4 +1,5 @@
-"""Why the diagnosis fits the mean of simulated runs, not the paper's deterministic path.
+"""
+Why the diagnosis fits the mean of simulated runs, not the paper's deterministic path.
 
 For robots around Table II (touchdown angles within 5 deg, spreads 0.5-1.2 x Table III), 2000
 runs each: the error of the fitted touchdown angles when eq. 9 matches the deterministic path
@@ -10,9 +11,9 @@ Run: .venv/bin/python benchmarks/bench_nominal_fit.py
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 import sys
-from dataclasses import replace
 
 import numpy as np
 

@@ -1,4 +1,5 @@
-"""The thorough profile of the robot-space property test: many robots at full size.
+"""
+The thorough profile of the robot-space property test: many robots at full size.
 
 `make test` runs test/test_robot_space.py with a few small examples; this runs the same
 property (every robot gets a result or a one-line DataError, and a report is always written)
@@ -12,10 +13,10 @@ from __future__ import annotations
 
 import argparse
 import os
+from pathlib import Path
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 

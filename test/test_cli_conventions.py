@@ -1,4 +1,5 @@
-"""What every offline program does with a bad command line or bad data, before any work.
+"""
+What every offline program does with a bad command line or bad data, before any work.
 
 Exit codes (README, "What it does, in one page"): 2 for a usage error (unknown option, a
 malformed or out-of-range value, which the message names), 1 for data or values that cannot be
@@ -7,10 +8,10 @@ refused before any input is read. `--help` shows every option's default.
 """
 from __future__ import annotations
 
+from pathlib import Path
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 

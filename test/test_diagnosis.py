@@ -227,8 +227,12 @@ def test_the_diagnosis_is_reproducible_for_a_seed():
     {'persistent_turning': {'yaw_rate_std_deg_s': 8.0}},
 ])
 def test_runs_that_end_early_keep_the_sizes_of_the_full_duration(effects):
-    """A quarter of the runs leaving the capture volume at 70-95 % of the duration must not
-    bend the sizes (with a common duration, speed_decay 0.2 was once read as 0.139)."""
+    """
+    Runs that end early must not bend the sizes of the full duration.
+
+    A quarter of the runs leaving the capture volume at 70-95 % of the duration must not bend
+    the sizes (with a common duration, speed_decay 0.2 was once read as 0.139).
+    """
     cause = next(iter(effects))
     truth = effects[cause][main_parameter(cause)]
     full = om.simulate(N_RUNS, seed=SEED + 12, effects=effects)

@@ -1,20 +1,21 @@
-"""The causes as the diagnosis sees them: what each one moves, how its size is estimated, and
-the smallest size it may claim.
+"""
+The causes as the diagnosis sees them.
 
-Two kinds of estimate (docs/diagnosis.md):
-- **moments** (initial_pose_error, measurement_noise, gait_frequency_variation,
-  persistent_turning): a statistic of the runs whose *variance-like* value grows linearly in
-  the squared size, S(u) = S(0) + kappa u with u = size^2. S(0) and kappa come from runs of the
-  current model simulated without and with the cause (common random numbers); the size is
-  read off the line at the data's value of S.
-- **path** (lateral_slip, speed_decay): the cause bends the average path, which the geometry
-  alone could mimic, so its size is fitted jointly with the geometry (eq. 9 extended). The
-  fit starts from the size its `signature` statistic (mean slip angle, mean speed ratio)
-  reads off a line through the model without and with the cause: a geometry that has bent
-  to mimic the cause would otherwise hold the fit in the wrong valley.
+The causes as the diagnosis sees them: what each one moves, how its size is estimated, and the
+smallest size it may claim.
 
-The **floor** of a cause is the smallest size that matters, which the diagnosis claims only
-when it is sure the size exceeds it (decide.py), whatever the p-value:
+Two kinds of estimate (docs/diagnosis.md): - **moments** (initial_pose_error, measurement_noise,
+gait_frequency_variation, persistent_turning): a statistic of the runs whose *variance-like* value
+grows linearly in the squared size, S(u) = S(0) + kappa u with u = size^2. S(0) and kappa come from
+runs of the current model simulated without and with the cause (common random numbers); the size is
+read off the line at the data's value of S. - **path** (lateral_slip, speed_decay): the cause bends
+the average path, which the geometry alone could mimic, so its size is fitted jointly with the
+geometry (eq. 9 extended). The fit starts from the size its `signature` statistic (mean slip angle,
+mean speed ratio) reads off a line through the model without and with the cause: a geometry that
+has bent to mimic the cause would otherwise hold the fit in the wrong valley.
+
+The **floor** of a cause is the smallest size that matters, which the diagnosis claims only when it
+is sure the size exceeds it (decide.py), whatever the p-value:
 
 | cause | floor | why |
 | --- | --- | --- |
@@ -25,12 +26,11 @@ when it is sure the size exceeds it (decide.py), whatever the p-value:
 | lateral_slip | 1 % of the forward speed | a drift angle of 0.6 deg |
 | persistent_turning | 1 deg per run | a turn of 1 deg over the run's duration |
 
-The path-length and duration floors scale with the robot (`RunScale`): what matters for a
-fast robot on long runs is smaller in absolute terms than for a slow one.
+The path-length and duration floors scale with the robot (`RunScale`): what matters for a fast
+robot on long runs is smaller in absolute terms than for a slow one.
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -52,7 +52,8 @@ class RunScale:
 
 @dataclass(frozen=True)
 class Cause:
-    """One cause of the table of causes, as a diagnosis candidate.
+    """
+    One cause of the table of causes, as a diagnosis candidate.
 
     `statistic` (moments causes) maps a feature matrix to the variance-like statistic S;
     `reference` is the size simulated to measure the slope kappa (the contract's unit);
@@ -72,7 +73,7 @@ class Cause:
 
     @property
     def parameter(self) -> str:
-        """The main parameter (the first of the cause in the table of causes)."""
+        """Return the main parameter: the first of the cause in the table of causes."""
         return EFFECT_PARAMETERS[self.name][0]
 
     def effects(self, size: float) -> dict[str, dict[str, float]]:

@@ -1,4 +1,5 @@
-"""When a size counts as found, its interval, and the smallest size this data could find.
+"""
+When a size counts as found, its interval, and the smallest size this data could find.
 
 A cause's size is *found* when the one-sided lower confidence bound of its main parameter,
 at level 1 - decision_alpha / m (m candidates still in the race, Bonferroni), lies above the
@@ -14,8 +15,8 @@ error simulated runs with the cause show), plus the simulation's.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 from scipy import stats
 
@@ -41,7 +42,7 @@ class SizeVerdict:
 
 
 def judge(estimate: SizeEstimate, floor: float, z_decision: float) -> SizeVerdict:
-    """The verdict on one size estimate (module docstring)."""
+    """Judge one size estimate (module docstring)."""
     cause = BY_NAME[estimate.cause]
     z_interval = float(stats.norm.isf((1 - INTERVAL_LEVEL) / 2))
     if cause.kind == 'moments':

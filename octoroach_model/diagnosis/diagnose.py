@@ -1,4 +1,5 @@
-"""The main job: from measured runs, what the model gets wrong, which causes, and the gain.
+"""
+The main job: from measured runs, what the model gets wrong, which causes, and the gain.
 
 Method (docs/diagnosis.md has it in full):
 1. The runs are split at random (seeded) into a calibration half and a held-out half.
@@ -15,37 +16,37 @@ Method (docs/diagnosis.md has it in full):
 4. The final model is refit on all runs: sizes with 95 % intervals.
 5. Discrepancies: every statistic of all runs against the baseline; adequacy: the same
    against the final model, a statistic being unexplained when |z| passes the Bonferroni
-   bound at `adequacy_alpha` and the difference is material (statistics.py).
+   bound at `adequacy_alpha` and the difference is material (discrepancies.py).
 6. The paper's validation (search 15) of the baseline and of the extended model.
 """
 from __future__ import annotations
 
-import math
-import time
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
+import math
+import time
 
 import numpy as np
 from scipy import stats
 
 from octoroach_model.diagnosis.causes import BY_NAME, CAUSES, RunScale
-from octoroach_model.diagnosis.decide import SizeVerdict, decision_z, judge
+from octoroach_model.diagnosis.decide import decision_z, judge
+from octoroach_model.diagnosis.discrepancies import (
+    critical_z, discrepancies, statistic_values, STATISTICS)
 from octoroach_model.diagnosis.executors import executor_for, single_threaded
 from octoroach_model.diagnosis.features import run_features
-from octoroach_model.diagnosis.limits import Limit, detection_limit
+from octoroach_model.diagnosis.limits import detection_limit, Limit
 from octoroach_model.diagnosis.modelfit import (
-    CausesFit, FitSettings, FittedModel, GeometryUncertainty, RunData, Simulator, fit_causes)
+    CausesFit, fit_causes, FitSettings, FittedModel, GeometryUncertainty, RunData, Simulator)
 from octoroach_model.diagnosis.report import (
     CandidateResult, DiagnosisReport, NamedCause, RunLengths, ScoreSummary, StepResult)
 from octoroach_model.diagnosis.scoring import (
-    PairedGain, Scores, feature_scales, position_points_cm, score_model)
-from octoroach_model.diagnosis.statistics import (
-    STATISTICS, critical_z, discrepancies, statistic_values)
+    feature_scales, PairedGain, position_points_cm, score_model, Scores)
 from octoroach_model.errors import DataError
 from octoroach_model.model import ModelParameters
 from octoroach_model.paths import Paths
-from octoroach_model.validation import ValidationSettings, chernoff_sample_size
+from octoroach_model.validation import chernoff_sample_size, ValidationSettings
 from octoroach_model.validation.fit import average_target, fit_nominal, mean_start_pose
 from octoroach_model.validation.gait import stride_frequency_estimate
 
@@ -60,7 +61,8 @@ DISCREPANCY_PURPOSE = 32
 
 @dataclass(frozen=True)
 class DiagnosisSettings:
-    """Knobs of the diagnosis; the defaults are what README's figures use.
+    """
+    Knobs of the diagnosis; the defaults are what README's figures use.
 
     alpha: family level of the held-out tests (divided among the candidates of a step);
     decision_alpha: family level of the size bounds (likewise); min_gain: smallest held-out
@@ -94,7 +96,7 @@ class DiagnosisSettings:
 class _Halves:
     """The measured runs, their calibration and held-out halves, ready for scoring."""
 
-    all: RunData
+    every: RunData
     train: RunData
     test: RunData
     scales: np.ndarray
@@ -106,7 +108,8 @@ class _Halves:
 def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
              progress: Progress | None = None, executor: Executor | None = None
              ) -> DiagnosisReport:
-    """Diagnose `measured` runs (module docstring); the report's JSON is `report.to_json()`.
+    """
+    Diagnose `measured` runs (module docstring); the report's JSON is `report.to_json()`.
 
     `executor` (concurrent.futures-compatible, e.g. a Dask client's `get_executor()`) runs
     the candidates of each step, the refits and the validations side by side; without one, a
@@ -128,7 +131,10 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         baseline_scores = current_scores
         say(0.15, f'baseline: sigma1 = {baseline.sigmas[0]:.3f}, '
                   f'sigma2 = {baseline.sigmas[1]:.3f} rad')
-        model, steps, last_seen, last_evaluated = baseline, [], {}, {}
+        model = baseline
+        steps: list[StepResult] = []
+        last_seen: dict[str, CandidateResult] = {}
+        last_evaluated: dict[str, Evaluation] = {}
         remaining = [cause.name for cause in CAUSES]
         while remaining:
             step = len(steps) + 1
@@ -163,14 +169,14 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         final, final_estimates = final_fit.model, final_fit.estimates
         say(0.85, 'discrepancies and adequacy')
         rng = np.random.default_rng([settings.seed, 41])
-        everything = Simulator(halves.all, settings.seed)
-        n_model = max(halves.all.n, 1000)
+        everything = Simulator(halves.every, settings.seed)
+        n_model = max(halves.every.n, 1000)
         baseline_rows = discrepancies(
-            halves.all.features, everything.features(baseline, n_model, DISCREPANCY_PURPOSE),
+            halves.every.features, everything.features(baseline, n_model, DISCREPANCY_PURPOSE),
             rng, settings.bootstrap, fit_errors(everything, baseline, baseline_fit.geometry,
-                                                n_model, halves.train.n / halves.all.n))
+                                                n_model, halves.train.n / halves.every.n))
         final_rows = discrepancies(
-            halves.all.features, everything.features(final, n_model, DISCREPANCY_PURPOSE),
+            halves.every.features, everything.features(final, n_model, DISCREPANCY_PURPOSE),
             rng, settings.bootstrap, fit_errors(everything, final, final_fit.geometry,
                                                 n_model))
         bound = critical_z(settings.adequacy_alpha, len(STATISTICS))
@@ -190,7 +196,8 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             for cause in CAUSES if cause.name in last_seen),
         causes=tuple(named), steps=tuple(steps),
         gain=_gain_summary(baseline_scores, current_scores, halves),
-        extended_discrepancies=tuple(final_rows), adequate=not unexplained, unexplained=tuple(unexplained),
+        extended_discrepancies=tuple(final_rows), adequate=not unexplained,
+        unexplained=tuple(unexplained),
         adequacy_bound_z=bound, settings=settings,
         notes=tuple(measured.info.get('notes', ())) + (
             (resolution_note,) if resolution_note else ()),
@@ -226,9 +233,12 @@ def check_runs(measured: Paths) -> None:
 
 
 def decimated(measured: Paths) -> tuple[Paths, str | None]:
-    """The runs at no more than MAX_SAMPLES_PER_CYCLE samples per stride cycle (every k-th
-    sample, so white noise stays white and its size unchanged): a faster recording adds
-    nothing the gait shows, only memory and time. The paper's validation keeps every sample.
+    """
+    Keep at most MAX_SAMPLES_PER_CYCLE samples per stride cycle.
+
+    The runs at no more than MAX_SAMPLES_PER_CYCLE samples per stride cycle (every k-th sample,
+    so white noise stays white and its size unchanged): a faster recording adds nothing the
+    gait shows, only memory and time. The paper's validation keeps every sample.
     """
     frequency = stride_frequency_estimate(measured.poses[..., 2], measured.t)
     step = int(measured.rate_hz / (MAX_SAMPLES_PER_CYCLE * frequency))
@@ -259,8 +269,12 @@ def _prepare(measured: Paths, settings: DiagnosisSettings) -> _Halves:
 
 
 def _baseline(halves: _Halves, settings: DiagnosisSettings) -> CausesFit:
-    """The paper's model on the calibration half: a quick deterministic fit (eq. 9) as the
-    start, then geometry on the mean path and the spread scale, refit together."""
+    """
+    Fit the paper's model on the calibration half.
+
+    The paper's model on the calibration half: a quick deterministic fit (eq. 9) as the start,
+    then geometry on the mean path and the spread scale, refit together.
+    """
     train = halves.train
     start_pose = mean_start_pose(train.paths)
     initial = ModelParameters.nominal()
@@ -287,8 +301,12 @@ class Evaluation:
 
 def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Scores,
                        cause: str, settings: DiagnosisSettings) -> Evaluation:
-    """`current` extended by `cause`, every included size refit (one round), scored on the
-    held-out runs against `current` (a top-level function: it runs in worker processes)."""
+    """
+    Extend `current` by `cause`, refit, and score it on the held-out runs.
+
+    `current` extended by `cause`, every included size refit (one round), scored on the
+    held-out runs against `current` (a top-level function: it runs in worker processes).
+    """
     causes = (*current.causes, cause)
     geometry = BY_NAME[cause].kind == 'path'
     fitted = fit_causes(halves.train, current, causes, settings.fit(), geometry=geometry,
@@ -302,9 +320,9 @@ def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Sc
 
 def _score(simulator: Simulator, model: FittedModel, halves: _Halves,
            settings: DiagnosisSettings) -> Scores:
-    """The held-out runs' scores under `model` (its runs cut to the held-out lengths)."""
+    """Score the held-out runs under `model` (its runs cut to the held-out lengths)."""
     paths = simulator.paths(model, settings.score_runs, SCORE_PURPOSE)
-    features = run_features(paths, halves.all.stride_frequency, halves.all.reference_heading)
+    features = run_features(paths, halves.every.stride_frequency, halves.every.reference_heading)
     points = position_points_cm(paths.positions, paths.lengths)
     return score_model(features, points, halves.test.features, halves.test_points_cm,
                        halves.scales)
@@ -339,28 +357,32 @@ def _excess_share(evaluation: Evaluation, halves: _Halves) -> float:
 
 def _step_message(result: StepResult) -> str:
     best = max(result.candidates, key=lambda c: c.gain)
-    head = f'step {result.step}: ' + (f'{result.chosen} enters' if result.chosen else
-                                     'no cause qualifies')
+    head = f'step {result.step}: ' + (
+        f'{result.chosen} enters' if result.chosen else 'no cause qualifies')
     return f'{head} (best gain {best.cause} {best.gain:.3g}, p = {best.p_value:.2g})'
 
 
 def fit_errors(simulator: Simulator, model: FittedModel,
                uncertainty: GeometryUncertainty | None, n_runs: int,
                data_share: float = 1.0) -> np.ndarray | None:
-    """Each statistic's error from the model's fitted geometry (and path-cause sizes): the
-    change of the statistic when each entry of the fit's vector moves by its standard error
-    (common random numbers), combined through the fit's correlations. `data_share` < 1 when
-    the model was fitted on a part of the runs its statistics are compared with."""
+    """
+    Return each statistic's error from the model's fitted geometry.
+
+    Each statistic's error from the model's fitted geometry (and path-cause sizes): the change
+    of the statistic when each entry of the fit's vector moves by its standard error (common
+    random numbers), combined through the fit's correlations. `data_share` < 1 when the model
+    was fitted on a part of the runs its statistics are compared with.
+    """
     if uncertainty is None:
         return None
     base = statistic_values(simulator.features(model, n_runs, DISCREPANCY_PURPOSE))
     errors = np.sqrt(np.maximum(np.diag(uncertainty.covariance), 0.0))
-    changes = []
+    rows = []
     for index, error in enumerate(errors):
         moved = uncertainty.perturbed(model, index, float(error)) if error > 0 else model
-        changes.append(statistic_values(simulator.features(moved, n_runs,
-                                                           DISCREPANCY_PURPOSE)) - base)
-    changes = np.array(changes)                                   # (vector, statistics)
+        rows.append(statistic_values(simulator.features(moved, n_runs,
+                                                        DISCREPANCY_PURPOSE)) - base)
+    changes = np.array(rows)                                      # (vector, statistics)
     correlation = uncertainty.covariance / np.outer(np.maximum(errors, 1e-300),
                                                     np.maximum(errors, 1e-300))
     variance = np.einsum('is,ij,js->s', changes, correlation, changes)
@@ -369,7 +391,7 @@ def fit_errors(simulator: Simulator, model: FittedModel,
 
 def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
            seen: CandidateResult, settings: DiagnosisSettings) -> Limit:
-    """A cause's detection limit against `model` without it (a task for the pool)."""
+    """Compute a cause's detection limit against `model` without it (a pool task)."""
     cause = BY_NAME[evaluation.cause]
     without = replace(model, effects={name: values for name, values in model.effects.items()
                                       if name != cause.name})
@@ -383,10 +405,14 @@ def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
 
 def _final_fit(halves: _Halves, model: FittedModel, settings: DiagnosisSettings
                ) -> CausesFit:
-    """The final model refit on all runs: the sizes a report states, and the model whose
-    adequacy is judged on all runs (a model fitted on half of them would show that half's
-    sampling error as discrepancies)."""
-    return fit_causes(halves.all, model, model.causes, settings.fit(1))
+    """
+    Refit the final model on all runs.
+
+    The final model refit on all runs: the sizes a report states, and the model whose adequacy
+    is judged on all runs (a model fitted on half of them would show that half's sampling error
+    as discrepancies).
+    """
+    return fit_causes(halves.every, model, model.causes, settings.fit(1))
 
 
 def _named_causes(steps, final: FittedModel, estimates: dict, halves: _Halves,
@@ -409,9 +435,13 @@ def _gain_summary(baseline: Scores, extended: Scores, halves: _Halves) -> ScoreS
 
 
 def _model_summary(model: FittedModel, validation: dict | None) -> dict:
-    """A model as the report shows it: `sigma1`, `sigma2`, `violation` and `accepted` are
-    the paper's validation (the widest admissible spreads, search 15) when it ran, else the
-    fitted spreads (`sigma_source` says which); the fitted spreads are always there too."""
+    """
+    Summarise a model as the report shows it.
+
+    A model as the report shows it: `sigma1`, `sigma2`, `violation` and `accepted` are the
+    paper's validation (the widest admissible spreads, search 15) when it ran, else the fitted
+    spreads (`sigma_source` says which); the fitted spreads are always there too.
+    """
     summary = {'fitted_sigma1': model.sigmas[0], 'fitted_sigma2': model.sigmas[1],
                'sigma_scale': model.sigma_scale, 'effects': model.effects}
     if validation and 'violation' in validation:
@@ -421,16 +451,20 @@ def _model_summary(model: FittedModel, validation: dict | None) -> dict:
         summary['validation'] = validation
     else:
         summary.update(sigma1=model.sigmas[0], sigma2=model.sigmas[1])
-        summary['sigma_source'] = ('fitted spreads (the paper\'s validation did not run'
-                                   + (f": {validation['note']})" if validation else ')'))
+        reason = f": {validation['note']})" if validation else ')'
+        summary['sigma_source'] = "fitted spreads (the paper's validation did not run" + reason
     return summary
 
 
 def paper_validation(measured: Paths, model: FittedModel, settings: ValidationSettings
                      ) -> dict:
-    """The paper's search (15) for `model` (geometry, start and causes) on the measured runs,
-    on the common duration most of the runs reach (runs that end far earlier are left out
-    and said so); k is lowered when the runs are too few for n x k."""
+    """
+    Run the paper's search (15) for `model` on the measured runs.
+
+    The paper's search (15) for `model` (geometry, start and causes) on the measured runs, on
+    the common duration most of the runs reach (runs that end far earlier are left out and said
+    so); k is lowered when the runs are too few for n x k.
+    """
     from octoroach_model.validation import FourBarModel, validate
     from octoroach_model.validation.validate import common_duration
 

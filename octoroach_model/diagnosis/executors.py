@@ -1,4 +1,5 @@
-"""Where the diagnosis runs its side-by-side work: any concurrent.futures executor.
+"""
+Where the diagnosis runs its side-by-side work: any concurrent.futures executor.
 
 By default a local pool of worker processes: forked from this process when it runs a single
 thread (quick, and a user's script needs no `if __name__ == '__main__'` guard), else started
@@ -12,16 +13,20 @@ the CPU), so the cores are better spent on whole tasks side by side.
 """
 from __future__ import annotations
 
-import multiprocessing
-import threading
 from collections.abc import Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from contextlib import contextmanager
+import multiprocessing
+import threading
 
 
 class InlineExecutor(Executor):
-    """Runs each submitted call at once, in this process (for workers=1 and for work that
-    is already one task of a larger pool)."""
+    """
+    An executor that runs each submitted call at once, in this process.
+
+    Runs each submitted call at once, in this process (for workers=1 and for work that is
+    already one task of a larger pool).
+    """
 
     def submit(self, fn, /, *args, **kwargs) -> Future:
         future: Future = Future()
@@ -57,11 +62,13 @@ def executor_for(executor: Executor | None, workers: int) -> Iterator[Executor]:
     if workers <= 1:
         yield InlineExecutor()
         return
+    context: multiprocessing.context.BaseContext
     if threading.active_count() == 1:
         context = multiprocessing.get_context('fork')
     else:
-        context = multiprocessing.get_context('forkserver')
-        context.set_forkserver_preload(['octoroach_model.diagnosis.diagnose'])
+        server = multiprocessing.get_context('forkserver')
+        server.set_forkserver_preload(['octoroach_model.diagnosis.diagnose'])
+        context = server
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                initializer=one_blas_thread)
     try:

@@ -1,4 +1,5 @@
-"""Per-run features: the few numbers per run in which the causes show.
+"""
+Per-run features: the few numbers per run in which the causes show.
 
 Each feature answers one question about a run; together they are what the diagnosis compares
 between measured and simulated runs. Every set-level statistic of the diagnosis is a function
@@ -8,17 +9,20 @@ of these rows, so a bootstrap over runs only resamples rows.
 | --- | --- | --- |
 | start_heading | heading at t = 0, rad | initial_pose_error |
 | start_x, start_y | position at t = 0, m | initial_pose_error, noise |
-| log_noise | log median squared 4th difference of x, y (m^2); a smooth gait has almost none, white noise of std s gives 70 s^2 x 0.455 | measurement_noise |
-| slip_angle | mean angle heading -> direction of travel over cycle-long windows, rad | lateral_slip |
-| stride_frequency | spectral peak of the heading's sway (once per cycle), Hz | gait_frequency_variation |
+| log_noise | log median squared 4th difference of x, y (m^2) (1) | measurement_noise |
+| slip_angle | mean angle heading -> direction of travel over a cycle, rad | lateral_slip |
+| stride_frequency | spectral peak of the heading's sway (once a cycle), Hz | gait frequency |
 | progress_ratio | log(distance in 2nd half / distance in 1st half) | speed_decay |
 | heading_rate | least-squares slope of heading over time, rad/s | persistent_turning |
 | increment_var | within-run variance of the heading change per cycle, rad^2 | sigma1, sigma2 |
-| end_lateral, end_progress | final displacement across / along the reference heading, m | spread, geometry |
+| end_lateral, end_progress | end displacement across / along the start heading, m | spread |
 | sway_amplitude | amplitude of the heading's sway at the stride frequency, rad | geometry |
 | lateral_sway_1, _2 | amplitude of the sideways sway at f and 2f, m | geometry, slip |
-| quarter_lateral | displacement across the reference heading at a quarter of the run, m | spread growth |
-| increment_autocorr | lag-1 autocorrelation of the per-cycle heading changes | persistent biases |
+| quarter_lateral | displacement across the start heading at a quarter of the run, m | growth |
+| increment_autocorr | lag-1 autocorrelation of the per-cycle heading changes | biases |
+
+(1) A smooth gait has almost no fourth difference; white noise of standard deviation s gives
+70 s^2 x 0.455 (the median of a chi-square with one degree of freedom).
 
 Runs that end early (NaN tails, see `Paths`) give their features over their own samples; the
 diagnosis gives simulated runs the same lengths, so the two stay comparable.
@@ -107,8 +111,12 @@ def _slope(values: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def _increment_moments(increments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Within-run variance and lag-1 autocorrelation of per-cycle heading changes: fresh
-    angles at every stance give no correlation, a persistent bias a positive one."""
+    """
+    Return within-run variance and lag-1 autocorrelation of per-cycle heading changes.
+
+    Within-run variance and lag-1 autocorrelation of per-cycle heading changes: fresh angles at
+    every stance give no correlation, a persistent bias a positive one.
+    """
     mask = np.isfinite(increments)
     count = mask.sum(axis=1)
     filled = np.where(mask, increments, 0.0)

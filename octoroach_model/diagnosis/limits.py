@@ -1,4 +1,5 @@
-"""Detection limits: the smallest size of each cause that the diagnosis names with 80 % power.
+"""
+Detection limits: the smallest size of each cause that the diagnosis names with 80 % power.
 
 A cause is named when two things hold (diagnose.py): its size's lower confidence bound on the
 calibration half clears its floor, and its model beats the one without it on the held-out
@@ -20,8 +21,8 @@ studies/limits.yaml (README: "What the diagnosis can find").
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy import stats
@@ -29,7 +30,7 @@ from scipy import stats
 from octoroach_model.diagnosis.causes import BY_NAME, Cause
 from octoroach_model.diagnosis.decide import POWER
 from octoroach_model.diagnosis.features import run_features
-from octoroach_model.diagnosis.modelfit import FittedModel, SizeEstimate, Simulator
+from octoroach_model.diagnosis.modelfit import FittedModel, Simulator, SizeEstimate
 from octoroach_model.diagnosis.scoring import feature_log_score
 
 PSEUDO_RUNS = 1000
@@ -37,7 +38,7 @@ PSEUDO_PURPOSE = 51
 MODEL_PURPOSE = 52
 
 METHOD = ('smallest size named with 80 % power: P(size bound clears the floor) x P(held-out '
-          'test significant), the first from the measured runs\' own standard error, the '
+          "test significant), the first from the measured runs' own standard error, the "
           'second from runs simulated with the cause (docs/diagnosis.md, "Detection limits")')
 
 
@@ -82,8 +83,12 @@ def _features(simulator: Simulator, model: FittedModel, runs: int, purpose: int,
 def expected_t(simulator: Simulator, without: FittedModel, without_features: np.ndarray,
                cause: Cause, size: float, scales: np.ndarray, held_out: int,
                score_runs: int) -> float:
-    """Expected t statistic of the held-out test for a cause of `size` (module docstring);
-    `without_features` are the scored runs of the model without the cause."""
+    """
+    Return the expected t statistic of the held-out test for a cause of `size`.
+
+    Expected t statistic of the held-out test for a cause of `size` (module docstring);
+    `without_features` are the scored runs of the model without the cause.
+    """
     values = {cause.parameter: size}
     if cause.name == 'initial_pose_error':
         values['position_std_cm'] = float((without.effects.get(cause.name) or {}).get(
@@ -102,8 +107,12 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: np.
 def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEstimate,
                     floor: float, z_bound: float, z_test: float, scales: np.ndarray,
                     held_out: int, score_runs: int, start: float | None) -> Limit:
-    """The size at which the cause is named with POWER (module docstring); `start` is the
-    size bound's own 80 % limit (decide.py), where the search begins."""
+    """
+    Return the size at which the cause is named with POWER (module docstring).
+
+    The size at which the cause is named with POWER (module docstring); `start` is the size
+    bound's own 80 % limit (decide.py), where the search begins.
+    """
     cause = BY_NAME[estimate.cause]
     first = max(start or 0.0, 2 * floor, 1e-9)
     sizes = [first, 3 * first]

@@ -1,4 +1,5 @@
-"""Fitting the paper's model, extended by a set of causes, to one half of the measured runs.
+"""
+Fitting the paper's model, extended by a set of causes, to one half of the measured runs.
 
 A `FittedModel` is the geometry, the start pose, one spread scale along Table III's direction
 and the sizes of the causes it includes. `fit_causes` estimates all of them together by
@@ -18,19 +19,19 @@ the intervals and the detection limits follow (decide.py).
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+import math
 
 import numpy as np
 
 from octoroach_model.diagnosis.causes import BY_NAME, Cause
 from octoroach_model.diagnosis.features import INDEX, run_features
-from octoroach_model.model import ModelParameters, RandomStreams, model_poses, nominal_sigmas
+from octoroach_model.model import model_poses, ModelParameters, nominal_sigmas, RandomStreams
 from octoroach_model.paths import Paths
 from octoroach_model.validation.fit import (
-    AverageTarget, FreeEffect, MeanPathSettings, ResidualScales, SwayTarget, average_target,
-    fit_nominal, residual_vector, simulated_runs)
+    average_target, AverageTarget, fit_nominal, FreeEffect, MeanPathSettings, residual_vector,
+    ResidualScales, simulated_runs, SwayTarget)
 
 Effects = Mapping[str, Mapping[str, float]]
 
@@ -88,7 +89,8 @@ class FitSettings:
 
 @dataclass
 class RunData:
-    """One set of measured runs, prepared once: features, lengths, the average path target.
+    """
+    One set of measured runs, prepared once: features, lengths, the average path target.
 
     `stride_frequency` and `reference_heading` fix the features' cycle window and axes for
     the whole diagnosis (data and every model are measured with the same ruler).
@@ -111,14 +113,14 @@ class RunData:
 
     @property
     def scales(self) -> ResidualScales:
-        """Standard errors of the average path, heading and sway: the fit's units."""
+        """Return the standard errors of the average path, heading and sway: the fit's units."""
         return self.target.scales(self.features[:, SWAY_COLUMNS])
 
     @property
     def sway(self) -> SwayTarget:
-        """The runs' mean sway as recorded, for the geometry fit to match."""
-        values = self.features[:, SWAY_COLUMNS].mean(axis=0)
-        return SwayTarget(tuple(float(v) for v in values), self.paths.t, self.lengths)
+        """Return the runs' mean sway as recorded, for the geometry fit to match."""
+        amplitude, first, second = (float(v) for v in self.features[:, SWAY_COLUMNS].mean(0))
+        return SwayTarget((amplitude, first, second), self.paths.t, self.lengths)
 
     @property
     def lengths(self) -> np.ndarray:
@@ -127,7 +129,8 @@ class RunData:
 
 @dataclass(frozen=True)
 class SizeEstimate:
-    """A size and what it rests on: standard error, and the statistic's line (moments).
+    """
+    A size and what it rests on: standard error, and the statistic's line (moments).
 
     For moments causes, u = size^2 is read off S(u) = intercept + slope u at the data's S;
     `se_u` is the standard error of u from the data's bootstrap and the simulation. For path
@@ -170,8 +173,8 @@ class Simulator:
         poses = model.poses(n_runs, t, seed, effects)
         source = self.data.lengths if lengths is None else lengths
         if source.min() < len(t):
-            picks = np.random.default_rng([self.seed, purpose, 7]).integers(0, len(source),
-                                                                             n_runs)
+            rng = np.random.default_rng([self.seed, purpose, 7])
+            picks = rng.integers(0, len(source), n_runs)
             return Paths(t, poses).cut_to(source[picks])
         return Paths(t, poses)
 
@@ -183,8 +186,12 @@ SPREAD = 12
 
 @dataclass(frozen=True)
 class GeometryUncertainty:
-    """Covariance of the geometry fit's vector: leg length [m], touchdown angles [rad],
-    stride frequency [Hz], then the sizes of the path causes in `free` (their own units)."""
+    """
+    Covariance of the geometry fit's vector.
+
+    Covariance of the geometry fit's vector: leg length [m], touchdown angles [rad], stride
+    frequency [Hz], then the sizes of the path causes in `free` (their own units).
+    """
 
     free: tuple[str, ...]
     covariance: np.ndarray
@@ -195,9 +202,10 @@ class GeometryUncertainty:
         if index == 0:
             parameters = replace(parameters, leg_length=parameters.leg_length + step)
         elif index <= 4:
-            angles = list(parameters.touchdown_angles)
-            angles[index - 1] += step
-            parameters = replace(parameters, touchdown_angles=tuple(angles))
+            moved = [a + (step if number == index - 1 else 0.0)
+                     for number, a in enumerate(parameters.touchdown_angles)]
+            parameters = replace(parameters,
+                                 touchdown_angles=(moved[0], moved[1], moved[2], moved[3]))
         elif index == 5:
             parameters = replace(parameters,
                                  stride_frequency=parameters.stride_frequency + step)
@@ -211,8 +219,12 @@ class GeometryUncertainty:
 
 @dataclass(frozen=True)
 class CausesFit:
-    """A model fitted with its causes: the model, each size's estimate, and the geometry's
-    uncertainty (None when the geometry was held)."""
+    """
+    A model fitted with its causes.
+
+    A model fitted with its causes: the model, each size's estimate, and the geometry's
+    uncertainty (None when the geometry was held).
+    """
 
     model: FittedModel
     estimates: dict
@@ -222,7 +234,7 @@ class CausesFit:
 def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
                settings: FitSettings, *, geometry: bool = True, rounds: int | None = None
                ) -> CausesFit:
-    """The model with `causes`, every size refit together (module docstring)."""
+    """Fit the model with `causes`, every size refit together (module docstring)."""
     simulator = Simulator(data, settings.seed)
     model = replace(start, effects={cause: dict(start.effects.get(cause) or _zero(cause))
                                     for cause in causes})
@@ -250,13 +262,17 @@ def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
 
 def _zero(cause: str) -> dict[str, float]:
     from octoroach_model.model import EFFECT_PARAMETERS
-    return {name: 0.0 for name in EFFECT_PARAMETERS[cause]}
+    return dict.fromkeys(EFFECT_PARAMETERS[cause], 0.0)
 
 
 def _values(model: FittedModel, cause: Cause, estimate: SizeEstimate, data: RunData,
             simulator: Simulator, settings: FitSettings) -> dict[str, float]:
-    """All parameters of a cause: the main one from its estimate, initial_pose_error's
-    position spread from the excess start-position variance over the model without it."""
+    """
+    Return all parameters of a cause.
+
+    All parameters of a cause: the main one from its estimate, initial_pose_error's position
+    spread from the excess start-position variance over the model without it.
+    """
     values = {cause.parameter: estimate.size}
     if cause.name == 'initial_pose_error':
         without = {name: v for name, v in model.effects.items() if name != cause.name}
@@ -274,9 +290,12 @@ def _start_variance(features: np.ndarray) -> float:
 def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...],
                  settings: FitSettings
                  ) -> tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]:
-    """Geometry and path-cause sizes on the average path and the sway within a stride (means
-    of simulated runs); their covariance from resampling the runs through the fit's
-    Jacobian."""
+    """
+    Fit the geometry and the path-cause sizes, with their covariance.
+
+    Geometry and path-cause sizes on the average path and the sway within a stride (means of
+    simulated runs); their covariance from resampling the runs through the fit's Jacobian.
+    """
     free = tuple(FreeEffect(cause, BY_NAME[cause].parameter, *BY_NAME[cause].bounds,
                             start=float(model.effects[cause][BY_NAME[cause].parameter]))
                  for cause in path_causes)
@@ -301,14 +320,20 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
 
 def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSettings,
                     n_boot: int = 60) -> np.ndarray:
-    """Covariance of the fit's vector, from two sources of error added: the measured runs
-    (bootstrap) and the simulated runs (bootstrap of their antithetic pairs); each
-    resample's solution is one Gauss-Newton step from the fit."""
+    """
+    Return the covariance of the fit's vector.
+
+    Covariance of the fit's vector, from two sources of error added: the measured runs
+    (bootstrap) and the simulated runs (bootstrap of their antithetic pairs); each resample's
+    solution is one Gauss-Newton step from the fit.
+    """
     pseudo_inverse = np.linalg.pinv(fit.jacobian)
     target = data.target
     data_sway = data.features[:, SWAY_COLUMNS]
-    full = simulated_runs(fit.parameters, fit.start_pose, mean.sway.t, fit.effects, mean)
-    model_sway = mean.sway.of_runs(full, fit.parameters.stride_frequency)
+    sway = mean.sway
+    assert sway is not None, 'the diagnosis fits the geometry with the sway matched'
+    full = simulated_runs(fit.parameters, fit.start_pose, sway.t, fit.effects, mean)
+    model_sway = sway.of_runs(full, fit.parameters.stride_frequency)
     runs = full[:, :len(target.t)]
 
     def vector(xy, turn, sway):
@@ -340,23 +365,31 @@ def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSet
 
 def path_start(simulator: Simulator, model: FittedModel, cause: Cause,
                settings: FitSettings) -> float:
-    """Where the joint fit of a path cause starts: its signature statistic read off the line
-    through the model without the cause and with it at the reference size."""
+    """
+    Return where the joint fit of a path cause starts.
+
+    Where the joint fit of a path cause starts: its signature statistic read off the line
+    through the model without the cause and with it at the reference size.
+    """
+    signature = cause.signature
+    assert signature is not None, f'{cause.name} is not a path cause'
     without = {name: values for name, values in model.effects.items() if name != cause.name}
-    zero = cause.signature(simulator.features(model, settings.moment_runs // 2, MOMENTS,
-                                              without))
-    reference = cause.signature(simulator.features(model, settings.moment_runs // 2, MOMENTS, {
+    zero = signature(simulator.features(model, settings.moment_runs // 2, MOMENTS, without))
+    reference = signature(simulator.features(model, settings.moment_runs // 2, MOMENTS, {
         **without, cause.name: {cause.parameter: cause.reference}}))
     if abs(reference - zero) < 1e-12:
         return 0.0
-    size = cause.reference * (cause.signature(simulator.data.features) - zero) \
-        / (reference - zero)
+    size = cause.reference * (signature(simulator.data.features) - zero) / (reference - zero)
     return float(np.clip(size, 0.9 * cause.bounds[0], 0.9 * cause.bounds[1]))
 
 
 def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings) -> float:
-    """Spread scale whose within-run variance of the per-cycle heading change matches the
-    data's (u = scale^2 read off a line through simulated points, refined once)."""
+    """
+    Fit the spread scale to the within-run variance of the per-cycle heading change.
+
+    Spread scale whose within-run variance of the per-cycle heading change matches the data's
+    (u = scale^2 read off a line through simulated points, refined once).
+    """
     target = float(simulator.data.features[:, INDEX['increment_var']].mean())
 
     def statistic(scale: float) -> float:
@@ -375,8 +408,12 @@ def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings) 
 
 
 def _read_line(points: dict[float, float], target: float) -> float:
-    """u at which the piecewise-linear line through (u, S) points reaches `target`
-    (extrapolated beyond the ends; points made monotone by a running maximum)."""
+    """
+    Return u where the piecewise-linear line through (u, S) points reaches `target`.
+
+    u at which the piecewise-linear line through (u, S) points reaches `target` (extrapolated
+    beyond the ends; points made monotone by a running maximum).
+    """
     us = np.array(sorted(points))
     values = np.maximum.accumulate(np.array([points[u] for u in us]))
     if len(us) == 1 or values[-1] <= values[0]:
@@ -392,25 +429,31 @@ def _read_line(points: dict[float, float], target: float) -> float:
 
 def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
                settings: FitSettings, n_boot: int = 100) -> SizeEstimate:
-    """Size of a moments cause: u = size^2 on the line S(u) = S(0) + slope u through the
-    model without the cause and with it at the reference size (or nearer the estimate)."""
+    """
+    Estimate the size of a moments cause.
+
+    Size of a moments cause: u = size^2 on the line S(u) = S(0) + slope u through the model
+    without the cause and with it at the reference size (or nearer the estimate).
+    """
+    statistic = cause.statistic
+    assert statistic is not None, f'{cause.name} is not a moments cause'
     data = simulator.data
     rng = np.random.default_rng([settings.seed, 23])
-    data_value = cause.statistic(data.features)
-    data_se = _bootstrap_se(cause.statistic, data.features, rng, n_boot)
+    data_value = statistic(data.features)
+    data_se = _bootstrap_se(statistic, data.features, rng, n_boot)
     without = {name: values for name, values in model.effects.items() if name != cause.name}
     zero_features = simulator.features(model, settings.moment_runs, MOMENTS, without)
-    intercept = cause.statistic(zero_features)
-    intercept_se = _bootstrap_se(cause.statistic, zero_features, rng, n_boot)
+    intercept = statistic(zero_features)
+    intercept_se = _bootstrap_se(statistic, zero_features, rng, n_boot)
     reference = cause.reference
 
-    relative = []
+    relative: list[float] = []
 
     def slope_at(size: float) -> float:
         effects = {**without, cause.name: {**_zero(cause.name), cause.parameter: size}}
         features = simulator.features(model, settings.moment_runs, MOMENTS, effects)
-        value = cause.statistic(features)
-        spread = _bootstrap_se(cause.statistic, features, rng, n_boot // 2)
+        value = statistic(features)
+        spread = _bootstrap_se(statistic, features, rng, n_boot // 2)
         relative.append(spread * math.sqrt(features.shape[0] / data.n) / max(value, 1e-300))
         return (value - intercept) / size ** 2
 

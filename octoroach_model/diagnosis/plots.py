@@ -1,10 +1,13 @@
-"""The diagnosis in pictures: paths against the confidence region (as the paper's Figs. 5b
-and 6), E^_k over the (sigma1, sigma2) grid, the statistic that decided each cause, and the
-discrepancies before and after the extension. Every axis has its unit, every line and
-threshold a legend entry, every colour bar a label.
+"""
+The diagnosis in pictures.
 
-Each plot is drawn on its own: one that cannot be drawn (degenerate data) is reported with
-its reason and costs nothing else.
+The diagnosis in pictures: paths against the confidence region (as the paper's Figs. 5b and 6),
+E^_k over the (sigma1, sigma2) grid, the statistic that decided each cause, and the discrepancies
+before and after the extension. Every axis has its unit, every line and threshold a legend entry,
+every colour bar a label.
+
+Each plot is drawn on its own: one that cannot be drawn (degenerate data) is reported with its
+reason and costs nothing else.
 """
 from __future__ import annotations
 
@@ -17,8 +20,8 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from octoroach_model.diagnosis.discrepancies import Discrepancy  # noqa: E402
 from octoroach_model.diagnosis.features import INDEX, run_features  # noqa: E402
-from octoroach_model.diagnosis.statistics import Discrepancy  # noqa: E402
 from octoroach_model.paths import Paths  # noqa: E402
 from octoroach_model.validation.region import t_multiplier  # noqa: E402
 

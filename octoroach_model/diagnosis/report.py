@@ -1,4 +1,5 @@
-"""The diagnosis report: typed records, their JSON (report.json), and summary.md in words.
+"""
+The diagnosis report: typed records, their JSON (report.json), and summary.md in words.
 
 Field names follow the report's documented form (docs/report.md): `paths`, `baseline`,
 `discrepancies`, `candidates`, `cause`, `parameters`, `extended`, `gain`, `causes`,
@@ -7,16 +8,16 @@ on the record (for plots and re-use) but written as their tables only.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
+import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
 from octoroach_model.diagnosis.causes import BY_NAME
-from octoroach_model.diagnosis.limits import METHOD as LIMIT_METHOD, Limit
-from octoroach_model.diagnosis.statistics import Discrepancy
+from octoroach_model.diagnosis.discrepancies import Discrepancy
+from octoroach_model.diagnosis.limits import Limit, METHOD as LIMIT_METHOD
 from octoroach_model.jsonio import dumps, fields_jsonable, jsonable
 from octoroach_model.paths import Paths
 
@@ -25,7 +26,6 @@ if TYPE_CHECKING:
     from octoroach_model.diagnosis.diagnose import DiagnosisSettings, Evaluation
     from octoroach_model.diagnosis.modelfit import FittedModel
     from octoroach_model.diagnosis.scoring import Scores
-
 
 
 @dataclass(frozen=True)
@@ -86,7 +86,7 @@ class CandidateResult:
                    significant, named_here, step, cause.statistic_name)
 
     def with_limit(self, limit: Limit) -> CandidateResult:
-        """This result with the detection limit of the whole decision (limits.py)."""
+        """Return this result with the detection limit of the whole decision (limits.py)."""
         return replace(self, detectable={BY_NAME[self.cause].parameter: limit.size},
                        detectable_method=LIMIT_METHOD,
                        detectable_power={'size_bound': limit.size_bound_power,
@@ -188,12 +188,12 @@ class DiagnosisReport:
 
     @property
     def cause(self) -> str:
-        """The leading cause, or 'none'."""
+        """Return the leading cause, or 'none'."""
         return self.causes[0].cause if self.causes else 'none'
 
     @property
     def parameters(self) -> dict:
-        """The leading cause's parameters ({} for none)."""
+        """Return the parameters of the leading cause, empty when there is none."""
         return dict(self.causes[0].parameters) if self.causes else {}
 
     def to_json(self) -> dict[str, Any]:
@@ -215,12 +215,12 @@ class DiagnosisReport:
 
 
 def decision_rules(settings: DiagnosisSettings, adequacy_z: float) -> dict:
-    """The rules the report was decided by, with their levels."""
+    """Return the rules the report was decided by, with their levels."""
     return {
         'selection': 'forward: each step adds the cause that qualifies with the largest '
                      'held-out gain, every included size refit together; stops when none '
                      'qualifies',
-        'qualifies': 'lower confidence bound of the main parameter above the cause\'s floor '
+        'qualifies': "lower confidence bound of the main parameter above the cause's floor "
                      '(one-sided, level decision_alpha / m), held-out gain significant '
                      '(one-sided paired t-test, level alpha / m) and at least min_gain; m = '
                      'causes still in the race at that step',
@@ -242,8 +242,12 @@ def _unit(unit: str) -> str:
 
 
 def _number(value: float | None, digits: int = 3) -> str:
-    """A number as a reader wants it: 0 where it is below resolution, else `digits`
-    significant digits."""
+    """
+    Format a number as a reader wants it.
+
+    A number as a reader wants it: 0 where it is below resolution, else `digits` significant
+    digits.
+    """
     if value is None or not math.isfinite(value):
         return 'n/a'
     if abs(value) < 1e-9:
@@ -252,17 +256,23 @@ def _number(value: float | None, digits: int = 3) -> str:
 
 
 def summary_text(report: DiagnosisReport) -> str:
-    """summary.md: what the model gets wrong, the causes with sizes, what each adds, what is
-    still unexplained, and how small an effect could have been seen."""
+    """
+    Write summary.md in words.
+
+    summary.md: what the model gets wrong, the causes with sizes, what each adds, what is still
+    unexplained, and how small an effect could have been seen.
+    """
     lines = ['# What the simulation gets wrong', '']
     runs = report.runs
-    early = (f'; {runs.ended_early} ended early (between '
-             f'{runs.ended_early_between_s[0]:.2f} and {runs.ended_early_between_s[1]:.2f} s) '
-             f'and were used to their end' if runs.ended_early else '')
+    early = ''
+    if runs.ended_early_between_s is not None:
+        first, last = runs.ended_early_between_s
+        early = (f'; {runs.ended_early} ended early (between {first:.2f} and {last:.2f} s) '
+                 'and were used to their end')
     lines.append(f'{report.paths} measured runs of up to {report.duration_s:.2f} s{early}. '
                  f"The paper's model was calibrated on {report.split['calibration']} of them "
                  f"and judged on the other {report.split['held_out']}.")
-    lines += ['', '## Where the paper\'s model disagrees with the data', '']
+    lines += ['', "## Where the paper's model disagrees with the data", '']
     off = [row for row in report.discrepancies
            if abs(row.z) > report.adequacy_bound_z and row.material][:6]
     if off:
@@ -289,9 +299,10 @@ def summary_text(report: DiagnosisReport) -> str:
     lines += ['', f'Held-out log score per run: baseline {_number(gain.baseline)}, extended '
                   f'{_number(gain.extended)}, the data themselves {_number(gain.ideal)} nats '
                   f'(higher is better): the extended model closes '
-                  f'{_percent(gain.relative)} of the baseline\'s gap. Positions: '
+                  f"{_percent(gain.relative)} of the baseline's gap. Positions: "
                   f"{_number(gain.energy_score_cm['baseline'])} -> "
-                  f"{_number(gain.energy_score_cm['extended'])} cm (energy score, lower is better)."]
+                  f"{_number(gain.energy_score_cm['extended'])} cm (energy score, lower is "
+                  'better).']
     lines += ['', '## What the extended model still misses', '']
     if report.adequate:
         lines.append('Nothing material: every statistic of the data agrees with the extended '
@@ -332,7 +343,8 @@ def summary_text(report: DiagnosisReport) -> str:
 
 def write_report(report: DiagnosisReport, out_dir: Path | str, measured: Paths | None = None,
                  plots: bool = True) -> dict[str, Path]:
-    """Write report.json, summary.md and (with `measured`) the PNG plots into out_dir.
+    """
+    Write report.json, summary.md and (with `measured`) the PNG plots into out_dir.
 
     The JSON and the summary are written first; a plot that cannot be drawn is said in the
     returned `plot_errors` entry and in summary.md, never at the cost of the report.

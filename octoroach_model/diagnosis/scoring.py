@@ -1,4 +1,5 @@
-"""How well a model predicts held-out runs: proper scores per run, and their comparison.
+"""
+How well a model predicts held-out runs: proper scores per run, and their comparison.
 
 - **Feature log score** (nats per run, higher is better; the one that decides): the log
   density of each of a run's features under a normal distribution with the mean and spread
@@ -20,8 +21,8 @@ Every comparison is paired run by run: the per-run gain's mean, and a one-sided 
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy import stats
@@ -49,9 +50,13 @@ def feature_scales(calibration_features: np.ndarray) -> np.ndarray:
 
 
 def feature_log_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    """Sum over columns of the normal log density of each observed row under the sample's
-    column mean and spread (spread never below FLOOR, distance never beyond CAP spreads);
-    columns in data spreads."""
+    """
+    Return the summed normal log density of each observed row under the sample.
+
+    Sum over columns of the normal log density of each observed row under the sample's column
+    mean and spread (spread never below FLOOR, distance never beyond CAP spreads); columns in
+    data spreads.
+    """
     mean = sample.mean(axis=0)
     spread = np.maximum(sample.std(axis=0, ddof=1), FLOOR)
     z = np.clip((observed - mean) / spread, -CAP, CAP)
@@ -69,8 +74,12 @@ def energy_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
 
 
 def position_points_cm(positions: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """(n, 2 x len(ENERGY_FRACTIONS)) positions (cm) at fractions of each run's duration,
-    relative to the run's start."""
+    """
+    Return positions (cm) at fractions of each run's duration.
+
+    (n, 2 x len(ENERGY_FRACTIONS)) positions (cm) at fractions of each run's duration, relative
+    to the run's start.
+    """
     rows = np.arange(positions.shape[0])
     last = np.maximum(lengths - 1, 0)
     picks = [np.rint(fraction * last).astype(int) for fraction in ENERGY_FRACTIONS]

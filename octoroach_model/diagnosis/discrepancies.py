@@ -1,4 +1,5 @@
-"""Set-level statistics of runs and the discrepancies of data against a model.
+"""
+Set-level statistics of runs and the discrepancies of data against a model.
 
 A statistic summarises a whole set of runs (a spread, a mean) and is a function of the
 per-run features alone, so its bootstrap over runs only resamples rows. A discrepancy compares
@@ -15,9 +16,9 @@ Two rules keep numerical noise out (docs/diagnosis.md):
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy import stats
@@ -29,9 +30,13 @@ DEG = 180.0 / math.pi
 
 @dataclass(frozen=True)
 class Statistic:
-    """A set-level statistic: its function of the feature matrix, unit, resolution, and how
-    large a difference is material ('mean': a tenth of the feature's spread across runs,
-    'spread': a tenth of its value, 'absolute': `material` itself)."""
+    """
+    A set-level statistic.
+
+    A set-level statistic: its function of the feature matrix, unit, resolution, and how large
+    a difference is material ('mean': a tenth of the feature's spread across runs, 'spread': a
+    tenth of its value, 'absolute': `material` itself).
+    """
 
     name: str
     unit: str
@@ -62,8 +67,12 @@ def _noise_cm(f: np.ndarray) -> float:
 
 
 def _growth_exponent(f: np.ndarray) -> float:
-    """Slope of log(lateral spread) against log(time), a quarter of the run to its end: about
-    1 for a fixed heading error, 1.5 for a random-walk heading, 2 for steady turning."""
+    """
+    Return the slope of log(lateral spread) against log(time).
+
+    Slope of log(lateral spread) against log(time), a quarter of the run to its end: about 1
+    for a fixed heading error, 1.5 for a random-walk heading, 2 for steady turning.
+    """
     late = np.std(f[:, INDEX['end_lateral']], ddof=1)
     early = np.std(f[:, INDEX['quarter_lateral']], ddof=1)
     return float(math.log(max(late, 1e-12) / max(early, 1e-12)) / math.log(4.0))
@@ -141,7 +150,8 @@ def statistic_values(features: np.ndarray) -> np.ndarray:
 def discrepancies(data_features: np.ndarray, model_features: np.ndarray,
                   rng: np.random.Generator, n_boot: int,
                   fit_se: np.ndarray | None = None) -> list[Discrepancy]:
-    """Every statistic of data against model, largest |z| first.
+    """
+    Every statistic of data against model, largest |z| first.
 
     `fit_se` (per statistic) is the error the model's statistics carry because its
     parameters were fitted to these same runs: without it, a model fitted on many runs would
@@ -184,6 +194,10 @@ def _unit_factor(statistic: Statistic) -> float:
 
 
 def critical_z(level: float, count: int) -> float:
-    """|z| beyond which a statistic is off at family level `level` over `count` statistics
-    (Bonferroni, two-sided)."""
+    """
+    Return |z| beyond which a statistic is off (Bonferroni, two-sided).
+
+    |z| beyond which a statistic is off at family level `level` over `count` statistics
+    (Bonferroni, two-sided).
+    """
     return float(stats.norm.isf(level / (2 * max(count, 1))))
