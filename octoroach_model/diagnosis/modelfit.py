@@ -195,6 +195,7 @@ class GeometryUncertainty:
 
     free: tuple[str, ...]
     covariance: np.ndarray
+    cost: float = 0.0            # the fit's least-squares cost (compares restarts)
 
     def perturbed(self, model: FittedModel, index: int, step: float) -> FittedModel:
         """`model` with entry `index` of the vector moved by `step`."""
@@ -241,13 +242,14 @@ def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
     estimates: dict[str, SizeEstimate] = {}
     path_causes = tuple(c for c in causes if BY_NAME[c].kind == 'path')
     moment_causes = tuple(c for c in causes if BY_NAME[c].kind == 'moments')
-    for cause in path_causes:
-        if cause not in start.effects:
-            model = model.with_effect(cause, {BY_NAME[cause].parameter: path_start(
-                simulator, model, BY_NAME[cause], settings)})
     uncertainty = None
-    for _ in range(rounds or settings.rounds):
-        if geometry or path_causes:
+    new_path_causes = [cause for cause in path_causes if cause not in start.effects]
+    for round_number in range(rounds or settings.rounds):
+        if new_path_causes and round_number == 0:
+            model, path_estimates, uncertainty = restarted_geometry(
+                simulator, model, path_causes, new_path_causes, settings)
+            estimates.update(path_estimates)
+        elif geometry or path_causes:
             model, path_estimates, uncertainty = fit_geometry(data, model, path_causes,
                                                               settings)
             estimates.update(path_estimates)
@@ -287,6 +289,30 @@ def _start_variance(features: np.ndarray) -> float:
                        + features[:, INDEX['start_y']].var(ddof=1))
 
 
+def restarted_geometry(simulator: Simulator, model: FittedModel,
+                       path_causes: tuple[str, ...], new: list[str], settings: FitSettings
+                       ) -> tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]:
+    """
+    Fit the geometry with new path causes from two starts; keep the better fit.
+
+    A geometry fitted without a path cause has bent to mimic it (an asymmetric gait crabs
+    sideways as a slip would), and from there the joint fit can stay in that valley. So the
+    fit starts both from the current geometry and from the same one with its four touchdown
+    angles made equal (no asymmetry to crab with), each with the new causes' sizes read off
+    their signatures (`path_start`), and the lower least-squares cost wins.
+    """
+    angle = float(np.mean(model.parameters.touchdown_angles))
+    symmetric = replace(model, parameters=replace(
+        model.parameters, touchdown_angles=(angle, angle, angle, angle)).with_paper_liftoff())
+    fits = []
+    for start in (model, symmetric):
+        for cause in new:
+            size = path_start(simulator, start, BY_NAME[cause], settings)
+            start = start.with_effect(cause, {BY_NAME[cause].parameter: size})
+        fits.append(fit_geometry(simulator.data, start, path_causes, settings))
+    return min(fits, key=lambda fit: fit[2].cost)
+
+
 def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...],
                  settings: FitSettings
                  ) -> tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]:
@@ -315,7 +341,7 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
     for offset, item in enumerate(free):
         size = float(fit.effects[item.cause][item.parameter])
         estimates[item.cause] = SizeEstimate(item.cause, size, float(errors[6 + offset]))
-    return fitted, estimates, GeometryUncertainty(path_causes, covariance)
+    return fitted, estimates, GeometryUncertainty(path_causes, covariance, fit.cost)
 
 
 def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSettings,
