@@ -19,8 +19,12 @@ def _offline() -> dict[str, str]:
 def _node_main(name: str, argv: list[str] | None) -> int:
     import importlib
 
+    from octoroach_model.nodes.common import shutdown_watchdog
+
     module = importlib.import_module(f'octoroach_model.nodes.{name}')
-    return int(module.main(argv) or 0)
+    code = int(module.main(argv) or 0)
+    shutdown_watchdog(name, code)      # the process exits now; a stuck thread must not hold it
+    return code
 
 
 def _command_main(name: str, argv: list[str] | None) -> int:

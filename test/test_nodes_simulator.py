@@ -249,3 +249,21 @@ def test_split_ros_args_keeps_node_flags_apart():
     assert own == ['a', 'b'] and ros == ['--ros-args', '-p', 'x:=1']
     with pytest.raises(common.UsageError, match='NAME:=VALUE'):
         common.split_ros_args(['--ros-args', '-p', 'x'])
+
+
+def test_a_node_stuck_on_its_way_out_still_ends(tmp_path):
+    """The shutdown watchdog ends a process whose way out hangs, and says where it hung."""
+    import subprocess
+    import sys
+
+    script = ('import threading, time\n'
+              'from octoroach_model.nodes.common import shutdown_watchdog\n'
+              "shutdown_watchdog('stuck_node', 0, deadline_s=0.5)\n"
+              'threading.Thread(target=time.sleep, args=(60,)).start()\n')
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                          timeout=30)
+    assert done.returncode == 1
+    assert time.monotonic() - started < 20
+    assert 'stuck_node: shutdown stuck for 0 s' in done.stderr
+    assert 'in sleep' in done.stderr or 'Thread' in done.stderr

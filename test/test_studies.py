@@ -353,8 +353,11 @@ def test_the_summary_counts_false_positives_power_recovery_and_errors():
 # plan's search
 
 def test_the_power_fit_finds_the_run_count_of_a_known_power_curve():
-    """Over 40 simulated studies the 95 % interval covers the true run count nearly always
-    (one study alone misses it 5 % of the time: a single draw would be a flaky test)."""
+    """
+    Check the 95 % interval of the run count over 40 simulated studies.
+
+    One study alone misses the truth 5 % of the time: a single draw would be a flaky test.
+    """
     true_a, true_b = -13.0, 2.5          # 80 % power at exp((ln 4 + 13) / 2.5) = 316 runs
     truth = math.exp((math.log(4) - true_a) / true_b)
     counts = (100, 200, 400, 800, 1600)

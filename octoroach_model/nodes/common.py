@@ -10,9 +10,12 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
+import faulthandler
 import math
+import os
 import sys
 import textwrap
+import threading
 from typing import Any, NoReturn, TYPE_CHECKING
 
 from octoroach_model.errors import OctoroachError, ParameterError
@@ -367,6 +370,11 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
     signal, to close files; its code wins when non-zero). With executor_threads > 1 a
     MultiThreadedExecutor spins the node, so a callback that waits never blocks the others.
     Domain errors raised while building or spinning the node end as one `error:` line.
+
+    A node asked to stop must stop: the way out runs under a watchdog that prints every
+    thread's stack and ends the process if a step takes longer than SHUTDOWN_DEADLINE_S
+    (cli.py watches the interpreter's exit after it, which joins the executor's threads).
+    `finish()` (closing a bag, however large) runs outside the watchdog.
     """
     import rclpy
     from rclpy.exceptions import ParameterException
@@ -396,6 +404,7 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
     except (OctoroachError, ParameterException) as error:
         code = fail(str(error))
     finally:
+        stopping = shutdown_watchdog(prog, code)
         stop_jobs = getattr(node, 'stop_jobs', None)
         if stop_jobs is not None:
             stop_jobs()
@@ -403,11 +412,40 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
             executor.shutdown(timeout_sec=5.0)
         if node is not None:
             node.destroy_node()
-            finish = getattr(node, 'finish', None)
-            if finish is not None:
-                code = int(finish() or 0) or code
+        stopping.set()
+        finish = getattr(node, 'finish', None)
+        if finish is not None:
+            code = int(finish() or 0) or code
+        stopping = shutdown_watchdog(prog, code)
         rclpy.try_shutdown()
+        stopping.set()
     return code
+
+
+SHUTDOWN_DEADLINE_S = 20.0
+
+
+def shutdown_watchdog(prog: str, code: int,
+                      deadline_s: float = SHUTDOWN_DEADLINE_S) -> threading.Event:
+    """
+    End the process if the way out is stuck; set the returned event when the step is done.
+
+    A stuck middleware thread must not leave a node running after SIGTERM (a launch file or a
+    shell's `wait` would hang on it). The stacks printed say where it was stuck.
+    """
+    finished = threading.Event()
+
+    def watch() -> None:
+        if finished.wait(deadline_s):
+            return
+        sys.stderr.write(f'error: {prog}: shutdown stuck for {deadline_s:.0f} s; the stack of '
+                         f'every thread follows, then the process ends\n')
+        faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
+        sys.stderr.flush()
+        os._exit(code or 1)
+
+    threading.Thread(target=watch, name=f'{prog}-shutdown-watchdog', daemon=True).start()
+    return finished
 
 
 def vicon_qos(depth: int = VICON_QOS_DEPTH) -> QoSProfile:
