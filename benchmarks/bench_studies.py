@@ -123,6 +123,10 @@ def print_tables(names: list[str]) -> None:
             print('| --- | --- | --- |')
             named = ', '.join(f'{k} {v}' for k, v in fp['causes_named'].items()) or 'none'
             print(f'| {fp["data_sets"]} | {_rate(fp)} | {named} |\n')
+            inadequate = summary.get('inadequate_on_nulls')
+            if inadequate and inadequate['data_sets']:
+                print(f'adequacy check false alarms (null data sets called inadequate): '
+                      f'{_rate(inadequate)}\n')
         if summary['power']:
             errors = {(e['arm'], e['runs']): e for e in summary['estimation']}
             print('| cause | size | data sets | named (95 % interval) | median abs. rel. error |'

@@ -323,7 +323,8 @@ def test_the_summary_counts_false_positives_power_recovery_and_errors():
     rows = []
     for replicate in range(10):
         rows.append(a_row(key=f'n{replicate}', replicate=replicate, arm='none', kind='null',
-                          true_causes=[], named=['speed_decay'] if replicate < 2 else []))
+                          true_causes=[], named=['speed_decay'] if replicate < 2 else [],
+                          adequate=None if replicate == 9 else replicate != 4))
         rows.append(a_row(key=f't{replicate}', arm='persistent_turning=5', kind='absolute',
                           true_causes=['persistent_turning'], false_causes=[],
                           named_persistent_turning=replicate < 7,
@@ -338,6 +339,8 @@ def test_the_summary_counts_false_positives_power_recovery_and_errors():
     assert summary['false_positive']['count'] == 2
     assert summary['false_positive']['data_sets'] == 10
     assert summary['false_positive']['causes_named'] == {'speed_decay': 2}
+    inadequate = summary['inadequate_on_nulls']
+    assert (inadequate['count'], inadequate['data_sets']) == (1, 9)   # one not judged
     power = summary['power'][0]
     assert (power['count'], power['data_sets'], power['runs']) == (7, 10, 50)
     estimation = next(e for e in summary['estimation'] if e['arm'] == 'persistent_turning=5')

@@ -71,6 +71,7 @@ def summarize(spec: StudySpec, rows: Sequence[Mapping[str, Any]],
         'study': spec.name, 'spec_hash': spec.spec_hash, 'seed': spec.seed,
         'status': _status(rows),
         'false_positive': _false_positive(spec, ok),
+        'inadequate_on_nulls': _inadequate_on_nulls(ok),
         'false_causes_with_effects': wilson(
             sum(bool(row['false_causes']) for row in ok if row['true_causes']),
             sum(1 for row in ok if row['true_causes'])).to_json(),
@@ -107,6 +108,12 @@ def _false_positive(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> dict[st
                           'any cause was named',
             **overall.to_json(), 'target': FALSE_POSITIVE_TARGET,
             'by_runs': by_cell, 'causes_named': named_counts}
+
+
+def _inadequate_on_nulls(ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """Return the adequacy check's false alarms: nulls called inadequate (the model is exact)."""
+    judged = [row for row in ok if row['kind'] == 'null' and row['adequate'] is not None]
+    return wilson(sum(row['adequate'] is False for row in judged), len(judged)).to_json()
 
 
 def _power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
