@@ -97,23 +97,55 @@ def _error(value: float | None) -> str:
 
 
 def _wall(name: str, summary: dict) -> str:
-    """Return the study's wall time: as this script measured it, else the summary's."""
+    """
+    Return the study's wall time, as this script or the summary measured it.
+
+    A resumed or partial study has none: then the sum of its data sets' times.
+    """
     path = OUT / name / 'bench_wall_time_s.txt'
-    seconds = float(path.read_text()) if path.exists() else summary['timing']['wall_time_s']
-    return f'{seconds / 60:.1f} min' if seconds is not None else 'unknown (resumed)'
+    timing = summary['timing']
+    seconds = float(path.read_text()) if path.exists() else timing.get('wall_time_s')
+    if seconds is not None:
+        return f'wall time {seconds / 60:.1f} min'
+    if timing.get('total_task_s'):
+        return (f'{timing["total_task_s"] / 60:.0f} min of single-worker time over its data '
+                f'sets (median {timing["median_task_s"]:.0f} s each)')
+    return 'wall time unknown'
+
+
+def partial_summary(name: str) -> tuple[dict, str]:
+    """Summarize the rows a stopped study holds so far; say how many of how many."""
+    from octoroach_model.studies.design import build_tasks
+    from octoroach_model.studies.spec import load_spec
+    from octoroach_model.studies.summary import summarize
+    from octoroach_model.studies.table import read_table
+
+    spec = load_spec(SPECS / f'{name}.yaml')
+    rows, _ = read_table(OUT / name / 'table.csv')
+    total = len(build_tasks(spec))
+    replicates = sorted({row['replicate'] for row in rows})
+    return summarize(spec, rows), (
+        f'{len(rows)} of the {total} data sets of the spec (replicates {replicates[0]}-'
+        f'{replicates[-1]}, not all complete); `--studies {name}` resumes it')
 
 
 def print_tables(names: list[str]) -> None:
     """Print the README tables of every study of `names` found in out/studies."""
     for name in names:
         path = OUT / name / 'summary.json'
-        if not path.exists():
+        partial = None
+        if path.exists():
+            summary = json.loads(path.read_text())
+        elif (OUT / name / 'table.csv').exists():
+            summary, partial = partial_summary(name)
+        else:
             print(f'\n{name}: no summary in {path.parent} (run --studies {name})')
             continue
-        summary = json.loads(path.read_text())
         command = (f'python -m octoroach_model study studies/{name}.yaml '
                    f'--out out/studies/{name}')
-        print(f'\n### {name} (`{command}`, wall time {_wall(name, summary)} on this machine)\n')
+        print(f'\n### {name} (`{command}`, {_wall(name, summary)} on this machine)\n')
+        if partial:
+            print(f'**Partial**: {partial}\n')
         counts = summary['status']['counts']
         if set(counts) - {'ok'}:
             print(f'data sets without a diagnosis: {counts}\n')
