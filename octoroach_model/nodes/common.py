@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import faulthandler
 import math
 import os
+import signal
 import sys
 import textwrap
 import threading
@@ -380,11 +381,13 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
     from rclpy.exceptions import ParameterException
     from rclpy.executors import (
         ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
+    from rclpy.signals import SignalHandlerOptions
 
     try:
-        rclpy.init(args=[prog, *(ros_args or [])])
+        rclpy.init(args=[prog, *(ros_args or [])], signal_handler_options=SignalHandlerOptions.NO)
     except Exception as error:  # noqa: BLE001 - RCLError for malformed --ros-args
         return fail(f'bad ROS arguments: {str(error).splitlines()[0]}')
+    stop_on_signals()
     node = None
     executor = None
     code = 0
@@ -394,16 +397,20 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
             if executor_threads > 1 else SingleThreadedExecutor()
         executor.add_node(node)
         done = getattr(node, 'done', None)
+        context = node.context
         if done is None:
-            executor.spin()
+            while context.ok():
+                executor.spin_once(timeout_sec=SPIN_POLL_S)
         else:
-            executor.spin_until_future_complete(done)
+            while context.ok() and not done.done():
+                executor.spin_until_future_complete(done, timeout_sec=SPIN_POLL_S)
             code = int(done.result() or 0) if done.done() else 0
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (OctoroachError, ParameterException) as error:
         code = fail(str(error))
     finally:
+        stop_on_signals(interrupt=False)       # a second signal must not cut the way out short
         stopping = shutdown_watchdog(prog, code)
         stop_jobs = getattr(node, 'stop_jobs', None)
         if stop_jobs is not None:
@@ -423,6 +430,23 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
 
 
 SHUTDOWN_DEADLINE_S = 20.0
+SPIN_POLL_S = 0.2      # longest wait of the executor: how soon a signal is acted on
+
+
+def stop_on_signals(interrupt: bool = True) -> None:
+    """
+    Make SIGINT and SIGTERM raise KeyboardInterrupt in the main thread (or do nothing).
+
+    On the way out they do nothing: a second signal must not cut a bag's closing short, and
+    the watchdog bounds the way out. rclpy's own handlers (which wake the executor from C) missed a SIGTERM now and then while a
+    MultiThreadedExecutor waited, on a loaded machine, and the node ran on; Python's handlers
+    cannot miss, and the executor's short waits (SPIN_POLL_S) let them run.
+    """
+    def raise_interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, raise_interrupt if interrupt else signal.SIG_IGN)
 
 
 def shutdown_watchdog(prog: str, code: int,
