@@ -384,9 +384,11 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
     from rclpy.signals import SignalHandlerOptions
 
     try:
-        rclpy.init(args=[prog, *(ros_args or [])], signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(args=[prog, *(ros_args or [])],
+                   signal_handler_options=SignalHandlerOptions.NO)
     except Exception as error:  # noqa: BLE001 - RCLError for malformed --ros-args
         return fail(f'bad ROS arguments: {str(error).splitlines()[0]}')
+    previous = {number: signal.getsignal(number) for number in STOP_SIGNALS}
     stop_on_signals()
     node = None
     executor = None
@@ -426,10 +428,14 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
         stopping = shutdown_watchdog(prog, code)
         rclpy.try_shutdown()
         stopping.set()
+        for number, handler in previous.items():     # as they were: a caller's children
+            if handler is not None:                   # must not inherit SIG_IGN
+                signal.signal(number, handler)
     return code
 
 
 SHUTDOWN_DEADLINE_S = 20.0
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 SPIN_POLL_S = 0.2      # longest wait of the executor: how soon a signal is acted on
 
 
@@ -438,14 +444,15 @@ def stop_on_signals(interrupt: bool = True) -> None:
     Make SIGINT and SIGTERM raise KeyboardInterrupt in the main thread (or do nothing).
 
     On the way out they do nothing: a second signal must not cut a bag's closing short, and
-    the watchdog bounds the way out. rclpy's own handlers (which wake the executor from C) missed a SIGTERM now and then while a
-    MultiThreadedExecutor waited, on a loaded machine, and the node ran on; Python's handlers
-    cannot miss, and the executor's short waits (SPIN_POLL_S) let them run.
+    the watchdog bounds the way out. rclpy's own handlers (which wake the executor from C)
+    missed a SIGTERM now and then while a MultiThreadedExecutor waited, on a loaded machine,
+    and the node ran on; Python's handlers cannot miss, and the executor's short waits
+    (SPIN_POLL_S) let them run.
     """
     def raise_interrupt(signum: int, frame: Any) -> None:
         raise KeyboardInterrupt(signal.Signals(signum).name)
 
-    for number in (signal.SIGINT, signal.SIGTERM):
+    for number in STOP_SIGNALS:
         signal.signal(number, raise_interrupt if interrupt else signal.SIG_IGN)
 
 
