@@ -385,7 +385,7 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
 
     try:
         rclpy.init(args=[prog, *(ros_args or [])],
-                   signal_handler_options=SignalHandlerOptions.NO)
+                   signal_handler_options=SignalHandlerOptions.SIGINT)
     except Exception as error:  # noqa: BLE001 - RCLError for malformed --ros-args
         return fail(f'bad ROS arguments: {str(error).splitlines()[0]}')
     previous = {number: signal.getsignal(number) for number in STOP_SIGNALS}
@@ -435,13 +435,13 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
 
 
 SHUTDOWN_DEADLINE_S = 20.0
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+STOP_SIGNALS = (signal.SIGTERM,)   # SIGINT stays rclpy's (KeyboardInterrupt)
 SPIN_POLL_S = 0.2      # longest wait of the executor: how soon a signal is acted on
 
 
 def stop_on_signals(interrupt: bool = True) -> None:
     """
-    Make SIGINT and SIGTERM raise KeyboardInterrupt in the main thread (or do nothing).
+    Make SIGTERM raise KeyboardInterrupt in the main thread (or do nothing); SIGINT is rclpy's.
 
     On the way out they do nothing: a second signal must not cut a bag's closing short, and
     the watchdog bounds the way out. rclpy's own handlers (which wake the executor from C)
