@@ -388,8 +388,8 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
                    signal_handler_options=SignalHandlerOptions.SIGINT)
     except Exception as error:  # noqa: BLE001 - RCLError for malformed --ros-args
         return fail(f'bad ROS arguments: {str(error).splitlines()[0]}')
-    previous = {number: signal.getsignal(number) for number in STOP_SIGNALS}
-    stop_on_signals()
+    previous_sigterm = signal.getsignal(signal.SIGTERM)
+    stop_on_sigterm()
     node = None
     executor = None
     code = 0
@@ -412,7 +412,7 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
     except (OctoroachError, ParameterException) as error:
         code = fail(str(error))
     finally:
-        stop_on_signals(interrupt=False)       # a second signal must not cut the way out short
+        stop_on_sigterm(interrupt=False)       # a second one must not cut the way out short
         stopping = shutdown_watchdog(prog, code)
         stop_jobs = getattr(node, 'stop_jobs', None)
         if stop_jobs is not None:
@@ -428,22 +428,20 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
         stopping = shutdown_watchdog(prog, code)
         rclpy.try_shutdown()
         stopping.set()
-        for number, handler in previous.items():     # as they were: a caller's children
-            if handler is not None:                   # must not inherit SIG_IGN
-                signal.signal(number, handler)
+        if previous_sigterm is not None:      # as it was: a caller's children must not
+            signal.signal(signal.SIGTERM, previous_sigterm)    # inherit SIG_IGN
     return code
 
 
 SHUTDOWN_DEADLINE_S = 20.0
-STOP_SIGNALS = (signal.SIGTERM,)   # SIGINT stays rclpy's (KeyboardInterrupt)
 SPIN_POLL_S = 0.2      # longest wait of the executor: how soon a signal is acted on
 
 
-def stop_on_signals(interrupt: bool = True) -> None:
+def stop_on_sigterm(interrupt: bool = True) -> None:
     """
     Make SIGTERM raise KeyboardInterrupt in the main thread (or do nothing); SIGINT is rclpy's.
 
-    On the way out they do nothing: a second signal must not cut a bag's closing short, and
+    On the way out it does nothing: a second SIGTERM must not cut a bag's closing short, and
     the watchdog bounds the way out. rclpy's own handlers (which wake the executor from C)
     missed a SIGTERM now and then while a MultiThreadedExecutor waited, on a loaded machine,
     and the node ran on; Python's handlers cannot miss, and the executor's short waits
@@ -452,8 +450,7 @@ def stop_on_signals(interrupt: bool = True) -> None:
     def raise_interrupt(signum: int, frame: Any) -> None:
         raise KeyboardInterrupt(signal.Signals(signum).name)
 
-    for number in STOP_SIGNALS:
-        signal.signal(number, raise_interrupt if interrupt else signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, raise_interrupt if interrupt else signal.SIG_IGN)
 
 
 def shutdown_watchdog(prog: str, code: int,
