@@ -54,13 +54,17 @@ def test_a_negative_seed_names_the_option(program, tmp_path) -> None:
 def test_help_shows_every_option_with_a_description(program) -> None:
     result = run(program, '--help')
     assert result.returncode == 0
-    options = [line.strip() for line in result.stdout.splitlines()
-               if line.strip().startswith('--')]
+    lines = result.stdout.splitlines()
+    options = [number for number, line in enumerate(lines)         # not a wrapped description
+               if line.startswith('  -') and not line.startswith('   ')]
     assert options, result.stdout
-    for line in options:
-        name = line.split()[0]
-        described = line.split(maxsplit=2)[1:] or []
-        assert described or name in result.stdout, name
+    for number in options:
+        # argparse puts the description after two spaces, or on the next, deeper line
+        line = lines[number].strip()
+        after = lines[number + 1] if number + 1 < len(lines) else ''
+        on_next = (after.startswith(' ' * 8) and after.strip()
+                   and not after.strip().startswith('-'))
+        assert '  ' in line or on_next, f'{program}: {line!r} has no description'
 
 
 def test_defaults_are_shown_in_help() -> None:
