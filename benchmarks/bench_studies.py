@@ -92,6 +92,14 @@ def _rate(entry: dict) -> str:
     return f'{entry["count"]}/{entry["data_sets"]} = {entry["rate"]:.0%} ({low:.0%}-{high:.0%})'
 
 
+def pooled_rate(entries: list[dict]) -> dict:
+    """Return the rate of several cells together, with its Wilson interval."""
+    from octoroach_model.studies.summary import wilson
+
+    return wilson(sum(e['count'] for e in entries),
+                  sum(e['data_sets'] for e in entries)).to_json()
+
+
 def _error(value: float | None) -> str:
     return '-' if value is None else f'{100 * value:.1f} %'
 
@@ -185,6 +193,9 @@ def print_tables(names: list[str]) -> None:
                 shown = f'{limit["parameter"]} = {median:.3g}' if median is not None else '-'
                 print(f'| {cause} | {shown} | {_rate(mine.get(1.0, {}))} | '
                       f'{_rate(mine.get(2.0, {}))} |')
+            pooled = [_rate(pooled_rate([e for e in entries if e['limit_multiple'] == multiple]))
+                      for multiple in (1.0, 2.0)]
+            print(f'| all causes | | {pooled[0]} | {pooled[1]} |')
             print()
         if summary['two_cause_recovery']:
             print('| causes | data sets | both named (95 % interval) | each named |')
