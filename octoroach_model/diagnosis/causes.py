@@ -1,18 +1,20 @@
 """
 The causes as the diagnosis sees them.
 
-The causes as the diagnosis sees them: what each one moves, how its size is estimated, and the
-smallest size it may claim.
+What each one moves, how its size is estimated, and the smallest size it may claim.
 
-Two kinds of estimate (docs/diagnosis.md): - **moments** (initial_pose_error, measurement_noise,
-gait_frequency_variation, persistent_turning): a statistic of the runs whose *variance-like* value
-grows linearly in the squared size, S(u) = S(0) + kappa u with u = size^2. S(0) and kappa come from
-runs of the current model simulated without and with the cause (common random numbers); the size is
-read off the line at the data's value of S. - **path** (lateral_slip, speed_decay): the cause bends
-the average path, which the geometry alone could mimic, so its size is fitted jointly with the
-geometry (eq. 9 extended). The fit starts from the size its `signature` statistic (mean slip angle,
-mean speed ratio) reads off a line through the model without and with the cause: a geometry that
-has bent to mimic the cause would otherwise hold the fit in the wrong valley.
+Two kinds of estimate (docs/diagnosis.md):
+
+- **moments** (initial_pose_error, measurement_noise, gait_frequency_variation,
+  persistent_turning): a statistic of the runs whose *variance-like* value grows linearly in
+  the squared size, S(u) = S(0) + kappa u with u = size^2. S(0) and kappa come from runs of the
+  current model simulated without and with the cause (common random numbers); the size is
+  read off the line at the data's value of S.
+- **path** (lateral_slip, speed_decay): the cause bends the average path, which the geometry
+  alone could mimic, so its size is fitted jointly with the geometry (eq. 9 extended). The
+  fit starts from the size its `signature` statistic (mean slip angle, mean speed ratio)
+  reads off a line through the model without and with the cause: a geometry that has bent
+  to mimic the cause would otherwise hold the fit in the wrong valley.
 
 The **floor** of a cause is the smallest size that matters, which the diagnosis claims only when it
 is sure the size exceeds it (decide.py), whatever the p-value:

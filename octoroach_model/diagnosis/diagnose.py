@@ -11,8 +11,7 @@ Method (docs/diagnosis.md has it in full):
    runs (scoring.py). A cause enters when (a) its size's lower confidence bound clears its
    floor (decide.py), (b) it improves the held-out log score of the features significantly
    (one-sided paired t-test at level alpha / m) and (c) by at least `min_gain`; of those, the
-   largest gain
-   enters. The search stops when no remaining cause qualifies.
+   largest gain enters. The search stops when no remaining cause qualifies.
 4. The final model is refit on all runs: sizes with 95 % intervals.
 5. Discrepancies: every statistic of all runs against the baseline; adequacy: the same
    against the final model, a statistic being unexplained when |z| passes the Bonferroni
@@ -236,7 +235,7 @@ def decimated(measured: Paths) -> tuple[Paths, str | None]:
     """
     Keep at most MAX_SAMPLES_PER_CYCLE samples per stride cycle.
 
-    The runs at no more than MAX_SAMPLES_PER_CYCLE samples per stride cycle (every k-th sample,
+    Every k-th sample is kept (so
     so white noise stays white and its size unchanged): a faster recording adds nothing the
     gait shows, only memory and time. The paper's validation keeps every sample.
     """
@@ -272,7 +271,7 @@ def _baseline(halves: _Halves, settings: DiagnosisSettings) -> CausesFit:
     """
     Fit the paper's model on the calibration half.
 
-    The paper's model on the calibration half: a quick deterministic fit (eq. 9) as the start,
+    A quick deterministic fit (eq. 9) as the start,
     then geometry on the mean path and the spread scale, refit together.
     """
     train = halves.train
@@ -304,8 +303,8 @@ def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Sc
     """
     Extend `current` by `cause`, refit, and score it on the held-out runs.
 
-    `current` extended by `cause`, every included size refit (one round), scored on the
-    held-out runs against `current` (a top-level function: it runs in worker processes).
+    Every included size is refit (one round) and scored against `current`; a top-level
+    function, as it runs in worker processes.
     """
     causes = (*current.causes, cause)
     geometry = BY_NAME[cause].kind == 'path'
@@ -368,7 +367,7 @@ def fit_errors(simulator: Simulator, model: FittedModel,
     """
     Return each statistic's error from the model's fitted geometry.
 
-    Each statistic's error from the model's fitted geometry (and path-cause sizes): the change
+    Path-cause sizes count too: the change
     of the statistic when each entry of the fit's vector moves by its standard error (common
     random numbers), combined through the fit's correlations. `data_share` < 1 when the model
     was fitted on a part of the runs its statistics are compared with.
@@ -438,7 +437,7 @@ def _model_summary(model: FittedModel, validation: dict | None) -> dict:
     """
     Summarise a model as the report shows it.
 
-    A model as the report shows it: `sigma1`, `sigma2`, `violation` and `accepted` are the
+    `sigma1`, `sigma2`, `violation` and `accepted` are the
     paper's validation (the widest admissible spreads, search 15) when it ran, else the fitted
     spreads (`sigma_source` says which); the fitted spreads are always there too.
     """
@@ -461,7 +460,7 @@ def paper_validation(measured: Paths, model: FittedModel, settings: ValidationSe
     """
     Run the paper's search (15) for `model` on the measured runs.
 
-    The paper's search (15) for `model` (geometry, start and causes) on the measured runs, on
+    Geometry, start and causes count; the runs are compared on
     the common duration most of the runs reach (runs that end far earlier are left out and said
     so); k is lowered when the runs are too few for n x k.
     """

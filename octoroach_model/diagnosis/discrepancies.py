@@ -33,7 +33,7 @@ class Statistic:
     """
     A set-level statistic.
 
-    A set-level statistic: its function of the feature matrix, unit, resolution, and how large
+    Its function of the feature matrix, unit, resolution, and how large
     a difference is material ('mean': a tenth of the feature's spread across runs, 'spread': a
     tenth of its value, 'absolute': `material` itself).
     """
@@ -70,7 +70,7 @@ def _growth_exponent(f: np.ndarray) -> float:
     """
     Return the slope of log(lateral spread) against log(time).
 
-    Slope of log(lateral spread) against log(time), a quarter of the run to its end: about 1
+    Fitted from a quarter of the run to its end: about 1
     for a fixed heading error, 1.5 for a random-walk heading, 2 for steady turning.
     """
     late = np.std(f[:, INDEX['end_lateral']], ddof=1)
@@ -197,7 +197,6 @@ def critical_z(level: float, count: int) -> float:
     """
     Return |z| beyond which a statistic is off (Bonferroni, two-sided).
 
-    |z| beyond which a statistic is off at family level `level` over `count` statistics
-    (Bonferroni, two-sided).
+    At family level `level` over `count` statistics.
     """
     return float(stats.norm.isf(level / (2 * max(count, 1))))

@@ -24,8 +24,7 @@ class InlineExecutor(Executor):
     """
     An executor that runs each submitted call at once, in this process.
 
-    Runs each submitted call at once, in this process (for workers=1 and for work that is
-    already one task of a larger pool).
+    For workers=1 and for work that is already one task of a larger pool.
     """
 
     def submit(self, fn, /, *args, **kwargs) -> Future:

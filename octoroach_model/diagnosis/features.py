@@ -114,7 +114,7 @@ def _increment_moments(increments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     Return within-run variance and lag-1 autocorrelation of per-cycle heading changes.
 
-    Within-run variance and lag-1 autocorrelation of per-cycle heading changes: fresh angles at
+    Fresh angles at
     every stance give no correlation, a persistent bias a positive one.
     """
     mask = np.isfinite(increments)

@@ -86,7 +86,7 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: np.
     """
     Return the expected t statistic of the held-out test for a cause of `size`.
 
-    Expected t statistic of the held-out test for a cause of `size` (module docstring);
+    See the module docstring;
     `without_features` are the scored runs of the model without the cause.
     """
     values = {cause.parameter: size}
@@ -110,7 +110,7 @@ def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEs
     """
     Return the size at which the cause is named with POWER (module docstring).
 
-    The size at which the cause is named with POWER (module docstring); `start` is the size
+    `start` is the size
     bound's own 80 % limit (decide.py), where the search begins.
     """
     cause = BY_NAME[estimate.cause]

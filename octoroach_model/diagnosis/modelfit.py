@@ -189,7 +189,7 @@ class GeometryUncertainty:
     """
     Covariance of the geometry fit's vector.
 
-    Covariance of the geometry fit's vector: leg length [m], touchdown angles [rad], stride
+    The vector: leg length [m], touchdown angles [rad], stride
     frequency [Hz], then the sizes of the path causes in `free` (their own units).
     """
 
@@ -223,7 +223,7 @@ class CausesFit:
     """
     A model fitted with its causes.
 
-    A model fitted with its causes: the model, each size's estimate, and the geometry's
+    The model, each size's estimate, and the geometry's
     uncertainty (None when the geometry was held).
     """
 
@@ -272,7 +272,7 @@ def _values(model: FittedModel, cause: Cause, estimate: SizeEstimate, data: RunD
     """
     Return all parameters of a cause.
 
-    All parameters of a cause: the main one from its estimate, initial_pose_error's position
+    The main one from its estimate, initial_pose_error's position
     spread from the excess start-position variance over the model without it.
     """
     values = {cause.parameter: estimate.size}
@@ -349,7 +349,7 @@ def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSet
     """
     Return the covariance of the fit's vector.
 
-    Covariance of the fit's vector, from two sources of error added: the measured runs
+    Two sources of error added: the measured runs
     (bootstrap) and the simulated runs (bootstrap of their antithetic pairs); each resample's
     solution is one Gauss-Newton step from the fit.
     """
@@ -394,7 +394,7 @@ def path_start(simulator: Simulator, model: FittedModel, cause: Cause,
     """
     Return where the joint fit of a path cause starts.
 
-    Where the joint fit of a path cause starts: its signature statistic read off the line
+    Its signature statistic read off the line
     through the model without the cause and with it at the reference size.
     """
     signature = cause.signature
@@ -413,8 +413,7 @@ def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings) 
     """
     Fit the spread scale to the within-run variance of the per-cycle heading change.
 
-    Spread scale whose within-run variance of the per-cycle heading change matches the data's
-    (u = scale^2 read off a line through simulated points, refined once).
+    u = scale^2 is read off a line through simulated points, refined once.
     """
     target = float(simulator.data.features[:, INDEX['increment_var']].mean())
 
@@ -437,8 +436,7 @@ def _read_line(points: dict[float, float], target: float) -> float:
     """
     Return u where the piecewise-linear line through (u, S) points reaches `target`.
 
-    u at which the piecewise-linear line through (u, S) points reaches `target` (extrapolated
-    beyond the ends; points made monotone by a running maximum).
+    Extrapolated beyond the ends; points made monotone by a running maximum.
     """
     us = np.array(sorted(points))
     values = np.maximum.accumulate(np.array([points[u] for u in us]))
@@ -458,7 +456,7 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
     """
     Estimate the size of a moments cause.
 
-    Size of a moments cause: u = size^2 on the line S(u) = S(0) + slope u through the model
+    u = size^2 on the line S(u) = S(0) + slope u through the model
     without the cause and with it at the reference size (or nearer the estimate).
     """
     statistic = cause.statistic

@@ -1,7 +1,7 @@
 """
 The diagnosis in pictures.
 
-The diagnosis in pictures: paths against the confidence region (as the paper's Figs. 5b and 6),
+Paths against the confidence region (as the paper's Figs. 5b and 6),
 E^_k over the (sigma1, sigma2) grid, the statistic that decided each cause, and the discrepancies
 before and after the extension. Every axis has its unit, every line and threshold a legend entry,
 every colour bar a label.

@@ -245,7 +245,7 @@ def _number(value: float | None, digits: int = 3) -> str:
     """
     Format a number as a reader wants it.
 
-    A number as a reader wants it: 0 where it is below resolution, else `digits` significant
+    0 where it is below resolution, else `digits` significant
     digits.
     """
     if value is None or not math.isfinite(value):

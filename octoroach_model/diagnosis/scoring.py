@@ -53,9 +53,8 @@ def feature_log_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
     """
     Return the summed normal log density of each observed row under the sample.
 
-    Sum over columns of the normal log density of each observed row under the sample's column
-    mean and spread (spread never below FLOOR, distance never beyond CAP spreads); columns in
-    data spreads.
+    Summed over columns, each at the sample's column mean and spread (the spread never below
+    FLOOR, the distance never beyond CAP spreads); columns in data spreads.
     """
     mean = sample.mean(axis=0)
     spread = np.maximum(sample.std(axis=0, ddof=1), FLOOR)
@@ -77,8 +76,7 @@ def position_points_cm(positions: np.ndarray, lengths: np.ndarray) -> np.ndarray
     """
     Return positions (cm) at fractions of each run's duration.
 
-    (n, 2 x len(ENERGY_FRACTIONS)) positions (cm) at fractions of each run's duration, relative
-    to the run's start.
+    Shape (n, 2 x len(ENERGY_FRACTIONS)), relative to the run's start.
     """
     rows = np.arange(positions.shape[0])
     last = np.maximum(lengths - 1, 0)

@@ -25,9 +25,10 @@ run before the angles settle.
 The paper fits the deterministic path (every angle at its nominal value) to the average
 path. For a nonlinear model with random angles the two differ: the average of the model's
 runs is not the run of the average angles, and at Table III's spreads the deterministic fit
-misplaces the touchdown angles by 1-2 deg. `mean` fits instead the mean of simulated runs
-at given spreads (common random numbers, so the mean is a smooth function of the geometry):
-the fit is then unbiased for the stochastic model.
+misplaces the touchdown angles by up to 1.3 deg (benchmarks/bench_nominal_fit.py).
+`fit_nominal(mean=...)` fits the mean of simulated runs instead at given spreads (common
+random numbers, so the mean is a smooth function of the geometry): the fit is then unbiased
+for the stochastic model.
 """
 from __future__ import annotations
 
