@@ -208,6 +208,31 @@ def test_statistics_that_are_numerical_noise_are_no_discrepancy():
     assert start.z == 0.0 and not start.material     # both 0 up to rounding: not a finding
 
 
+def test_a_start_heading_spread_of_exactly_zero_still_gets_a_detection_limit():
+    """
+    Runs simulated without a start heading spread have a variance of 1e-32 rad^2.
+
+    The ratio of its rounding errors (0.37 here) once passed for the statistic's relative
+    error and left 2 of 10 null data sets of studies/limits.yaml without a limit for
+    initial_pose_error. The figures are those of replicate 4 of that study.
+    """
+    from octoroach_model.diagnosis.decide import decision_z, judge
+    from octoroach_model.diagnosis.limits import bound_power
+    from octoroach_model.diagnosis.modelfit import SizeEstimate
+
+    zero = SizeEstimate('initial_pose_error', size=1.40e-14, se=3.11e-15, u=1.97e-28,
+                        se_u=8.73e-29, intercept=7.78e-33, slope=3.098e-4,
+                        data_statistic=6.89e-32, data_se=2.52e-32, intercept_se=9.74e-33,
+                        relative_se=0.0942)
+    z = decision_z(0.05, 6)
+    limit = judge(zero, 0.5, z).limit
+    assert limit is not None and 0.5 < limit < 0.7, limit
+    assert bound_power(zero, limit, 0.5, z) == pytest.approx(0.8, abs=1e-6)
+    # a real level keeps the data's own relative error (here 3x the simulated one)
+    real = replace(zero, data_statistic=1e-4, data_se=0.3e-4, intercept=1e-4)
+    assert judge(real, 0.5, z).limit > 2 * limit
+
+
 def test_too_few_runs_are_refused_with_a_reason():
     with pytest.raises(om.DataError, match='at least 40 runs'):
         diagnose(om.simulate(10, seed=1))

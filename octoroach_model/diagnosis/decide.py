@@ -25,6 +25,8 @@ from octoroach_model.diagnosis.modelfit import SizeEstimate
 
 POWER = 0.8
 INTERVAL_LEVEL = 0.95
+# a moments statistic below this share of the level its cause adds at the floor is a zero
+NUMERICAL_ZERO = 1e-9
 
 
 @dataclass(frozen=True)
@@ -64,14 +66,27 @@ def _root(u: float) -> float:
     return math.sqrt(u) if u > 0 else 0.0
 
 
+def relative_error(estimate: SizeEstimate, floor: float) -> float:
+    """
+    Return a moments statistic's relative error, by which its error grows with its level.
+
+    It is the data's own (bootstrap error over level), never below what simulated runs with
+    the cause show. A statistic that is numerically zero (a start heading spread of exactly 0,
+    as runs simulated without one have: 1e-32 rad^2) has no relative error of its own, only
+    the ratio of two rounding errors, so the simulated runs' figure is used alone.
+    """
+    level_now = max(estimate.data_statistic, estimate.intercept)
+    if level_now <= NUMERICAL_ZERO * estimate.slope * floor ** 2:
+        return estimate.relative_se
+    return max(estimate.data_se / level_now, estimate.relative_se)
+
+
 def _moments_limit(estimate: SizeEstimate, floor: float, z_decision: float) -> float | None:
     """Smallest size s with P(u_hat - z se_u(s) > floor^2) = POWER, u_hat ~ N(s^2, se_u(s))."""
     if not (estimate.slope > 0 and math.isfinite(estimate.se_u)):
         return None
     z_power = float(stats.norm.isf(1 - POWER))
-    level_now = max(estimate.data_statistic, estimate.intercept)
-    relative_now = estimate.data_se / level_now if level_now > 0 else 0.0
-    relative = max(relative_now, estimate.relative_se)
+    relative = relative_error(estimate, floor)
 
     def se_u(u: float) -> float:
         level = max(estimate.intercept + estimate.slope * u, 0.0)

@@ -28,7 +28,7 @@ import numpy as np
 from scipy import stats
 
 from octoroach_model.diagnosis.causes import BY_NAME, Cause
-from octoroach_model.diagnosis.decide import POWER
+from octoroach_model.diagnosis.decide import POWER, relative_error
 from octoroach_model.diagnosis.features import run_features
 from octoroach_model.diagnosis.modelfit import FittedModel, Simulator, SizeEstimate
 from octoroach_model.diagnosis.scoring import feature_log_score
@@ -58,9 +58,7 @@ def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float) -> 
     if cause.kind == 'moments':
         if not (estimate.slope > 0 and math.isfinite(estimate.se_u)):
             return 0.0
-        level_now = max(estimate.data_statistic, estimate.intercept)
-        relative = max(estimate.data_se / level_now if level_now > 0 else 0.0,
-                       estimate.relative_se)
+        relative = relative_error(estimate, floor)
         u = size ** 2
         level = max(estimate.intercept + estimate.slope * u, 0.0)
         se = math.hypot(relative * level, estimate.intercept_se) / estimate.slope
