@@ -198,12 +198,18 @@ def print_tables(names: list[str]) -> None:
             print(f'| all causes | | {pooled[0]} | {pooled[1]} |')
             print()
         if summary['two_cause_recovery']:
-            print('| causes | data sets | both named (95 % interval) | each named |')
-            print('| --- | --- | --- | --- |')
+            errors = {(e['arm'], e['cause'], e['runs']): e for e in summary['estimation']}
+            print('| causes | data sets | both named (95 % interval) | each named (median abs. '
+                  'rel. error) | a third cause named |')
+            print('| --- | --- | --- | --- | --- |')
             for entry in summary['two_cause_recovery']:
-                each = ', '.join(f'{cause} {_rate(rate)}'
-                                 for cause, rate in entry['each_named'].items())
-                print(f'| {entry["arm"]} | {entry["data_sets"]} | {_rate(entry)} | {each} |')
+                each = ', '.join(
+                    f'{cause} {_rate(rate)} ({_error(error.get("median_abs_relative_error"))})'
+                    for cause, rate in entry['each_named'].items()
+                    for error in [errors.get((entry['arm'], cause, entry['runs']), {})])
+                other = _rate(entry['other_named']) if 'other_named' in entry else '-'
+                print(f'| {entry["arm"]} | {entry["data_sets"]} | {_rate(entry)} | {each} | '
+                      f'{other} |')
             print()
 
 

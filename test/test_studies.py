@@ -332,7 +332,8 @@ def test_the_summary_counts_false_positives_power_recovery_and_errors():
                           rel_error_persistent_turning=0.1 * (replicate - 3),
                           low_persistent_turning=4.0, high_persistent_turning=6.0))
         rows.append(a_row(key=f'b{replicate}', arm=spec.arms[2].label, kind='together',
-                          true_causes=['persistent_turning', 'lateral_slip'], false_causes=[],
+                          true_causes=['persistent_turning', 'lateral_slip'],
+                          false_causes=['speed_decay'] if replicate == 2 else [],
                           all_true_named=replicate % 2 == 0,
                           status='ok' if replicate < 8 else 'error'))
     summary = summarize(spec, rows, wall_time_s=12.0)
@@ -349,6 +350,7 @@ def test_the_summary_counts_false_positives_power_recovery_and_errors():
     assert estimation['interval_coverage']['count'] == 7
     recovery = summary['two_cause_recovery'][0]
     assert (recovery['count'], recovery['data_sets']) == (4, 8)
+    assert (recovery['other_named']['count'], recovery['other_named']['data_sets']) == (1, 8)
     assert summary['status']['counts'] == {'ok': 28, 'error': 2}
 
 

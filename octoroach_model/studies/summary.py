@@ -187,7 +187,9 @@ def _recovery(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str
                 **wilson(sum(bool(row['all_true_named']) for row in group),
                          len(group)).to_json(),
                 'each_named': {cause: wilson(sum(bool(row[f'named_{cause}']) for row in group),
-                                             len(group)).to_json() for cause in arm.causes}})
+                                             len(group)).to_json() for cause in arm.causes},
+                'other_named': wilson(sum(bool(row['false_causes']) for row in group),
+                                      len(group)).to_json()})
     return entries
 
 
