@@ -102,14 +102,18 @@ def test_a_study_gives_the_same_table_in_process_and_on_a_cluster_even_when_a_wo
     assert plots >= {'false_positive.png', 'power.png', 'power_at_limit.png'}
 
 
-def test_the_local_cluster_starts_its_workers_without_the_malloc_trim_threshold():
+def test_a_worker_started_with_dasks_malloc_setting_gets_large_malloc_thresholds_back():
     """Dask's default MALLOC_TRIM_THRESHOLD_ makes a diagnosis 2.2 times slower in a worker."""
-    from octoroach_model.studies.execute import dask_client
+    from distributed import Client, LocalCluster
 
-    with dask_client(workers=1) as client:
-        environments = client.run(lambda: (os.environ.get('MALLOC_TRIM_THRESHOLD_'),
-                                           os.environ.get('OMP_NUM_THREADS')))
-    assert list(environments.values()) == [(None, '1')], environments
+    from octoroach_model.studies.replicate import use_large_malloc_thresholds
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        environments = client.run(os.environ.get, 'MALLOC_TRIM_THRESHOLD_')
+        applied = client.run(use_large_malloc_thresholds)
+    assert list(environments.values()) == ['65536'], environments   # Dask's default
+    assert list(applied.values()) == [True], applied
 
 
 def launch(*args) -> subprocess.Popen:

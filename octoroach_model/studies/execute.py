@@ -24,10 +24,9 @@ from octoroach_model.studies.spec import StudySpec
 
 RETRIES = 3
 CONNECT_TIMEOUT_S = 10.0
-# Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536, which also fixes glibc's mmap
-# threshold: every array above 128 kB is then mapped and unmapped afresh, and a diagnosis runs
-# 2.2 times slower than in a plain process (measured on a 424-run data set: 37.3 s vs 16.7 s).
-# Our local workers start without it; docs/studies.md tells a lab's cluster to do the same.
+# Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536, which makes a diagnosis 2.2
+# times slower (replicate.use_large_malloc_thresholds, which every task calls, undoes it on any
+# cluster); our local workers do not even start with it.
 WORKER_ENVIRONMENT_UNSET = {'distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_': None}
 OnRow = Callable[[dict[str, Any]], None]
 

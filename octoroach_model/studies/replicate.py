@@ -9,7 +9,9 @@ the diagnosis cannot handle is a row with status `error` and the reason, not a f
 from __future__ import annotations
 
 from collections.abc import Mapping
+import ctypes
 import math
+import sys
 import time
 from typing import Any
 
@@ -34,9 +36,34 @@ def report_fields(report: Any) -> dict[str, Any]:
     return jsonable(report.to_json())
 
 
+# glibc's mallopt parameters, and the thresholds a plain process reaches for our arrays
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+MMAP_THRESHOLD_BYTES, TRIM_THRESHOLD_BYTES = 32 * 2 ** 20, 64 * 2 ** 20
+
+
+def use_large_malloc_thresholds() -> bool:
+    """
+    Let glibc serve arrays up to 32 MB from its heap, as in a plain process.
+
+    Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536, which pins the mmap
+    threshold at 128 kB: every larger array is then mapped and unmapped afresh, and a diagnosis
+    runs 2.2 times slower (37.3 s instead of 16.7 s for 424 runs). This undoes it in whatever
+    worker runs the task, on any cluster. False where there is no glibc.
+    """
+    if not sys.platform.startswith('linux'):
+        return False
+    try:
+        libc = ctypes.CDLL('libc.so.6')
+        return bool(libc.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
+                    and libc.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES))
+    except (OSError, AttributeError):
+        return False
+
+
 def run_task(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None = None
              ) -> dict[str, Any]:
     """Simulate, damage and diagnose the task's data set; return its row of the table."""
+    use_large_malloc_thresholds()
     started = time.perf_counter()
     draw = draw_robot(spec, task.replicate)
     runs = task.runs_cell if task.runs_cell is not None else draw.runs
