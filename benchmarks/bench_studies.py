@@ -104,6 +104,12 @@ def _error(value: float | None) -> str:
     return '-' if value is None else f'{100 * value:.1f} %'
 
 
+def _median_error(errors: dict, entry: dict, cause: str) -> str:
+    """Return the median absolute relative error of `cause` in a two-cause entry's data sets."""
+    error = errors.get((entry['arm'], cause, entry['runs']), {})
+    return _error(error.get('median_abs_relative_error'))
+
+
 def _wall(name: str, summary: dict) -> str:
     """
     Return the study's wall time, as this script or the summary measured it.
@@ -204,9 +210,8 @@ def print_tables(names: list[str]) -> None:
             print('| --- | --- | --- | --- | --- |')
             for entry in summary['two_cause_recovery']:
                 each = ', '.join(
-                    f'{cause} {_rate(rate)} ({_error(error.get("median_abs_relative_error"))})'
-                    for cause, rate in entry['each_named'].items()
-                    for error in [errors.get((entry['arm'], cause, entry['runs']), {})])
+                    f'{cause} {_rate(rate)} ({_median_error(errors, entry, cause)})'
+                    for cause, rate in entry['each_named'].items())
                 other = _rate(entry['other_named']) if 'other_named' in entry else '-'
                 print(f'| {entry["arm"]} | {entry["data_sets"]} | {_rate(entry)} | {each} | '
                       f'{other} |')

@@ -24,10 +24,6 @@ from octoroach_model.studies.spec import StudySpec
 
 RETRIES = 3
 CONNECT_TIMEOUT_S = 10.0
-# Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536, which makes a diagnosis 2.2
-# times slower (replicate.use_large_malloc_thresholds, which every task calls, undoes it on any
-# cluster); our local workers do not even start with it.
-WORKER_ENVIRONMENT_UNSET = {'distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_': None}
 OnRow = Callable[[dict[str, Any]], None]
 
 
@@ -46,7 +42,6 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
     The LocalCluster has `workers` processes with one thread each and is closed again on
     exit. An address that does not answer within `connect_timeout_s` is a ParameterError.
     """
-    import dask.config
     from distributed import Client, LocalCluster
 
     if scheduler:
@@ -63,9 +58,8 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
         return
     count = workers or default_workers()
     try:
-        with dask.config.set(WORKER_ENVIRONMENT_UNSET):
-            cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+        cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR)
     except (OSError, RuntimeError) as error:
         raise OctoroachError(f'cannot start a local Dask cluster of {count} workers: '
                              f'{error}') from None
