@@ -138,6 +138,19 @@ def test_speed_decay_is_the_plain_model_at_warped_times(fraction, draws):
     np.testing.assert_allclose(decayed, deterministic_at(warped), rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize('fraction', [0.4, 0.1, -0.3])
+def test_a_decaying_run_shows_strides_at_the_mean_gait_rate(fraction):
+    from octoroach_model.model.effects import mean_gait_rate
+    from octoroach_model.validation.gait import heading_sway
+
+    effects = {'speed_decay': {'fraction': fraction}}
+    runs = om.simulate(1, seed=0, cycles=12, effects=effects, **DETERMINISTIC)
+    seen, _ = heading_sway(runs.poses[..., 2], runs.t, 2.0)
+    stride_frequency = om.ModelParameters.nominal().stride_frequency
+    assert seen[0] == pytest.approx(stride_frequency * mean_gait_rate(effects), rel=0.02)
+    assert mean_gait_rate({}) == 1.0
+
+
 def test_custom_times_only_choose_where_the_model_is_sampled():
     runs = om.simulate(20, seed=SEED)
     rng = np.random.default_rng(0)

@@ -28,6 +28,7 @@ import numpy as np
 from octoroach_model.diagnosis.causes import BY_NAME, Cause
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.model import model_poses, ModelParameters, nominal_sigmas, RandomStreams
+from octoroach_model.model.effects import mean_gait_rate
 from octoroach_model.paths import Paths
 from octoroach_model.validation.fit import (
     average_target, AverageTarget, fit_nominal, FreeEffect, MeanPathSettings, residual_vector,
@@ -309,8 +310,24 @@ def restarted_geometry(simulator: Simulator, model: FittedModel,
         for cause in new:
             size = path_start(simulator, start, BY_NAME[cause], settings)
             start = start.with_effect(cause, {BY_NAME[cause].parameter: size})
-        fits.append(fit_geometry(simulator.data, start, path_causes, settings))
+        fits.append(fit_geometry(simulator.data, same_strides(start, model), path_causes,
+                                 settings))
     return min(fits, key=lambda fit: fit[2].cost)
+
+
+def same_strides(model: FittedModel, before: FittedModel) -> FittedModel:
+    """
+    Return `model` with its stride frequency set to keep `before`'s strides per run.
+
+    A speed decay slows the gait clock (on average by fraction / 2): entering it at the old
+    stride frequency would take strides away from every run, and the geometry fit would then
+    bend the legs to make up for them (a local optimum it does not leave).
+    """
+    ratio = mean_gait_rate(before.effects) / mean_gait_rate(model.effects)
+    if ratio == 1.0:
+        return model
+    return replace(model, parameters=replace(
+        model.parameters, stride_frequency=model.parameters.stride_frequency * ratio))
 
 
 def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...],

@@ -91,6 +91,18 @@ def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
     return clock
 
 
+def mean_gait_rate(effects: Effects) -> float:
+    """
+    Return the gait clock's mean rate over a run, relative to the model's stride frequency.
+
+    speed_decay's clock runs at 1 - fraction t / T, on average 1 - fraction / 2: the stride
+    frequency seen in a run (a spectral peak) is the model's times this.
+    """
+    if 'speed_decay' not in effects:
+        return 1.0
+    return 1.0 - 0.5 * float(effects['speed_decay']['fraction'])
+
+
 def apply_pose_effects(poses: np.ndarray, t: np.ndarray, effects: Effects,
                        rngs: Mapping[str, NormalSource]) -> np.ndarray:
     """Apply the non-warp effects to runs, in canonical order. poses: (n, T, 3), SI."""
