@@ -136,7 +136,7 @@ def _slip_angle(xy: np.ndarray, heading: np.ndarray, cycle: int) -> np.ndarray:
     filled = np.nan_to_num(heading)
     total = np.concatenate([np.zeros((heading.shape[0], 1)), np.cumsum(filled, axis=1)], axis=1)
     mean_heading = (total[:, cycle + 1:] - total[:, :-cycle - 1]) / (cycle + 1)
-    offset = np.angle(np.exp(1j * (travel - mean_heading)))
+    offset = np.remainder(travel - mean_heading + np.pi, 2 * np.pi) - np.pi   # to [-pi, pi)
     usable = np.isfinite(step[..., 0])
     count = np.maximum(usable.sum(axis=1), 1)
     return np.where(usable, offset, 0.0).sum(axis=1) / count
