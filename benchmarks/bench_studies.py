@@ -127,8 +127,13 @@ def _wall(name: str, summary: dict) -> str:
     return 'wall time unknown'
 
 
-def partial_summary(name: str) -> tuple[dict, str]:
-    """Summarize the rows a stopped study holds so far; say how many of how many."""
+def table_summary(name: str) -> tuple[dict, str | None]:
+    """
+    Summarize the study's table as it stands (the table is the record; summary.json may be older).
+
+    The wall time is the one the last finished run measured. Returns the summary and, for a
+    study stopped before its end, a sentence saying how many data sets of how many it holds.
+    """
     from octoroach_model.studies.design import build_tasks
     from octoroach_model.studies.spec import load_spec
     from octoroach_model.studies.summary import summarize
@@ -136,7 +141,12 @@ def partial_summary(name: str) -> tuple[dict, str]:
 
     spec = load_spec(SPECS / f'{name}.yaml')
     rows, _ = read_table(OUT / name / 'table.csv')
+    earlier = OUT / name / 'summary.json'
+    wall_time_s = (json.loads(earlier.read_text())['timing'].get('wall_time_s')
+                   if earlier.exists() else None)
     total = len(build_tasks(spec))
+    if len(rows) >= total:
+        return summarize(spec, rows, wall_time_s), None
     replicates = sorted({row['replicate'] for row in rows})
     return summarize(spec, rows), (
         f'{len(rows)} of the {total} data sets of the spec (replicates {replicates[0]}-'
@@ -146,15 +156,10 @@ def partial_summary(name: str) -> tuple[dict, str]:
 def print_tables(names: list[str]) -> None:
     """Print the README tables of every study of `names` found in out/studies."""
     for name in names:
-        path = OUT / name / 'summary.json'
-        partial = None
-        if path.exists():
-            summary = json.loads(path.read_text())
-        elif (OUT / name / 'table.csv').exists():
-            summary, partial = partial_summary(name)
-        else:
-            print(f'\n{name}: no summary in {path.parent} (run --studies {name})')
+        if not (OUT / name / 'table.csv').exists():
+            print(f'\n{name}: no table in {OUT / name} (run --studies {name})')
             continue
+        summary, partial = table_summary(name)
         command = (f'python -m octoroach_model study studies/{name}.yaml '
                    f'--out out/studies/{name}')
         print(f'\n### {name} (`{command}`, {_wall(name, summary)} on this machine)\n')
@@ -202,6 +207,14 @@ def print_tables(names: list[str]) -> None:
             pooled = [_rate(pooled_rate([e for e in entries if e['limit_multiple'] == multiple]))
                       for multiple in (1.0, 2.0)]
             print(f'| all causes | | {pooled[0]} | {pooled[1]} |')
+            print()
+            for multiple in (1.0, 2.0):
+                chosen = [e for e in entries if e['limit_multiple'] == multiple]
+                missed = sum(e.get('missed', 0) for e in chosen)
+                flagged = sum(e.get('missed_not_adequate', 0) for e in chosen)
+                if missed:
+                    print(f'missed at {multiple:g}x the limit: {missed}, of which reported not '
+                          f'adequate (the miss is not silent): {flagged}')
             print()
         if summary['two_cause_recovery']:
             errors = {(e['arm'], e['cause'], e['runs']): e for e in summary['estimation']}

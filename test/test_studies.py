@@ -354,6 +354,20 @@ def test_the_summary_counts_false_positives_power_recovery_and_errors():
     assert summary['status']['counts'] == {'ok': 28, 'error': 2}
 
 
+def test_power_at_a_limit_multiple_counts_the_misses_and_which_were_not_silent():
+    spec = spec_of('runs: [50]\ncauses: [none, {cause: speed_decay, limit_multiples: [1]}]')
+    arm = spec.arms[1].label
+    rows = [a_row(key=f'd{replicate}', replicate=replicate, arm=arm, kind='relative',
+                  true_causes=['speed_decay'], false_causes=[], true_speed_decay=0.02,
+                  named_speed_decay=replicate < 7,
+                  adequate=None if replicate == 9 else replicate in (0, 1, 2, 3, 4, 5, 6, 8))
+            for replicate in range(10)]
+    entry = summarize(spec, rows)['power_at_limit_multiples'][0]
+    assert (entry['count'], entry['data_sets'], entry['missed']) == (7, 10, 3)
+    assert entry['missed_not_adequate'] == 1        # replicate 7 (8 was adequate, 9 not judged)
+    assert entry['meets_target'] is True
+
+
 # --------------------------------------------------------------------------------------------
 # plan's search
 

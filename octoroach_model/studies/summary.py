@@ -137,9 +137,11 @@ def _relative_power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[di
         for cell in sorted({_cell(spec, row) for row in members}, key=str):
             group = [row for row in members if _cell(spec, row) == cell]
             rate = wilson(sum(bool(row[f'named_{arm.cause}']) for row in group), len(group))
+            missed = [row for row in group if not row[f'named_{arm.cause}']]
             entry = {'cause': arm.cause, 'limit_multiple': arm.limit_multiple, 'runs': cell,
                      'median_size': _median(abs(row[f'true_{arm.cause}']) for row in group),
-                     **rate.to_json()}
+                     **rate.to_json(), 'missed': len(missed),
+                     'missed_not_adequate': sum(row['adequate'] is False for row in missed)}
             if arm.limit_multiple == 1 and rate.rate is not None:
                 entry['target'] = f'{AT_LIMIT_RANGE[0]:.0%}-{AT_LIMIT_RANGE[1]:.0%}'
                 entry['meets_target'] = AT_LIMIT_RANGE[0] <= rate.rate <= AT_LIMIT_RANGE[1]
