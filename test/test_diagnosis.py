@@ -233,6 +233,39 @@ def test_a_start_heading_spread_of_exactly_zero_still_gets_a_detection_limit():
     assert judge(real, 0.5, z).limit > 2 * limit
 
 
+def test_a_limit_set_by_the_test_is_solved_where_t_was_computed_not_on_a_chord():
+    """
+    T of a variance effect bends in log-log (s^4 small, s^2 later): a chord lies below it.
+
+    Solved on the chord between two sizes the limit came out too large (persistent_turning
+    named 20/20 at 1x in studies/limits.yaml); with T computed again at the limit found, the
+    power there is the one claimed. `bend` is such a curve, the floor far below.
+    """
+    from scipy import optimize
+
+    from octoroach_model.diagnosis.limits import _solve, limit_from, t_interpolated
+    from octoroach_model.diagnosis.modelfit import SizeEstimate
+
+    def bend(size: float) -> float:
+        return 3.0 * size ** 4 / (1 + size ** 2)
+
+    sure = SizeEstimate('persistent_turning', size=0.0, se=0.0, u=0.0, se_u=0.0,
+                        intercept=1.0, slope=1.0, data_statistic=1.0)   # the bound is certain
+    z_test, z_bound, floor = 2.935, 2.9, 1e-3
+    chord = {1.0: bend(1.0), 3.0: bend(3.0)}
+    assert t_interpolated(chord, 1.0) == pytest.approx(bend(1.0))
+    assert t_interpolated(chord, 2.0) < bend(2.0)                   # the chord is low inside
+    assert math.log(t_interpolated(chord, 9.0) / bend(3.0)) == pytest.approx(
+        math.log(bend(3.0) / bend(1.0)))                            # end segments extended
+    truth = optimize.brentq(lambda s: bend(s) - z_test - 0.841621, 1.0, 3.0)
+    on_chord = _solve(chord, sure, floor, z_bound, z_test)
+    refined = limit_from(bend, 1.0, sure, floor, z_bound, z_test)
+    assert on_chord.size > 1.03 * truth                             # the old answer: too large
+    assert refined.size == pytest.approx(truth, rel=0.01)
+    assert refined.test_power == pytest.approx(0.8, abs=0.005)
+    assert refined.size_bound_power == 1.0
+
+
 def test_a_speed_decay_enters_at_the_strides_the_runs_show():
     """
     A baseline fitted to decaying runs bends its legs (here 7.3 cm) to mimic the decay.

@@ -13,7 +13,12 @@ product of the two probabilities:
 - **held-out test**: runs simulated from the model with the cause at size s (as many as the
   held-out half, 1000 for precision) are scored under the model with and without it; the mean
   per-run gain over its spread, times sqrt(held-out runs), is the expected t statistic T(s),
-  and P2(s) = Phi(T(s) - z2). T is computed at two sizes and interpolated in log-log.
+  and P2(s) = Phi(T(s) - z2). T is computed at two sizes and interpolated in log-log;
+  where the test decides the limit, T is computed again at the limit found and the limit
+  solved anew through the points so far (at most REFINEMENTS times): T of a variance effect
+  bends in log-log (it grows like s^4 at small sizes and slower above), so a chord between
+  two sizes underestimates it in between, which made the limits of persistent_turning lean
+  conservative (studies/limits.yaml).
 
 The limit solves P1(s) P2(s) = POWER, at the levels of the first step (all six causes in the
 race: the strictest). Whether limits computed this way hold is measured by
@@ -21,6 +26,7 @@ studies/limits.yaml (README: "What the diagnosis can find").
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 import math
 
@@ -34,6 +40,10 @@ from octoroach_model.diagnosis.modelfit import FittedModel, Simulator, SizeEstim
 from octoroach_model.diagnosis.scoring import feature_log_score
 
 PSEUDO_RUNS = 1000
+REFINEMENTS = 2            # at most this many extra sizes at which T is computed
+TEST_DECIDES = 0.999       # below this test power at the limit, the test decides the limit
+CLOSE = 0.02               # a limit within 2 % (in size) of a computed size needs no more
+T_CAP = 1e6                # an expected t beyond this is certain detection (a spread of 0)
 PSEUDO_PURPOSE = 51
 MODEL_PURPOSE = 52
 
@@ -113,29 +123,66 @@ def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEs
     """
     cause = BY_NAME[estimate.cause]
     first = max(start or 0.0, 2 * floor, 1e-9)
-    sizes = [first, 3 * first]
     base = _features(simulator, without, score_runs, MODEL_PURPOSE, scales)
-    t_values = [max(expected_t(simulator, without, base, cause, size, scales, held_out,
-                               score_runs), 1e-9) for size in sizes]
-    slope = (math.log(t_values[1]) - math.log(t_values[0])) / math.log(sizes[1] / sizes[0])
-    slope = max(slope, 0.1)
 
-    def t_at(size: float) -> float:
-        return t_values[0] * (size / sizes[0]) ** slope
+    def t_computed(size: float) -> float:
+        return min(max(expected_t(simulator, without, base, cause, size, scales, held_out,
+                                  score_runs), 1e-9), T_CAP)
+
+    return limit_from(t_computed, first, estimate, floor, z_bound, z_test)
+
+
+def limit_from(t_computed: Callable[[float], float], first: float, estimate: SizeEstimate,
+               floor: float, z_bound: float, z_test: float) -> Limit:
+    """
+    Solve for the limit with T computed at `first`, 3 `first` and, if needed, the limit.
+
+    The limit found is where T is computed next while the test decides it (module docstring).
+    """
+    points = {size: t_computed(size) for size in (first, 3 * first)}
+    limit = _solve(points, estimate, floor, z_bound, z_test)
+    for _ in range(REFINEMENTS):
+        if limit is None or limit.test_power >= TEST_DECIDES or min(
+                abs(math.log(limit.size / size)) for size in points) < CLOSE:
+            break
+        points[limit.size] = t_computed(limit.size)
+        limit = _solve(points, estimate, floor, z_bound, z_test)
+    return Limit(estimate.cause, None, 0.0, 0.0) if limit is None else limit
+
+
+def t_interpolated(points: dict[float, float], size: float) -> float:
+    """
+    Return T at `size`, piecewise linear in log-log through the computed points.
+
+    Beyond the points the end segments are extended, their slope never below 0.1.
+    """
+    sizes = sorted(points)
+    log_s = np.log(sizes)
+    log_t = np.log([points[size] for size in sizes])
+    x = math.log(size)
+    index = int(np.clip(np.searchsorted(log_s, x) - 1, 0, len(sizes) - 2))
+    slope = max((log_t[index + 1] - log_t[index]) / (log_s[index + 1] - log_s[index]), 0.1)
+    return float(math.exp(log_t[index] + slope * (x - log_s[index])))
+
+
+def _solve(points: dict[float, float], estimate: SizeEstimate, floor: float, z_bound: float,
+           z_test: float) -> Limit | None:
+    """Return the smallest size where P(bound) x P(test) reaches POWER, T interpolated."""
+    def test_power(size: float) -> float:
+        return float(stats.norm.cdf(t_interpolated(points, size) - z_test))
 
     def power(size: float) -> float:
-        return bound_power(estimate, size, floor, z_bound) * float(
-            stats.norm.cdf(t_at(size) - z_test))
+        return bound_power(estimate, size, floor, z_bound) * test_power(size)
 
-    low, high = max(floor, 1e-9), first
+    low, high = max(floor, 1e-9), min(points)
     for _ in range(60):
         if power(high) >= POWER:
             break
         high *= 1.5
     else:
-        return Limit(cause.name, None, 0.0, 0.0)
+        return None
     for _ in range(60):
         middle = math.sqrt(low * high) if low > 0 else 0.5 * high
         low, high = (middle, high) if power(middle) < POWER else (low, middle)
-    return Limit(cause.name, high, bound_power(estimate, high, floor, z_bound),
-                 float(stats.norm.cdf(t_at(high) - z_test)))
+    return Limit(estimate.cause, high, bound_power(estimate, high, floor, z_bound),
+                 test_power(high))
