@@ -229,6 +229,26 @@ def print_tables(names: list[str]) -> None:
                 print(f'| {entry["arm"]} | {entry["data_sets"]} | {_rate(entry)} | {each} | '
                       f'{other} |')
             print()
+        print_coverage(summary)
+
+
+def print_coverage(summary: dict) -> None:
+    """Print how often the reported 95 % intervals held the truth, pooled and per cause."""
+    from octoroach_model.studies.summary import wilson
+
+    held: dict[str, list[int]] = {}
+    for entry in summary['estimation']:
+        coverage = entry['interval_coverage']
+        counts = held.setdefault(entry['cause'], [0, 0])
+        counts[0] += coverage['count']
+        counts[1] += coverage['data_sets']
+    if not sum(total for _, total in held.values()):
+        return
+    pooled = wilson(sum(c for c, _ in held.values()), sum(t for _, t in held.values()))
+    by_cause = ', '.join(f'{cause} {count}/{total}' for cause, (count, total) in held.items()
+                         if total)
+    print(f'reported 95 % intervals that held the truth (where the cause was named): '
+          f'{_rate(pooled.to_json())}; {by_cause}\n')
 
 
 def main(argv: list[str] | None = None) -> int:
