@@ -11,7 +11,8 @@ The detection limit is the smallest size at which that bound clears the floor wi
 power on runs like the data at hand: the standard error is the data's own (bootstrap over
 the measured runs, so a misfit that makes the data noisier than the model widens it), grown
 with the size as a variance statistic's error grows with its level (never below the relative
-error simulated runs with the cause show), plus the simulation's.
+error simulated runs with the cause show), plus the simulation's (intercept and slope:
+`modelfit.moments_se_u`).
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ import math
 from scipy import stats
 
 from octoroach_model.diagnosis.causes import BY_NAME
-from octoroach_model.diagnosis.modelfit import SizeEstimate
+from octoroach_model.diagnosis.modelfit import moments_se_u, SizeEstimate
 
 POWER = 0.8
 INTERVAL_LEVEL = 0.95
@@ -90,7 +91,7 @@ def _moments_limit(estimate: SizeEstimate, floor: float, z_decision: float) -> f
 
     def se_u(u: float) -> float:
         level = max(estimate.intercept + estimate.slope * u, 0.0)
-        return math.hypot(relative * level, estimate.intercept_se) / estimate.slope
+        return moments_se_u(estimate, u, relative * level)
 
     def margin(u: float) -> float:
         return u - floor ** 2 - (z_decision + z_power) * se_u(u)

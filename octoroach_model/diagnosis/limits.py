@@ -36,7 +36,7 @@ from scipy import stats
 from octoroach_model.diagnosis.causes import BY_NAME, Cause
 from octoroach_model.diagnosis.decide import POWER, relative_error
 from octoroach_model.diagnosis.features import run_features
-from octoroach_model.diagnosis.modelfit import FittedModel, Simulator, SizeEstimate
+from octoroach_model.diagnosis.modelfit import FittedModel, moments_se_u, Simulator, SizeEstimate
 from octoroach_model.diagnosis.scoring import feature_log_score
 
 PSEUDO_RUNS = 1000
@@ -71,7 +71,7 @@ def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float) -> 
         relative = relative_error(estimate, floor)
         u = size ** 2
         level = max(estimate.intercept + estimate.slope * u, 0.0)
-        se = math.hypot(relative * level, estimate.intercept_se) / estimate.slope
+        se = moments_se_u(estimate, u, relative * level)
         if se <= 0:
             return 1.0 if u > floor ** 2 else 0.0
         return float(stats.norm.cdf((u - floor ** 2 - z * se) / se))

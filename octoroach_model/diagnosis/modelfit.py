@@ -150,6 +150,8 @@ class SizeEstimate:
     intercept_se: float = 0.0
     relative_se: float = 0.0     # the statistic's relative error for the data's run count,
     #                              from simulated runs with the cause (a floor for data_se)
+    slope_relative_se: float = 0.0   # the slope's relative Monte Carlo error (its simulated
+    #                                  runs draw the cause afresh: 7 % at 400 runs for a spread)
 
 
 @dataclass
@@ -489,6 +491,7 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
     reference = cause.reference
 
     relative: list[float] = []
+    slope_errors: list[float] = []
 
     def slope_at(size: float) -> float:
         effects = {**without, cause.name: {**_zero(cause.name), cause.parameter: size}}
@@ -496,6 +499,8 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
         value = statistic(features)
         spread = _bootstrap_se(statistic, features, rng, n_boot // 2)
         relative.append(spread * math.sqrt(features.shape[0] / data.n) / max(value, 1e-300))
+        slope_errors.append(_paired_relative_se(statistic, zero_features, features, rng,
+                                                n_boot))
         return (value - intercept) / size ** 2
 
     slope = slope_at(reference)
@@ -509,11 +514,44 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
     if slope <= 0:
         return SizeEstimate(cause.name, 0.0, math.inf, 0.0, math.inf, intercept, 0.0,
                             data_value, data_se, intercept_se, relative[-1])
-    se_u = math.hypot(data_se, intercept_se) / slope
+    estimate = SizeEstimate(cause.name, 0.0, 0.0, u, 0.0, intercept, slope, data_value,
+                            data_se, intercept_se, relative[-1], slope_errors[-1])
+    se_u = moments_se_u(estimate, u)
     size = math.sqrt(max(u, 0.0))
     se = se_u / (2 * max(size, math.sqrt(se_u))) if se_u > 0 else 0.0
-    return SizeEstimate(cause.name, size, se, u, se_u, intercept, slope, data_value, data_se,
-                        intercept_se, relative[-1])
+    return replace(estimate, size=size, se=se, se_u=se_u)
+
+
+def moments_se_u(estimate: SizeEstimate, u: float, data_se: float | None = None) -> float:
+    """
+    Return the standard error of u = size^2 read off the line at u.
+
+    Three parts: the data's statistic (`data_se`, the estimate's own unless given), the
+    simulated intercept, and the simulated slope, whose relative error carries over to u.
+    The slope's part was once missing: the reported 95 % intervals of the moments causes
+    held the truth in 81-84 % of the studies' data sets (studies/two_causes.yaml, power.yaml).
+    """
+    data_part = estimate.data_se if data_se is None else data_se
+    return math.hypot(data_part / estimate.slope, estimate.intercept_se / estimate.slope,
+                      estimate.slope_relative_se * max(u, 0.0))
+
+
+def _paired_relative_se(statistic, without: np.ndarray, with_cause: np.ndarray,
+                        rng: np.random.Generator, n_boot: int) -> float:
+    """
+    Return the relative error of S(with) - S(without) on the same simulated runs.
+
+    Runs are resampled in pairs: run i of both sets shares its random numbers.
+    """
+    n = min(without.shape[0], with_cause.shape[0])
+    difference = statistic(with_cause[:n]) - statistic(without[:n])
+    if not difference > 0:
+        return 0.0
+    values = []
+    for _ in range(n_boot):
+        picks = rng.integers(0, n, n)
+        values.append(statistic(with_cause[picks]) - statistic(without[picks]))
+    return float(np.std(values, ddof=1)) / difference
 
 
 def _bootstrap_se(statistic, features: np.ndarray, rng: np.random.Generator,
