@@ -142,10 +142,12 @@ def limit_from(t_computed: Callable[[float], float], first: float, estimate: Siz
     points = {size: t_computed(size) for size in (first, 3 * first)}
     limit = _solve(points, estimate, floor, z_bound, z_test)
     for _ in range(REFINEMENTS):
-        if limit is None or limit.test_power >= TEST_DECIDES or min(
-                abs(math.log(limit.size / size)) for size in points) < CLOSE:
+        if limit is None or limit.size is None or limit.test_power >= TEST_DECIDES:
             break
-        points[limit.size] = t_computed(limit.size)
+        found = limit.size
+        if min(abs(math.log(found / size)) for size in points) < CLOSE:
+            break
+        points[found] = t_computed(found)
         limit = _solve(points, estimate, floor, z_bound, z_test)
     return Limit(estimate.cause, None, 0.0, 0.0) if limit is None else limit
 
