@@ -233,6 +233,30 @@ def test_a_start_heading_spread_of_exactly_zero_still_gets_a_detection_limit():
     assert judge(real, 0.5, z).limit > 2 * limit
 
 
+def test_a_slope_taken_near_zero_does_not_keep_a_limit_from_being_found():
+    """
+    On a null the slope is taken near zero, where its relative error is large (39 % here).
+
+    Held over every size a limit is sought at, it kept the size bound from ever clearing the
+    floor: no limit for persistent_turning on 2 of 8 null data sets of studies/limits.yaml
+    (these are replicate 0's figures). The limit uses the slope's error at the reference size.
+    """
+    from octoroach_model.diagnosis.decide import decision_z, judge
+    from octoroach_model.diagnosis.limits import bound_power
+    from octoroach_model.diagnosis.modelfit import moments_se_u, SizeEstimate
+
+    null = SizeEstimate('persistent_turning', size=0.393, se=0.345, u=0.155, se_u=0.476,
+                        intercept=1.337e-3, slope=3.446e-4, data_statistic=1.390e-3,
+                        data_se=1.348e-4, intercept_se=9.10e-5, relative_se=0.0880,
+                        slope_relative_se=0.390, reference_slope_relative_se=0.0973)
+    z, floor = decision_z(0.05, 6), 0.16
+    limit = judge(null, floor, z).limit
+    assert limit is not None and 1.0 < limit < 5.0, limit
+    assert bound_power(null, limit, floor, z) == pytest.approx(0.8, abs=1e-6)
+    # the estimate's own interval keeps the error of the slope it was read with
+    assert null.se_u == pytest.approx(moments_se_u(null, null.u), rel=0.01)
+
+
 def test_a_limit_set_by_the_test_is_solved_where_t_was_computed_not_on_a_chord():
     """
     T of a variance effect bends in log-log (s^4 small, s^2 later): a chord lies below it.

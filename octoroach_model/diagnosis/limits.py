@@ -71,7 +71,7 @@ def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float) -> 
         relative = relative_error(estimate, floor)
         u = size ** 2
         level = max(estimate.intercept + estimate.slope * u, 0.0)
-        se = moments_se_u(estimate, u, relative * level)
+        se = moments_se_u(estimate, u, relative * level, estimate.reference_slope_relative_se)
         if se <= 0:
             return 1.0 if u > floor ** 2 else 0.0
         return float(stats.norm.cdf((u - floor ** 2 - z * se) / se))

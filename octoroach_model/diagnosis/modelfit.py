@@ -152,6 +152,7 @@ class SizeEstimate:
     #                              from simulated runs with the cause (a floor for data_se)
     slope_relative_se: float = 0.0   # the slope's relative Monte Carlo error (its simulated
     #                                  runs draw the cause afresh: 7 % at 400 runs for a spread)
+    reference_slope_relative_se: float = 0.0   # the same at the reference size (limits.py)
 
 
 @dataclass
@@ -515,25 +516,29 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
         return SizeEstimate(cause.name, 0.0, math.inf, 0.0, math.inf, intercept, 0.0,
                             data_value, data_se, intercept_se, relative[-1])
     estimate = SizeEstimate(cause.name, 0.0, 0.0, u, 0.0, intercept, slope, data_value,
-                            data_se, intercept_se, relative[-1], slope_errors[-1])
+                            data_se, intercept_se, relative[-1], slope_errors[-1],
+                            slope_errors[0])
     se_u = moments_se_u(estimate, u)
     size = math.sqrt(max(u, 0.0))
     se = se_u / (2 * max(size, math.sqrt(se_u))) if se_u > 0 else 0.0
     return replace(estimate, size=size, se=se, se_u=se_u)
 
 
-def moments_se_u(estimate: SizeEstimate, u: float, data_se: float | None = None) -> float:
+def moments_se_u(estimate: SizeEstimate, u: float, data_se: float | None = None,
+                 slope_relative_se: float | None = None) -> float:
     """
     Return the standard error of u = size^2 read off the line at u.
 
     Three parts: the data's statistic (`data_se`, the estimate's own unless given), the
-    simulated intercept, and the simulated slope, whose relative error carries over to u.
-    The slope's part was once missing: the reported 95 % intervals of the moments causes
-    held the truth in 81-84 % of the studies' data sets (studies/two_causes.yaml, power.yaml).
+    simulated intercept, and the simulated slope, whose relative error carries over to u
+    (the estimate's own unless given). The slope's part was once missing: the reported 95 %
+    intervals of the moments causes held the truth in 81-84 % of the studies' data sets
+    (studies/two_causes.yaml, power.yaml).
     """
     data_part = estimate.data_se if data_se is None else data_se
+    slope_part = estimate.slope_relative_se if slope_relative_se is None else slope_relative_se
     return math.hypot(data_part / estimate.slope, estimate.intercept_se / estimate.slope,
-                      estimate.slope_relative_se * max(u, 0.0))
+                      slope_part * max(u, 0.0))
 
 
 def _paired_relative_se(statistic, without: np.ndarray, with_cause: np.ndarray,
