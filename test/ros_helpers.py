@@ -252,6 +252,24 @@ class Client:
         call = self.start(srv_type, name, request)
         return call.wait(timeout), call.seconds
 
+    def call_again_if_lost(self, srv_type: Any, name: str, request: Any,
+                           timeout: float = 60.0, resend_s: float = 10.0) -> tuple[Any, float]:
+        """
+        Call an idempotent service, sending again while no answer comes.
+
+        A request sent just after `wait_for_service` can be lost while the server's
+        response writer has not yet matched this client (DDS discovery runs on): once, under
+        the full suite's load, a parameter query of a freshly launched node went unanswered
+        for 60 s. Only for calls that may safely run twice (parameter get and set).
+        """
+        deadline = time.perf_counter() + timeout
+        while True:
+            call = self.start(srv_type, name, request)
+            left = deadline - time.perf_counter()
+            if call.answered_within(max(min(resend_s, left), 0.0)):
+                return call.future.result(), call.seconds
+            assert time.perf_counter() < deadline, f'no answer within {timeout:g} s'
+
     def trigger(self, name: str, timeout: float = 60.0) -> tuple[bool, dict, float]:
         """(success, parsed JSON message, seconds) of a Trigger call."""
         from std_srvs.srv import Trigger
@@ -263,8 +281,8 @@ class Client:
         from rcl_interfaces.srv import GetParameters
         from rclpy.parameter import Parameter
 
-        response, seconds = self.call(GetParameters, f'/{node}/get_parameters',
-                                      GetParameters.Request(names=[name]))
+        response, seconds = self.call_again_if_lost(GetParameters, f'/{node}/get_parameters',
+                                                    GetParameters.Request(names=[name]))
         return Parameter.from_parameter_msg(_msg(name, response.values[0])).value, seconds
 
     def set_parameter(self, node: str, name: str, value: Any) -> tuple[Any, float]:
@@ -274,7 +292,8 @@ class Client:
 
         request = SetParameters.Request(
             parameters=[Parameter(name, value=value).to_parameter_msg()])
-        response, seconds = self.call(SetParameters, f'/{node}/set_parameters', request)
+        response, seconds = self.call_again_if_lost(SetParameters, f'/{node}/set_parameters',
+                                                    request)
         return response.results[0], seconds
 
     def latched(self, topic: str, timeout: float = 10.0) -> Any:
@@ -334,6 +353,9 @@ class Call:
 
     def done(self) -> bool:
         return self._event.is_set()
+
+    def answered_within(self, timeout: float) -> bool:
+        return self._event.wait(timeout)
 
     def wait(self, timeout: float) -> Any:
         assert self._event.wait(timeout), f'no answer within {timeout:g} s'
