@@ -214,8 +214,7 @@ def print_tables(names: list[str]) -> None:
                 flagged = sum(e.get('missed_not_adequate', 0) for e in chosen)
                 if missed:
                     print(f'missed at {multiple:g}x the limit: {missed}, of which reported not '
-                          f'adequate (the miss is not silent): {flagged}')
-            print()
+                          f'adequate (the miss is not silent): {flagged}\n')
         if summary['two_cause_recovery']:
             errors = {(e['arm'], e['cause'], e['runs']): e for e in summary['estimation']}
             print('| causes | data sets | both named (95 % interval) | each named (median abs. '

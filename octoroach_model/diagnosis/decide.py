@@ -86,6 +86,18 @@ def relative_error(estimate: SizeEstimate, floor: float) -> float:
     return max(estimate.data_se / level_now, estimate.relative_se)
 
 
+def se_u_if_true(estimate: SizeEstimate, u: float, relative: float) -> float:
+    """
+    Return the standard error u's estimate would have if the true size^2 were `u`.
+
+    The data's error grows with the statistic's level (`relative`, from `relative_error`);
+    the slope's error is the one at the reference size (module docstring). The size bound's
+    limit here and its power in limits.py both use it.
+    """
+    level = max(estimate.intercept + estimate.slope * u, 0.0)
+    return moments_se_u(estimate, u, relative * level, estimate.reference_slope_relative_se)
+
+
 def _moments_limit(estimate: SizeEstimate, floor: float, z_decision: float) -> float | None:
     """Smallest size s with P(u_hat - z se_u(s) > floor^2) = POWER, u_hat ~ N(s^2, se_u(s))."""
     if not (estimate.slope > 0 and math.isfinite(estimate.se_u)):
@@ -93,12 +105,8 @@ def _moments_limit(estimate: SizeEstimate, floor: float, z_decision: float) -> f
     z_power = float(stats.norm.isf(1 - POWER))
     relative = relative_error(estimate, floor)
 
-    def se_u(u: float) -> float:
-        level = max(estimate.intercept + estimate.slope * u, 0.0)
-        return moments_se_u(estimate, u, relative * level, estimate.reference_slope_relative_se)
-
     def margin(u: float) -> float:
-        return u - floor ** 2 - (z_decision + z_power) * se_u(u)
+        return u - floor ** 2 - (z_decision + z_power) * se_u_if_true(estimate, u, relative)
 
     low, high = floor ** 2, max(floor ** 2, estimate.u, estimate.se_u, 1e-300)
     for _ in range(200):

@@ -34,9 +34,9 @@ import numpy as np
 from scipy import stats
 
 from octoroach_model.diagnosis.causes import BY_NAME, Cause
-from octoroach_model.diagnosis.decide import POWER, relative_error
+from octoroach_model.diagnosis.decide import POWER, relative_error, se_u_if_true
 from octoroach_model.diagnosis.features import run_features
-from octoroach_model.diagnosis.modelfit import FittedModel, moments_se_u, Simulator, SizeEstimate
+from octoroach_model.diagnosis.modelfit import FittedModel, Simulator, SizeEstimate
 from octoroach_model.diagnosis.scoring import feature_log_score
 
 PSEUDO_RUNS = 1000
@@ -68,10 +68,8 @@ def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float) -> 
     if cause.kind == 'moments':
         if not (estimate.slope > 0 and math.isfinite(estimate.se_u)):
             return 0.0
-        relative = relative_error(estimate, floor)
         u = size ** 2
-        level = max(estimate.intercept + estimate.slope * u, 0.0)
-        se = moments_se_u(estimate, u, relative * level, estimate.reference_slope_relative_se)
+        se = se_u_if_true(estimate, u, relative_error(estimate, floor))
         if se <= 0:
             return 1.0 if u > floor ** 2 else 0.0
         return float(stats.norm.cdf((u - floor ** 2 - z * se) / se))
