@@ -9,14 +9,15 @@ causes are bounded on |size|.
 
 The detection limit is the smallest size at which that bound clears the floor with 80 %
 power on runs like the data at hand: the standard error is the data's own (bootstrap over
-the measured runs, so a misfit that makes the data noisier than the model widens it), grown
-with the size as a variance statistic's error grows with its level (never below the relative
-error simulated runs with the cause show), plus the simulation's (intercept and slope:
-`modelfit.moments_se_u`). The slope's relative error is the one at the cause's reference
-size: the slope of an estimate near zero is taken near zero, where its relative error is
-large (a cross term of the cause with the runs' own spread, 39 % on a null data set) but
-counts only in proportion to u; held over the sizes a limit is sought at, it kept the bound
-from ever clearing the floor (no limit for persistent_turning on 2 of 8 null data sets).
+the measured runs, so a misfit that makes the data noisier than the model widens it), plus,
+for the level the cause adds, the relative error simulated runs with the cause show (for a
+variance the two errors add: exact for normal runs, conservative for heavier tails), plus
+the simulation's (intercept and slope: `modelfit.moments_se_u`). The slope's relative error
+is the one at the cause's reference size: the slope of an estimate near zero is taken near
+zero, where its relative error is large (a cross term of the cause with the runs' own
+spread, 39 % on a null data set) but counts only in proportion to u; held over the sizes a
+limit is sought at, it kept the bound from ever clearing the floor (no limit for
+persistent_turning on 2 of 8 null data sets).
 """
 from __future__ import annotations
 
@@ -71,31 +72,41 @@ def _root(u: float) -> float:
     return math.sqrt(u) if u > 0 else 0.0
 
 
-def relative_error(estimate: SizeEstimate, floor: float) -> float:
+def data_se_if_true(estimate: SizeEstimate, u: float, floor: float) -> float:
     """
-    Return a moments statistic's relative error, by which its error grows with its level.
+    Return the standard error the data's statistic would have if the true size^2 were `u`.
 
-    It is the data's own (bootstrap error over level), never below what simulated runs with
-    the cause show. A statistic that is numerically zero (a start heading spread of exactly 0,
-    as runs simulated without one have: 1e-32 rad^2) has no relative error of its own, only
-    the ratio of two rounding errors, so the simulated runs' figure is used alone.
+    The data's own error at its level now stays (a misfit that makes the data noisier than
+    the model widens it); the level the cause adds beyond the data's own carries the relative
+    error simulated runs with the cause show; never below that relative error of the whole
+    level. The data's relative error was once carried to the whole level: on a null data set
+    it is the error of a statistic without the cause in it (1.2 % for the motion's share of the
+    noise statistic, against 0.55 % once noise dominates it), which doubled measurement_noise's
+    limit above its floor and had it named 20/20 at 1x in studies/limits.yaml. Below the
+    data's level the error shrinks in proportion. A statistic that is numerically zero (a start
+    heading spread of exactly 0, as runs simulated without one have: 1e-32 rad^2) has only
+    rounding error, so the simulated runs' relative error is used alone.
     """
+    level = max(estimate.intercept + estimate.slope * u, 0.0)
+    simulated = estimate.relative_se * level
     level_now = max(estimate.data_statistic, estimate.intercept)
     if level_now <= NUMERICAL_ZERO * estimate.slope * floor ** 2:
-        return estimate.relative_se
-    return max(estimate.data_se / level_now, estimate.relative_se)
+        return simulated
+    u_now = (level_now - estimate.intercept) / estimate.slope
+    own = estimate.data_se * min(level / level_now, 1.0)
+    added = estimate.relative_se * estimate.slope * max(u - u_now, 0.0)
+    return max(own + added, simulated)
 
 
-def se_u_if_true(estimate: SizeEstimate, u: float, relative: float) -> float:
+def se_u_if_true(estimate: SizeEstimate, u: float, floor: float) -> float:
     """
     Return the standard error u's estimate would have if the true size^2 were `u`.
 
-    The data's error grows with the statistic's level (`relative`, from `relative_error`);
-    the slope's error is the one at the reference size (module docstring). The size bound's
-    limit here and its power in limits.py both use it.
+    The data's part is `data_se_if_true`; the slope's error is the one at the reference size
+    (module docstring). The size bound's limit here and its power in limits.py both use it.
     """
-    level = max(estimate.intercept + estimate.slope * u, 0.0)
-    return moments_se_u(estimate, u, relative * level, estimate.reference_slope_relative_se)
+    return moments_se_u(estimate, u, data_se_if_true(estimate, u, floor),
+                        estimate.reference_slope_relative_se)
 
 
 def _moments_limit(estimate: SizeEstimate, floor: float, z_decision: float) -> float | None:
@@ -103,10 +114,9 @@ def _moments_limit(estimate: SizeEstimate, floor: float, z_decision: float) -> f
     if not (estimate.slope > 0 and math.isfinite(estimate.se_u)):
         return None
     z_power = float(stats.norm.isf(1 - POWER))
-    relative = relative_error(estimate, floor)
 
     def margin(u: float) -> float:
-        return u - floor ** 2 - (z_decision + z_power) * se_u_if_true(estimate, u, relative)
+        return u - floor ** 2 - (z_decision + z_power) * se_u_if_true(estimate, u, floor)
 
     low, high = floor ** 2, max(floor ** 2, estimate.u, estimate.se_u, 1e-300)
     for _ in range(200):

@@ -7,8 +7,8 @@ half. The two halves are independent, so the probability of naming a cause of si
 product of the two probabilities:
 
 - **size bound** (decide.py): the bound is normal around the size with the data's own
-  standard error (bootstrap over the measured runs, grown with the size as a variance's error
-  grows with its level); P1(s) = Phi((s_u - floor_u - z1 se) / se), u the scale the bound is
+  standard error (bootstrap over the measured runs) plus, for the level the cause adds, the
+  error simulated runs with the cause show (`decide.data_se_if_true`); P1(s) = Phi((s_u - floor_u - z1 se) / se), u the scale the bound is
   taken on.
 - **held-out test**: runs simulated from the model with the cause at size s (as many as the
   held-out half, 1000 for precision) are scored under the model with and without it; the mean
@@ -34,7 +34,7 @@ import numpy as np
 from scipy import stats
 
 from octoroach_model.diagnosis.causes import BY_NAME, Cause
-from octoroach_model.diagnosis.decide import POWER, relative_error, se_u_if_true
+from octoroach_model.diagnosis.decide import POWER, se_u_if_true
 from octoroach_model.diagnosis.features import run_features
 from octoroach_model.diagnosis.modelfit import FittedModel, Simulator, SizeEstimate
 from octoroach_model.diagnosis.scoring import feature_log_score
@@ -69,7 +69,7 @@ def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float) -> 
         if not (estimate.slope > 0 and math.isfinite(estimate.se_u)):
             return 0.0
         u = size ** 2
-        se = se_u_if_true(estimate, u, relative_error(estimate, floor))
+        se = se_u_if_true(estimate, u, floor)
         if se <= 0:
             return 1.0 if u > floor ** 2 else 0.0
         return float(stats.norm.cdf((u - floor ** 2 - z * se) / se))
