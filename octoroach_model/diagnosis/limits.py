@@ -8,8 +8,8 @@ product of the two probabilities:
 
 - **size bound** (decide.py): the bound is normal around the size with the data's own
   standard error (bootstrap over the measured runs) plus, for the level the cause adds, the
-  error simulated runs with the cause show (`decide.data_se_if_true`); P1(s) = Phi((s_u - floor_u - z1 se) / se), u the scale the bound is
-  taken on.
+  error simulated runs with the cause show (`decide.data_se_if_true`);
+  P1(s) = Phi((s_u - floor_u - z1 se) / se), u the scale the bound is taken on.
 - **held-out test**: runs simulated from the model with the cause at size s (as many as the
   held-out half, 1000 for precision) are scored under the model with and without it; the mean
   per-run gain over its spread, times sqrt(held-out runs), is the expected t statistic T(s),
