@@ -78,14 +78,13 @@ def data_se_if_true(estimate: SizeEstimate, u: float, floor: float) -> float:
 
     The data's own error at its level now stays (a misfit that makes the data noisier than
     the model widens it); the level the cause adds beyond the data's own carries the relative
-    error simulated runs with the cause show; never below that relative error of the whole
-    level. The data's relative error was once carried to the whole level: on a null data set
-    it is the error of a statistic without the cause in it (1.2 % for the motion's share of the
-    noise statistic, against 0.55 % once noise dominates it), which doubled measurement_noise's
-    limit above its floor and had it named 20/20 at 1x in studies/limits.yaml. Below the
-    data's level the error shrinks in proportion. A statistic that is numerically zero (a start
-    heading spread of exactly 0, as runs simulated without one have: 1e-32 rad^2) has only
-    rounding error, so the simulated runs' relative error is used alone.
+    error simulated runs with the cause show (on a null the data's relative error is that of a
+    statistic with none of the cause in it: carried to the whole level, it doubled
+    measurement_noise's limit above its floor); never below that relative error of the whole
+    level. Below the data's level the error shrinks in proportion. A statistic that is
+    numerically zero (a start heading spread of exactly 0, as runs simulated without one
+    have: 1e-32 rad^2) has only rounding error, so the simulated runs' relative error is used
+    alone.
     """
     level = max(estimate.intercept + estimate.slope * u, 0.0)
     simulated = estimate.relative_se * level
