@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 X, Y, HEADING = 0, 1, 2
+# info entries with one value per run, in the runs' order
+PER_RUN_INFO = ('sources', 'start_stamps_s')
 
 
 @dataclass(frozen=True)
@@ -72,9 +74,39 @@ class Paths:
         return bool(finite[:, 0].all() and (finite[:, :-1] >= finite[:, 1:]).all()
                     and (np.isfinite(self.poses).any(axis=2) == finite).all())
 
+    def recording_positions(self) -> tuple[np.ndarray, bool]:
+        """
+        Return each run's place in the recording, 0 (first) to 1 (last), and whether it is known.
+
+        The place is the rank of the run's start time (`info['start_stamps_s']`, which every
+        bag reader and data set carries); runs without start times (simulated, or from files
+        that have none) are taken in the order they were read, and the flag is False.
+        """
+        n = self.n_paths
+        stamps = self.info.get('start_stamps_s')
+        known = (isinstance(stamps, (list, tuple, np.ndarray)) and len(stamps) == n
+                 and all(isinstance(s, (int, float, np.number)) and np.isfinite(s)
+                         for s in stamps))
+        if known:
+            ranks = np.empty(n)
+            ranks[np.argsort(np.asarray(stamps, dtype=float), kind='stable')] = np.arange(n)
+        else:
+            ranks = np.arange(n, dtype=float)
+        return (ranks / (n - 1) if n > 1 else np.zeros(n)), bool(known)
+
     def subset(self, index) -> Paths:
-        """Return the runs selected by `index` (an index array, slice or boolean mask)."""
-        return Paths(self.t, self.poses[index], dict(self.info))
+        """
+        Return the runs selected by `index` (an index array, slice or boolean mask).
+
+        The info lists that hold one entry per run (PER_RUN_INFO) are selected alike.
+        """
+        info = dict(self.info)
+        picks = np.arange(self.n_paths)[index]
+        for key in PER_RUN_INFO:
+            values = info.get(key)
+            if isinstance(values, (list, tuple)) and len(values) == self.n_paths:
+                info[key] = [values[i] for i in picks]
+        return Paths(self.t, self.poses[index], info)
 
     def truncated(self, duration_s: float) -> Paths:
         """Return the runs cut to their first `duration_s` seconds (inclusive)."""

@@ -17,13 +17,15 @@ import numpy as np
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.model import check_effects, EFFECT_PARAMETERS, ModelParameters, simulate
+from octoroach_model.model.extensions import DRIFT, FAMILY_PARAMETERS, family_terms
 from octoroach_model.paths import Paths
 
-__all__ = ['EFFECT_PREFIX', 'RunSettings', 'marker_topic', 'pose_topic']
+__all__ = ['EFFECT_PREFIX', 'EXTENSION_PREFIX', 'RunSettings', 'marker_topic', 'pose_topic']
 
 NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 FRAME = re.compile(r'^[A-Za-z0-9_/]+$')
 EFFECT_PREFIX = 'effect_params.'  # effect parameter = EFFECT_PREFIX + the cause's key
+EXTENSION_PREFIX = 'extension_params.'   # likewise for the extension family's keys
 
 
 def pose_topic(subject: str, segment: str) -> str:
@@ -60,6 +62,9 @@ class RunSettings:
     start_pose: tuple[float, float, float]
     effect: str
     effect_params: Mapping[str, float] = field(default_factory=dict)
+    runs: int = 0
+    extension: str = 'none'
+    extension_params: Mapping[str, Any] = field(default_factory=dict)
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> RunSettings:
@@ -85,8 +90,15 @@ class RunSettings:
                         float(values['start_heading'])),
             effect=values['effect'],
             effect_params={key[len(EFFECT_PREFIX):]: float(value)
-                           for key, value in values.items() if key.startswith(EFFECT_PREFIX)})
+                           for key, value in values.items() if key.startswith(EFFECT_PREFIX)},
+            runs=int(values.get('runs', 0)), extension=values.get('extension', 'none'),
+            extension_params={key[len(EXTENSION_PREFIX):]: value for key, value in values.items()
+                              if key.startswith(EXTENSION_PREFIX)})
         check_effects(settings.effects())
+        family_terms(settings.extensions())
+        if settings.extension == DRIFT and settings.runs < 2:
+            raise ParameterError('extension run_order_drift needs runs >= 2: run k of the '
+                                 'session sits at k / (runs - 1) of the drift')
         settings.model_parameters()  # ParameterError where rate or frequency cannot be used
         return settings
 
@@ -104,6 +116,14 @@ class RunSettings:
         return {self.effect: {key: self.effect_params.get(key, 0.0)
                               for key in EFFECT_PARAMETERS[self.effect]}}
 
+    def extensions(self) -> list[tuple[str, dict[str, Any]]]:
+        """Return [(family, parameters)] for `simulate` (empty without an extension)."""
+        if self.extension == 'none':
+            return []
+        keys = FAMILY_PARAMETERS[self.extension]
+        return [(self.extension, {key: self.extension_params[key] for key in keys
+                                  if key in self.extension_params})]
+
     def model_parameters(self) -> ModelParameters:
         """Return Table II with this stride frequency and sample rate."""
         return replace(ModelParameters.nominal(), stride_frequency=self.stride_frequency,
@@ -116,8 +136,15 @@ class RunSettings:
         state = np.random.SeedSequence([self.seed, run_index]).generate_state(2, np.uint32)
         return int(state[0]) << 31 | int(state[1]) >> 1
 
-    def simulate(self, seed: int) -> Paths:
-        """Draw one run per robot: Paths with poses (robots, T, 3)."""
+    def simulate(self, seed: int, run_index: int = 0) -> Paths:
+        """
+        Draw one run per robot: Paths with poses (robots, T, 3).
+
+        Run `run_index` of a session of `runs` sits at run_index / (runs - 1) of the
+        recording (what a run-order drift reads).
+        """
+        place = min(run_index / (self.runs - 1), 1.0) if self.runs > 1 else 0.0
         return simulate(self.robots, seed=seed, sigma1=self.sigma1, sigma2=self.sigma2,
                         cycles=self.cycles, parameters=self.model_parameters(),
-                        draws=self.draws, effects=self.effects(), start_pose=self.start_pose)
+                        draws=self.draws, effects=self.effects(), start_pose=self.start_pose,
+                        extensions=self.extensions(), positions=np.full(self.robots, place))

@@ -19,7 +19,7 @@ from octoroach_model.model import EFFECT_PARAMETERS, PARAMETER_RANGES
 
 REPO = Path(__file__).resolve().parents[1]
 DOCS = REPO / 'docs'
-OWN_PAGES = ('index.md', 'model.md', 'validation.md', 'causes.md')
+OWN_PAGES = ('index.md', 'model.md', 'validation.md', 'causes.md', 'extensions.md')
 # Pages other parts of the project write; a link to one is checked once the page exists.
 OTHER_PAGES = ('diagnosis.md', 'report.md', 'ros.md', 'bags.md', 'formats.md',
                'formats_mocap.md', 'studies.md')

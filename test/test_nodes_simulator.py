@@ -176,6 +176,31 @@ def test_a_valid_setting_applies_from_the_next_run(ros):
     assert node.settings.effects() == {'measurement_noise': {'position_std_cm': 1.0}}
 
 
+def test_an_extension_family_drifts_over_the_session_run_by_run(ros):
+    context, executor = ros
+    listener = listen(context, executor)
+    overrides = FAST + [Parameter('runs', value=3), Parameter('cycles', value=2),
+                        Parameter('extension', value='run_order_drift'),
+                        Parameter('extension_params.parameter', value='yaw_rate'),
+                        Parameter('extension_params.change', value=40.0)]
+    node = Simulator(context=context, parameter_overrides=overrides)
+    executor.add_node(node)
+    spin_until(executor, lambda: len(listener.runs().get(2, [])) >= 101, 20.0, 'three runs')
+    turns = []
+    for index in range(3):
+        got = np.array([messages.transform_to_pose(msg) for msg in listener.runs()[index]])
+        expected = node.settings.simulate(node.settings.run_seed(index), index).poses[0]
+        np.testing.assert_allclose(got[:, :2], expected[:, :2], atol=1e-12)
+        plain = RunSettings.from_values({**common.current_values(
+            node, simulator.simulator_specs()), 'extension': 'none'}).simulate(
+            node.settings.run_seed(index)).poses[0]
+        turns.append(expected[-1, 2] - plain[-1, 2])
+    # run k of 3 turns at 40 k / 2 deg/s more than the plain model, over its 1 s
+    np.testing.assert_allclose(np.degrees(turns), [0.0, 20.0, 40.0], atol=1e-6)
+    rejected = node.set_parameters([Parameter('runs', value=1)])[0]
+    assert not rejected.successful and 'runs >= 2' in rejected.reason
+
+
 def test_many_robots_each_have_their_own_subject_and_topics(ros):
     context, executor = ros
     last = listen(context, executor, 'octoroach_2')

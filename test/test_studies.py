@@ -406,3 +406,70 @@ def test_plan_grids_start_around_the_guess_and_grow_toward_the_answer():
                            for n in (100, 200) for r in range(4)], 'x', 0.8, bootstrap=10)
     assert _next_counts(fit, [100, 200], 40, 2000) == [400]
     assert _next_counts(fit, [100, 2000], 40, 2000) == []
+
+
+# --------------------------------------------------------------------------------------------
+# extension families in studies
+
+def test_a_spec_puts_extension_families_beside_the_causes():
+    spec = spec_of('runs: [50]\ncauses:\n'
+                   '  - {extension: run_order_drift, parameter: yaw_rate, sizes: [4], '
+                   'sign: negative}\n'
+                   '  - {extension: change_point, limit_multiples: [2], sign: both}\n'
+                   '  - {extension: run_mixture, sizes: [8], parameters: {fraction: 0.4}}\n'
+                   '  - together: {persistent_turning: 3, heading_random_walk: 1.5}\n')
+    assert [arm.label for arm in spec.arms] == [
+        'none', 'run_order_drift:yaw_rate=-4', 'change_point@+-2x', 'run_mixture=8',
+        'persistent_turning=3+heading_random_walk=1.5']
+    for text, reason in (
+            ('{extension: run_order_drift, sizes: [1]}', 'needs parameter'),
+            ('{extension: wobble, sizes: [1]}', "unknown extension 'wobble'"),
+            ('{extension: heading_random_walk, parameter: yaw_rate, sizes: [1]}',
+             'belongs to run_order_drift'),
+            ('{extension: heading_random_walk, sizes: [1], sign: both}', 'has no sign'),
+            ('{extension: run_mixture, sizes: [100]}', 'outside')):
+        with pytest.raises(ParameterError, match=reason):
+            spec_of(f'runs: [50]\ncauses: [{text}]')
+
+
+def test_a_task_puts_its_family_into_the_data_at_the_spec_s_size():
+    from octoroach_model.studies.design import build_tasks
+    from octoroach_model.studies.replicate import task_effects
+
+    spec = spec_of('runs: [50]\ncauses:\n'
+                   '  - {extension: change_point, sizes: [0.25], sign: negative}\n'
+                   '  - {extension: periodic_heading, sizes: [4]}\n'
+                   '  - {extension: run_mixture, sizes: [8], sign: negative}\n')
+    tasks = {task.arm.label: task for task in build_tasks(spec)}
+    change = task_effects(tasks['change_point=-0.25'], spec, None, 5.0)
+    assert change == {'change_point': {'time_s': 2.5, 'speed_factor': 0.75}}
+    periodic = task_effects(tasks['periodic_heading=4'], spec, None, 5.0)
+    assert periodic == {'periodic_heading': {'amplitude_deg': 4.0, 'frequency_hz': 0.6}}
+    mixture = task_effects(tasks['run_mixture=-8'], spec, None, 5.0)
+    assert mixture == {'run_mixture': {'fraction': 0.3, 'yaw_rate_deg_s': -8.0}}
+
+
+def test_the_adapter_reads_extensions_and_the_confusion_table_counts_them():
+    from octoroach_model.studies.summary import confusion
+
+    plain = {'causes': [], 'candidates': [],
+             'extensions': [{'family': 'change_point', 'term': 'change_point',
+                             'parameters': {'time_s': 2.4, 'speed_factor': 0.72},
+                             'interval': {'speed_factor': [0.7, 0.74]}}],
+             'extension_candidates': [{'cause': 'run_mixture', 'parameters': {
+                 'fraction': 0.3, 'yaw_rate_deg_s': 1.0},
+                 'detectable': {'yaw_rate_deg_s': 5.0}}],
+             'adequate': True, 'unexplained': []}
+    columns = outcome_columns(plain, {'change_point': {'time_s': 2.5, 'speed_factor': 0.7}})
+    assert columns['named'] == ['change_point'] and columns['false_causes'] == []
+    assert columns['named_change_point'] is True
+    assert columns['rel_error_change_point'] == pytest.approx(-0.02 / 0.3)   # of 1 - factor
+    assert columns['limit_run_mixture'] == 5.0
+    rows = [a_row(true_causes=['change_point'], named=['change_point']),
+            a_row(true_causes=['change_point'], named=['speed_decay']),
+            a_row(true_causes=['run_order_drift:yaw_rate'], named=[]),
+            a_row(true_causes=[], named=['run_mixture'])]
+    table = confusion(rows)
+    assert table['named'] == {'change_point': {'change_point': 1, 'speed_decay': 1},
+                              'run_order_drift': {'nothing': 1}, 'none': {'run_mixture': 1}}
+    assert table['data_sets'] == {'change_point': 2, 'run_order_drift': 1, 'none': 1}

@@ -14,7 +14,7 @@ from octoroach_model.errors import ParameterError
 
 def parser() -> argparse.ArgumentParser:
     """Build the `plan` command line."""
-    from octoroach_model.model import EFFECT_NAMES
+    from octoroach_model.studies.terms import TERMS
 
     result = OneLineParser(
         prog='plan', description='How many runs to record: the number of runs with which the '
@@ -22,11 +22,15 @@ def parser() -> argparse.ArgumentParser:
         '10 cycles at 50 Hz), and the power curve it came from. Data sets are simulated and '
         'diagnosed as tasks on Dask, like a study; docs/studies.md says how plan decides. '
         'Prints the answer as JSON; with --out also plan.json, table.csv and power_curve.png.')
-    result.add_argument('--cause', required=True, choices=EFFECT_NAMES,
-                        help='the cause to detect')
+    result.add_argument('--cause', required=True, choices=TERMS, metavar='CAUSE',
+                        help='the cause or extension term to detect: a cause of the table, '
+                        'or heading_random_walk, periodic_heading, change_point, run_mixture, '
+                        'run_order_drift:stride_frequency, run_order_drift:yaw_rate, '
+                        'run_order_drift:lateral_velocity')
     result.add_argument('--size', type=finite_float, required=True,
                         help="size of the cause's main parameter in its unit (e.g. "
-                        'yaw_rate_std_deg_s for persistent_turning)')
+                        'yaw_rate_std_deg_s for persistent_turning; for change_point the '
+                        "speed factor's distance from 1)")
     result.add_argument('--power', type=finite_float, default=0.8,
                         help='probability of naming the cause')
     result.add_argument('--param', action=OrderedEffectAction, dest='effect_param',

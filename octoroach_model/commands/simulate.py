@@ -37,13 +37,35 @@ def parse_effects(pairs: list[tuple[str, str]]) -> dict[str, dict[str, float]]:
     return effects
 
 
+def parse_extensions(pairs: list[tuple[str, str]]) -> list[tuple[str, dict[str, str]]]:
+    """
+    Group --extension FAMILY and --extension-param KEY=VALUE pairs, in command-line order.
+
+    A parameter belongs to the --extension before it. Values stay text here (run_order_drift's
+    `parameter` names what drifts); `model.extensions.family_terms` checks and converts them.
+    """
+    extensions: list[tuple[str, dict[str, str]]] = []
+    for option, value in pairs:
+        if option == 'extension':
+            extensions.append((value, {}))
+            continue
+        key, sep, text = value.partition('=')
+        if not sep:
+            raise ParameterError(f'--extension-param takes KEY=VALUE, got {value!r}')
+        if not extensions:
+            raise ParameterError(f'--extension-param {value} comes before any --extension NAME')
+        extensions[-1][1][key] = text
+    return extensions
+
+
 class OrderedEffectAction(argparse.Action):
-    """Keeps --effect and --effect-param in the order they were given."""
+    """Keeps --effect, --extension and their parameters in the order they were given."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        pairs = getattr(namespace, 'effect_pairs', None) or []
+        group = 'extension_pairs' if self.dest.startswith('extension') else 'effect_pairs'
+        pairs = getattr(namespace, group, None) or []
         pairs.append((self.dest, values))
-        namespace.effect_pairs = pairs
+        setattr(namespace, group, pairs)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -55,7 +77,9 @@ def parser() -> argparse.ArgumentParser:
         prog='simulate', description='Write N runs of the model to a rosbag2 MCAP bag '
         '(VICON convention: TransformStamped on /vicon/octoroach/octoroach at 50 Hz, a run '
         'marker on /octoroach/run_start, and at least 1 s between runs). Without --effect it '
-        "is the paper's model exactly (eqs. 3-11), every run starting at x = y = 0 heading +y.")
+        "is the paper's model exactly (eqs. 3-11), every run starting at x = y = 0 heading +y. "
+        'Runs are written in the order drawn: run i is the i-th of the recording (what the '
+        'run-order terms of --extension read).')
     result.add_argument('--paths', type=positive_int, required=True, help='number of runs')
     result.add_argument('--seed', type=nonnegative_int, default=0,
                         help='seed of every random draw')
@@ -75,6 +99,14 @@ def parser() -> argparse.ArgumentParser:
     result.add_argument('--effect-param', action=OrderedEffectAction, dest='effect_param',
                         metavar='KEY=VALUE', help='a parameter of the preceding --effect, in '
                         "the table's units (e.g. heading_std_deg=4.5)")
+    result.add_argument('--extension', action=OrderedEffectAction, dest='extension',
+                        metavar='FAMILY', help='an extension family beyond the table '
+                        '(docs/extensions.md): run_order_drift, heading_random_walk, '
+                        'periodic_heading, change_point, run_mixture; repeatable')
+    result.add_argument('--extension-param', action=OrderedEffectAction,
+                        dest='extension_param', metavar='KEY=VALUE', help='a parameter of the '
+                        'preceding --extension in its units (e.g. parameter=stride_frequency, '
+                        'change=-0.15)')
     result.add_argument('--dataset', type=Path, default=None,
                         help='also save the runs as a multisample data set (.npz)')
     return result
@@ -94,14 +126,16 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f'--stride-frequency must be positive, got {args.stride_frequency}')
     parameters = replace(ModelParameters.nominal(), stride_frequency=args.stride_frequency)
     effects = parse_effects(getattr(args, 'effect_pairs', None) or [])
+    extensions = parse_extensions(getattr(args, 'extension_pairs', None) or [])
     paths = simulate(args.paths, seed=args.seed, sigma1=args.sigma1, sigma2=args.sigma2,
                      cycles=args.cycles, parameters=parameters, draws=args.draws,
-                     effects=effects)
+                     effects=effects, extensions=extensions)
     bag = write_paths_bag(args.out, paths)
     if args.dataset:
         save_dataset(args.dataset, paths)
     print(json.dumps({'bag': str(bag), 'paths': paths.n_paths, 'samples_per_run': len(paths.t),
                       'duration_s': float(paths.t[-1]), 'seed': args.seed,
                       'sigma1': args.sigma1, 'sigma2': args.sigma2, 'draws': args.draws,
-                      'effects': paths.info['effects']}, indent=2))
+                      'effects': paths.info['effects'],
+                      'extensions': paths.info['extensions']}, indent=2))
     return 0

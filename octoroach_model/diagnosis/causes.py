@@ -1,9 +1,12 @@
 """
-The causes as the diagnosis sees them.
+The causes and the extension families as the diagnosis sees them.
 
-What each one moves, how its size is estimated, and the smallest size it may claim.
+What each one moves, how its size is estimated, and the smallest size it may claim. The table
+of causes (CAUSES) and the library of extension families (FAMILIES, docs/extensions.md) are
+declared alike and race in the same forward selection; a family is one entry here plus its
+term in model/extensions.py.
 
-Two kinds of estimate (docs/diagnosis.md):
+Four kinds of estimate (docs/diagnosis.md):
 
 - **moments** (initial_pose_error, measurement_noise, gait_frequency_variation,
   persistent_turning): a statistic of the runs whose *variance-like* value grows linearly in
@@ -14,7 +17,15 @@ Two kinds of estimate (docs/diagnosis.md):
   alone could mimic, so its size is fitted jointly with the geometry (eq. 9 extended). The
   fit starts from the size its `signature` statistic (mean slip angle, mean speed ratio)
   reads off a line through the model without and with the cause: a geometry that has bent
-  to mimic the cause would otherwise hold the fit in the wrong valley.
+  to mimic the cause would otherwise hold the fit in the wrong valley. change_point is one
+  too, with two parameters free (its start comes from the runs' speed profile).
+- **trend** (run_order_drift): the least-squares slope of a feature against the run's place
+  in the recording, T(c) = T(0) + kappa c, read off at the data's slope (linear in the size,
+  signed): a drift over the session is a trend in run order, not a spread.
+- **mixture** (run_mixture): the fraction and yaw rate of the turning runs by maximum
+  likelihood on the runs' heading rates (two normals a yaw rate apart, the spread of each the
+  model's), the geometry refit around them; its size is the spread it adds,
+  |yaw rate| sqrt(fraction (1 - fraction)), which is zero when no run or every run turns.
 
 The **floor** of a cause is the smallest size that matters, which the diagnosis claims only when it
 is sure the size exceeds it (decide.py), whatever the p-value:
@@ -27,6 +38,13 @@ is sure the size exceeds it (decide.py), whatever the p-value:
 | speed_decay | 0.01 | the stride frequency 1 % lower at the end of the run |
 | lateral_slip | 1 % of the forward speed | a drift angle of 0.6 deg |
 | persistent_turning | 1 deg per run | a turn of 1 deg over the run's duration |
+| run_order_drift, stride_frequency | 0.01 | the stride frequency 1 % lower at the last run |
+| run_order_drift, yaw_rate | 1 deg per run | the last run turns 1 deg more over its duration |
+| run_order_drift, lateral_velocity | 1 % of the forward speed | as lateral_slip |
+| heading_random_walk | 1 deg / sqrt(stances per run) | a wander of 1 deg over the run |
+| periodic_heading | 0.5 deg | below the orientation accuracy of a motion-capture body |
+| change_point | 0.01 | the speed 1 % different after the change |
+| run_mixture | 1 deg per run | the spread of turning it adds, as persistent_turning |
 
 The path-length and duration floors scale with the robot (`RunScale`): what matters for a fast
 robot on long runs is smaller in absolute terms than for a slow one.
@@ -40,31 +58,39 @@ import numpy as np
 
 from octoroach_model.diagnosis.features import INDEX, MEDIAN_CHI2_1
 from octoroach_model.model import EFFECT_NAMES, EFFECT_PARAMETERS
+from octoroach_model.model.extensions import drift_term, TERM_BY_NAME, TERM_NAMES
 
 POSITION_RESOLUTION_M = 1e-4     # what motion capture resolves; no size below it is claimed
+# the share of turning runs at which run_mixture's detection limit is stated (a yaw rate),
+# and which a study or a limit uses where none is given or fitted
+MIXTURE_FRACTION = 0.3
 
 
 @dataclass(frozen=True)
 class RunScale:
-    """What the floors depend on: how long a run lasts and how far it goes."""
+    """What the floors depend on: how long a run lasts, how far it goes, how many stances."""
 
     duration_s: float
     path_length_m: float
+    stances: float = 20.0
 
 
 @dataclass(frozen=True)
 class Cause:
     """
-    One cause of the table of causes, as a diagnosis candidate.
+    One candidate of the diagnosis: a cause of the table, or a term of an extension family.
 
-    `statistic` (moments causes) maps a feature matrix to the variance-like statistic S;
-    `reference` is the size simulated to measure the slope kappa (the contract's unit);
-    `floor` maps a RunScale to the smallest size claimed.
+    `name` is the term in a model's effects (`run_order_drift:yaw_rate` for a family's term);
+    `statistic` (moments and trend kinds) maps a feature matrix to the statistic S;
+    `reference` is the size simulated to measure the slope kappa (the table's unit);
+    `floor` maps a RunScale to the smallest size claimed; `family` is empty for a cause of the
+    table; `null` is the main parameter's value that means no effect (change_point's speed
+    factor 1); `order_dependent` terms are predicted run by run at the run's place.
     """
 
     name: str
     unit: str
-    kind: str                                   # 'moments' or 'path'
+    kind: str                                   # 'moments', 'path', 'trend' or 'mixture'
     statistic_name: str
     statistic: Callable[[np.ndarray], float] | None
     reference: float
@@ -72,11 +98,29 @@ class Cause:
     signed: bool = False
     bounds: tuple[float, float] = (0.0, 1.0)    # sizes a fit may take (path causes)
     signature: Callable[[np.ndarray], float] | None = None   # path causes: where to start
+    family: str = ''
+    main: str = ''                              # main parameter (default: the term's first)
+    null: float = 0.0
+    order_dependent: bool = False
 
     @property
     def parameter(self) -> str:
         """Return the main parameter: the first of the cause in the table of causes."""
-        return EFFECT_PARAMETERS[self.name][0]
+        if self.main:
+            return self.main
+        if self.name in EFFECT_PARAMETERS:
+            return EFFECT_PARAMETERS[self.name][0]
+        return TERM_BY_NAME[self.name].parameters[0]
+
+    @property
+    def is_extension(self) -> bool:
+        """Return whether this is a term of an extension family (not a cause of the table)."""
+        return bool(self.family)
+
+    @property
+    def label(self) -> str:
+        """Return the name a report gives it: the cause, or the extension family."""
+        return self.family or self.name
 
     def effects(self, size: float) -> dict[str, dict[str, float]]:
         """{cause: {main parameter: size}} (other parameters 0)."""
@@ -119,5 +163,50 @@ CAUSES: tuple[Cause, ...] = (
     Cause('persistent_turning', 'deg/s', 'moments', 'heading rate variance across runs',
           _variance_of('heading_rate'), 5.0, lambda scale: 1.0 / max(scale.duration_s, 1e-3)),
 )
-BY_NAME = {cause.name: cause for cause in CAUSES}
-assert tuple(sorted(BY_NAME)) == tuple(sorted(EFFECT_NAMES))
+
+
+def _trend_of(column: str) -> Callable[[np.ndarray], float]:
+    """Return the least-squares slope of a feature against the run's place in the recording."""
+    index, place = INDEX[column], INDEX['position']
+
+    def slope(features: np.ndarray) -> float:
+        x = features[:, place] - features[:, place].mean()
+        denominator = float(x @ x)
+        return float(x @ features[:, index]) / denominator if denominator > 0 else 0.0
+    return slope
+
+
+def _mean_exp_of(column: str) -> Callable[[np.ndarray], float]:
+    index = INDEX[column]
+    return lambda features: float(np.mean(np.exp(features[:, index])))
+
+
+def _duration_floor(scale: RunScale) -> float:
+    return 1.0 / max(scale.duration_s, 1e-3)
+
+
+FAMILIES: tuple[Cause, ...] = (
+    Cause(drift_term('stride_frequency'), '', 'trend', 'stride frequency against run order',
+          _trend_of('stride_frequency'), 0.1, lambda scale: 0.01, signed=True,
+          family='run_order_drift', order_dependent=True),
+    Cause(drift_term('yaw_rate'), 'deg/s', 'trend', 'heading rate against run order',
+          _trend_of('heading_rate'), 5.0, _duration_floor, signed=True,
+          family='run_order_drift', order_dependent=True),
+    Cause(drift_term('lateral_velocity'), 'cm/s', 'trend',
+          'heading to travel angle against run order', _trend_of('slip_angle'), 2.0,
+          _slip_floor, signed=True, family='run_order_drift', order_dependent=True),
+    Cause('heading_random_walk', 'deg', 'moments', 'per-cycle heading change variance beside '
+          'the stride length variance', _mean_of('increment_var'), 1.0,
+          lambda scale: 1.0 / np.sqrt(max(scale.stances, 1.0)), family='heading_random_walk'),
+    Cause('periodic_heading', 'deg', 'moments', 'heading power at the wobble frequency',
+          _mean_exp_of('heading_wobble'), 5.0, lambda scale: 0.5, family='periodic_heading'),
+    Cause('change_point', '', 'path', 'average path (joint fit with the geometry)', None, 0.7,
+          lambda scale: 0.01, signed=True, bounds=(0.2, 3.0), family='change_point',
+          main='speed_factor', null=1.0),
+    Cause('run_mixture', 'deg/s', 'mixture', 'heading rates across runs (two groups)', None,
+          8.0, _duration_floor, signed=True, family='run_mixture', main='yaw_rate_deg_s'),
+)
+CANDIDATES: tuple[Cause, ...] = CAUSES + FAMILIES
+BY_NAME = {cause.name: cause for cause in CANDIDATES}
+assert tuple(sorted(cause.name for cause in CAUSES)) == tuple(sorted(EFFECT_NAMES))
+assert tuple(sorted(cause.name for cause in FAMILIES)) == tuple(sorted(TERM_NAMES))

@@ -5,7 +5,9 @@ A cause's size is *found* when the one-sided lower confidence bound of its main 
 at level 1 - decision_alpha / m (m candidates still in the race, Bonferroni), lies above the
 cause's floor (causes.py): we are that sure that the size matters. Moments causes are read
 as u = size^2 on a line, so the bound is taken on u (normal there) and square-rooted; path
-causes are bounded on |size|.
+causes (and the trend and mixture kinds) are bounded on |size - null| (null: the value that
+means no effect, 1 for change_point's speed factor, else 0); their limits are distances from
+it.
 
 The detection limit is the smallest size at which that bound clears the floor with 80 %
 power on runs like the data at hand: the standard error is the data's own (bootstrap over
@@ -61,7 +63,7 @@ def judge(estimate: SizeEstimate, floor: float, z_decision: float) -> SizeVerdic
     else:
         size, se = estimate.size, estimate.se
         interval = (size - z_interval * se, size + z_interval * se)
-        lower = max(abs(size) - z_decision * se, 0.0)
+        lower = max(abs(size - cause.null) - z_decision * se, 0.0)
         limit = floor + (z_decision + stats.norm.isf(1 - POWER)) * se \
             if math.isfinite(se) else None
     return SizeVerdict(estimate.cause, estimate.size, estimate.se, interval, lower, floor,

@@ -29,21 +29,28 @@ import time
 import numpy as np
 from scipy import stats
 
-from octoroach_model.diagnosis.causes import BY_NAME, CAUSES, RunScale
+from octoroach_model.diagnosis.causes import (
+    BY_NAME, CANDIDATES, Cause, CAUSES, FAMILIES, MIXTURE_FRACTION, RunScale)
 from octoroach_model.diagnosis.decide import decision_z, judge
+from octoroach_model.diagnosis.descriptions import describe
 from octoroach_model.diagnosis.discrepancies import (
     critical_z, discrepancies, statistic_values, STATISTICS)
 from octoroach_model.diagnosis.executors import executor_for, single_threaded
-from octoroach_model.diagnosis.features import run_features
-from octoroach_model.diagnosis.limits import detection_limit, Limit
+from octoroach_model.diagnosis.features import heading_amplitudes, INDEX
+from octoroach_model.diagnosis.limits import detection_limit, Limit, limit_base
 from octoroach_model.diagnosis.modelfit import (
-    CausesFit, fit_causes, FitSettings, FittedModel, GeometryUncertainty, RunData, Simulator)
+    at_size, CausesFit, CHANGE_POINT_BOOTSTRAP, change_point_step, fit_causes, fit_mixture,
+    fit_moment, fit_spread, fit_trend,
+    FitSettings, FittedModel, GeometryUncertainty, RunData, Simulator, SizeEstimate,
+    spread_statistic)
 from octoroach_model.diagnosis.report import (
-    CandidateResult, DiagnosisReport, NamedCause, RunLengths, ScoreSummary, StepResult)
+    CandidateResult, DiagnosisReport, NamedCause, NamedExtension, Rival, RunLengths,
+    ScoreSummary, StepResult)
 from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, position_points_cm, score_model, Scores)
 from octoroach_model.errors import DataError
 from octoroach_model.model import ModelParameters
+from octoroach_model.model.extensions import family_form
 from octoroach_model.paths import Paths
 from octoroach_model.validation import chernoff_sample_size, ValidationSettings
 from octoroach_model.validation.fit import average_target, fit_nominal, mean_start_pose
@@ -68,7 +75,9 @@ class DiagnosisSettings:
     gain (feature log score, nats per run) a cause must bring; adequacy_alpha:
     family level over the discrepancy statistics; moment_runs / mean_path_runs / score_runs:
     simulated runs per moment point / per mean path / per scored model; workers: processes
-    (1: in this process), ignored when an executor is passed to `diagnose`.
+    (1: in this process), ignored when an executor is passed to `diagnose`; detection_limits:
+    compute every candidate's limit of the whole decision (limits.py; without it `detectable`
+    is the size bound's own limit, and the method says so).
     """
 
     seed: int = 0
@@ -84,6 +93,7 @@ class DiagnosisSettings:
     rounds: int = 2
     validation: ValidationSettings = field(default_factory=ValidationSettings)
     validate_models: bool = True
+    detection_limits: bool = True
     workers: int = 2
 
     def fit(self, seed_offset: int = 0) -> FitSettings:
@@ -125,6 +135,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         say(0.08, 'fitting the baseline (geometry on the mean path, spread scale)')
         baseline_fit = _baseline(halves, settings)
         baseline = baseline_fit.model
+        halves = _with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
         simulator = Simulator(halves.test, settings.seed)
         current_scores = _score(simulator, baseline, halves, settings)
         baseline_scores = current_scores
@@ -134,11 +145,12 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         steps: list[StepResult] = []
         last_seen: dict[str, CandidateResult] = {}
         last_evaluated: dict[str, Evaluation] = {}
-        remaining = [cause.name for cause in CAUSES]
+        remaining = [cause.name for cause in CANDIDATES]
         while remaining:
             step = len(steps) + 1
+            z_step = decision_z(settings.decision_alpha, len(remaining))
             futures = [pool.submit(evaluate_candidate, halves, model, current_scores, cause,
-                                   settings) for cause in remaining]
+                                   settings, z_step) for cause in remaining]
             evaluated = [future.result() for future in futures]
             last_evaluated.update({evaluation.cause: evaluation for evaluation in evaluated})
             result, chosen = _step_result(step, evaluated, halves, settings)
@@ -161,9 +173,14 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             validations = {name: pool.submit(paper_validation, measured, fitted,
                                              settings.validation)
                            for name, fitted in (('baseline', baseline), ('extended', model))}
+        # the model without a cause it does not include is the model itself: its scored
+        # runs are simulated once for all of them
+        shared = limit_base(Simulator(halves.test, settings.seed), model, halves.scales,
+                            settings.score_runs) if settings.detection_limits else None
         limit_futures = {cause: pool.submit(_limit, halves, model, last_evaluated[cause],
-                                            last_seen[cause], settings)
-                         for cause in last_seen}
+                                            last_seen[cause], settings,
+                                            None if cause in model.effects else shared)
+                         for cause in last_seen} if settings.detection_limits else {}
         final_fit = final_future.result()
         final, final_estimates = final_fit.model, final_fit.estimates
         say(0.85, 'discrepancies and adequacy')
@@ -182,7 +199,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         unexplained = [row for row in final_rows if abs(row.z) > bound and row.material]
         validation_results = {name: future.result() for name, future in validations.items()}
         limits = {cause: future.result() for cause, future in limit_futures.items()}
-    named = _named_causes(steps, final, final_estimates, halves, settings)
+    named, named_extensions = _named(steps, final, final_estimates, halves, settings)
     report = DiagnosisReport(
         paths=measured.n_paths, duration_s=float(measured.t[-1]), seed=settings.seed,
         split={'calibration': halves.train.n, 'held_out': halves.test.n},
@@ -191,9 +208,13 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         baseline=_model_summary(baseline, validation_results.get('baseline')),
         extended=_model_summary(final, validation_results.get('extended')),
         discrepancies=tuple(baseline_rows), candidates=tuple(
-            last_seen[cause.name].with_limit(limits[cause.name])
-            for cause in CAUSES if cause.name in last_seen),
-        causes=tuple(named), steps=tuple(steps),
+            _with_limit(last_seen[cause.name], limits) for cause in CAUSES
+            if cause.name in last_seen),
+        causes=tuple(named), extensions=tuple(named_extensions),
+        extension_candidates=tuple(
+            _with_limit(last_seen[cause.name], limits) for cause in FAMILIES
+            if cause.name in last_seen),
+        steps=tuple(steps),
         gain=_gain_summary(baseline_scores, current_scores, halves),
         extended_discrepancies=tuple(final_rows), adequate=not unexplained,
         unexplained=tuple(unexplained),
@@ -202,9 +223,16 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             (resolution_note,) if resolution_note else ()),
         elapsed_s=round(time.monotonic() - started, 2))
     say(1.0, 'causes: ' + (', '.join(c.cause for c in named) or 'none')
+        + '; extensions: ' + (', '.join(e.family for e in named_extensions) or 'none')
         + ('' if report.adequate else '; the extended model still misses '
            + ', '.join(row.statistic for row in unexplained)))
     return report
+
+
+def _with_limit(candidate: CandidateResult, limits: dict[str, Limit]) -> CandidateResult:
+    """Return the candidate with its whole decision's limit, where it was computed."""
+    limit = limits.get(candidate.cause)
+    return candidate.with_limit(limit) if limit is not None else candidate
 
 
 def check_runs(measured: Paths) -> None:
@@ -254,17 +282,91 @@ def _prepare(measured: Paths, settings: DiagnosisSettings) -> _Halves:
     start = mean_start_pose(measured)
     order = np.random.default_rng(settings.seed).permutation(measured.n_paths)
     half = measured.n_paths // 2
-    everything = RunData(measured, frequency, start[2])
-    train = RunData(measured.subset(order[:half]), frequency, start[2])
-    test = RunData(measured.subset(order[half:]), frequency, start[2])
+    positions, _ = measured.recording_positions()
+    everything = RunData(measured, frequency, start[2], positions)
+    duration = float(np.median(measured.lengths - 1)) / measured.rate_hz
+    path_length = float(np.nanmedian(np.abs(everything.features[:, INDEX['end_progress']]))) \
+        or 0.01
+    return _halves(everything, everything.subset(order[:half]),
+                   everything.subset(order[half:]),
+                   RunScale(duration, path_length, 2.0 * frequency * duration))
+
+
+def _halves(everything: RunData, train: RunData, test: RunData, run_scale: RunScale
+            ) -> _Halves:
+    """Return the halves ready for scoring: feature scales, held-out points, the ideal."""
     scales = feature_scales(train.features)
     test_points = position_points_cm(test.paths.positions, test.lengths)
     train_points = position_points_cm(train.paths.positions, train.lengths)
     ideal = score_model(train.features, train_points, test.features, test_points, scales)
-    duration = float(np.median(measured.lengths - 1)) / measured.rate_hz
-    path_length = float(np.nanmedian(np.abs(everything.features[:, 10]))) or 0.01
-    return _Halves(everything, train, test, scales, test_points, ideal,
-                   RunScale(duration, path_length))
+    return _Halves(everything, train, test, scales, test_points, ideal, run_scale)
+
+
+def _with_wobble(halves: _Halves, choice: tuple[float, tuple[float, float]] | None
+                 ) -> _Halves:
+    """Return the halves measured with the heading wobble chosen (features.py)."""
+    hz, interval = choice if choice is not None else (None, None)
+    return _halves(halves.every.with_wobble(hz, interval),
+                   halves.train.with_wobble(hz, interval),
+                   halves.test.with_wobble(hz, interval), halves.run_scale)
+
+
+WOBBLE_POINTS = 64
+WOBBLE_MODEL_RUNS = 400
+WOBBLE_PURPOSE = 33
+WOBBLE_REFINE = 25
+WOBBLE_BOOTSTRAP = 200
+
+
+def choose_wobble_hz(train: RunData, baseline: FittedModel, settings: DiagnosisSettings
+                     ) -> tuple[float, tuple[float, float]] | None:
+    """
+    Return where the calibration runs' heading rises most above the baseline's, in Hz.
+
+    With a 95 % interval: the same choice on bootstrap resamples of the calibration runs.
+
+    Over frequencies from 1.5 cycles per run to 3/4 of the stride frequency, and between
+    1.3 and 1.7 times it (the stride's own sway and its harmonics are the geometry's), the
+    mean squared amplitude of the heading (trend removed, Hann window: features.py) of the
+    calibration runs is compared with that of the baseline's runs, in standard errors; the
+    largest excess is where a periodic heading would be measured (periodic_heading). The
+    held-out runs never take part in the choice.
+    """
+    t = train.paths.t
+    duration = float(np.median(train.lengths - 1)) * float(t[1] - t[0])
+    stride = train.stride_frequency
+    low = 1.5 / max(duration, 1e-6)
+    bands = [np.geomspace(low, 0.75 * stride, WOBBLE_POINTS) if low < 0.75 * stride
+             else np.empty(0), np.linspace(1.3 * stride, 1.7 * stride, WOBBLE_POINTS // 4)]
+    frequencies = np.concatenate(bands)
+    nyquist = 0.5 / float(t[1] - t[0])
+    frequencies = frequencies[frequencies < 0.8 * nyquist]
+    if not frequencies.size:
+        return None
+    data = heading_amplitudes(train.paths.poses[..., 2], t, frequencies) ** 2
+    simulated = Simulator(train, settings.seed).paths(baseline, WOBBLE_MODEL_RUNS,
+                                                      WOBBLE_PURPOSE)
+    model = heading_amplitudes(simulated.poses[..., 2], t, frequencies) ** 2
+    best = int(np.argmax(_excess(data, model)))
+    # refined within a quarter of it, where the excess power itself peaks (a tone's power
+    # peaks at its frequency; the standard errors, larger where the power is, do not)
+    fine = np.linspace(frequencies[best] / 1.25, min(frequencies[best] * 1.25, 0.8 * nyquist),
+                       WOBBLE_REFINE)
+    data = heading_amplitudes(train.paths.poses[..., 2], t, fine) ** 2
+    model_mean = (heading_amplitudes(simulated.poses[..., 2], t, fine) ** 2).mean(axis=0)
+    chosen = float(fine[int(np.argmax(data.mean(axis=0) - model_mean))])
+    rng = np.random.default_rng([settings.seed, 37])
+    picks = rng.integers(0, len(data), (WOBBLE_BOOTSTRAP, len(data)))
+    resampled = fine[np.argmax(data[picks].mean(axis=1) - model_mean, axis=1)]
+    low, high = np.quantile(resampled, [0.025, 0.975])
+    return chosen, (float(min(low, chosen)), float(max(high, chosen)))
+
+
+def _excess(data: np.ndarray, model: np.ndarray) -> np.ndarray:
+    """Mean of each column of `data` above `model`'s, in standard errors."""
+    error = np.sqrt(data.var(axis=0, ddof=1) / len(data) + model.var(axis=0, ddof=1)
+                    / len(model))
+    return (data.mean(axis=0) - model.mean(axis=0)) / np.maximum(error, 1e-300)
 
 
 def _baseline(halves: _Halves, settings: DiagnosisSettings) -> CausesFit:
@@ -296,18 +398,40 @@ class Evaluation:
     scores: Scores
     gain: PairedGain
     gain_cm: float
+    screened: bool = False
+
+
+SCREEN_ALLOWANCE = 2.0
+# two groups of runs must fit the heading rates this much better than one normal of free
+# spread (a log-likelihood ratio; 2 x 3 nats is chi-square(1) at p = 0.014) to be weighed
+MIXTURE_EVIDENCE_NATS = 3.0
 
 
 def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Scores,
-                       cause: str, settings: DiagnosisSettings) -> Evaluation:
+                       cause: str, settings: DiagnosisSettings, z_decision: float = 0.0
+                       ) -> Evaluation:
     """
     Extend `current` by `cause`, refit, and score it on the held-out runs.
 
     Every included size is refit (one round) and scored against `current`; a top-level
-    function, as it runs in worker processes.
+    function, as it runs in worker processes. An extension family whose size, estimated
+    before any refit, has a bound out of reach of its floor even if the refit moved it up by
+    SCREEN_ALLOWANCE standard errors (the bound at `z_decision` - SCREEN_ALLOWANCE below the
+    floor) is neither refit nor scored: it cannot qualify (`screened`). So is run_mixture
+    where two groups do not fit the heading rates better than one normal of free spread.
     """
     causes = (*current.causes, cause)
-    geometry = BY_NAME[cause].kind == 'path'
+    candidate = BY_NAME[cause]
+    if candidate.is_extension:
+        quick = quick_fit(halves.train, current, candidate, settings)
+        estimate = quick.estimates[cause]
+        if out_of_reach(estimate, candidate.floor(halves.run_scale),
+                        z_decision - SCREEN_ALLOWANCE) or (
+                candidate.kind == 'mixture'
+                and estimate.detail['log_likelihood_ratio'] < MIXTURE_EVIDENCE_NATS):
+            return Evaluation(cause, quick.model, quick.estimates, current_scores,
+                              PairedGain(0.0, 0.0, 1.0), 0.0, screened=True)
+    geometry = candidate.kind in ('path', 'mixture', 'trend')
     fitted = fit_causes(halves.train, current, causes, settings.fit(), geometry=geometry,
                         rounds=1)
     model, estimates = fitted.model, fitted.estimates
@@ -317,14 +441,51 @@ def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Sc
                       float(np.mean(current_scores.energy_cm - scores.energy_cm)))
 
 
+def quick_fit(train: RunData, current: FittedModel, cause: Cause,
+              settings: DiagnosisSettings) -> CausesFit:
+    """
+    Return `current` with the family's size estimated and nothing else refit.
+
+    The spread scale is read again where the family changes which statistic it is read off
+    (modelfit.spread_statistic).
+    """
+    simulator = Simulator(train, settings.seed)
+    fit = settings.fit()
+    model = current.with_effect(cause.name, at_size(cause, 0.0, None, train))
+    if cause.kind == 'trend':
+        estimate = fit_trend(simulator, model, cause, fit)
+        values = at_size(cause, estimate.size, None, train)
+    elif cause.kind == 'path':
+        values, error = change_point_step(simulator, model, CHANGE_POINT_BOOTSTRAP)
+        estimate = SizeEstimate(cause.name, values[cause.parameter], error)
+    elif cause.kind == 'mixture':
+        estimate, values = fit_mixture(simulator, model, cause, fit)
+    else:
+        if spread_statistic(model) != spread_statistic(current):
+            model = replace(model, sigma_scale=fit_spread(simulator, model, fit))
+        estimate = fit_moment(simulator, model, cause, fit)
+        values = at_size(cause, estimate.size, model.effects[cause.name], train)
+    return CausesFit(model.with_effect(cause.name, values), {cause.name: estimate})
+
+
+def out_of_reach(estimate: SizeEstimate, floor: float, z: float) -> bool:
+    """Whether the size's lower bound at `z` standard errors stays below `floor`."""
+    cause = BY_NAME[estimate.cause]
+    if cause.kind == 'moments':
+        return bool(not math.isfinite(estimate.se_u)
+                    or estimate.u - z * estimate.se_u <= floor ** 2)
+    return bool(not math.isfinite(estimate.se)
+                or abs(estimate.size - cause.null) - z * estimate.se <= floor)
+
+
 def _score(simulator: Simulator, model: FittedModel, halves: _Halves,
            settings: DiagnosisSettings) -> Scores:
     """Score the held-out runs under `model` (its runs cut to the held-out lengths)."""
-    paths = simulator.paths(model, settings.score_runs, SCORE_PURPOSE)
-    features = run_features(paths, halves.every.stride_frequency, halves.every.reference_heading)
+    paths, positions = simulator.runs(model, settings.score_runs, SCORE_PURPOSE)
+    features = halves.every.features_of(paths, positions)
     points = position_points_cm(paths.positions, paths.lengths)
     return score_model(features, points, halves.test.features, halves.test_points_cm,
-                       halves.scales)
+                       halves.scales, model.order_dependent)
 
 
 def _step_result(step: int, evaluated: list[Evaluation], halves: _Halves,
@@ -344,7 +505,34 @@ def _step_result(step: int, evaluated: list[Evaluation], halves: _Halves,
         if named_here:
             eligible.append(evaluation)
     chosen = max(eligible, key=lambda e: e.gain.mean) if eligible else None
-    return StepResult(step, tuple(results), chosen.cause if chosen else None, z, level), chosen
+    rival = _rival(chosen, eligible, settings.alpha) if chosen else None
+    return (StepResult(step, tuple(results), chosen.cause if chosen else None, z, level, rival),
+            chosen)
+
+
+def _rival(chosen: Evaluation, eligible: list[Evaluation], alpha: float) -> Rival | None:
+    """
+    Return the best qualifying candidate of the other table, if the data cannot tell them apart.
+
+    A cause of the table and an extension family that both qualify are told apart by the
+    paired difference of their held-out log scores, run by run (two-sided t-test at level
+    `alpha`); where it is not significant, the chosen one enters and the report names the
+    other beside it, with its fit, instead of guessing.
+    """
+    extension = BY_NAME[chosen.cause].is_extension
+    others = [e for e in eligible if BY_NAME[e.cause].is_extension != extension]
+    if not others:
+        return None
+    other = max(others, key=lambda e: e.gain.mean)
+    difference = PairedGain.of(chosen.scores.log - other.scores.log)
+    p_two_sided = min(1.0, 2.0 * min(difference.p_value, 1.0 - difference.p_value))
+    if p_two_sided < alpha:
+        return None
+    cause = BY_NAME[other.cause]
+    values = dict(other.model.effects[other.cause])
+    if cause.is_extension:
+        values = family_form(other.cause, values)[1]
+    return Rival(other.cause, cause.label, values, other.gain.mean, p_two_sided)
 
 
 def _excess_share(evaluation: Evaluation, halves: _Halves) -> float:
@@ -389,17 +577,30 @@ def fit_errors(simulator: Simulator, model: FittedModel,
 
 
 def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
-           seen: CandidateResult, settings: DiagnosisSettings) -> Limit:
-    """Compute a cause's detection limit against `model` without it (a pool task)."""
+           seen: CandidateResult, settings: DiagnosisSettings,
+           base: np.ndarray | None = None) -> Limit:
+    """
+    Compute a cause's detection limit against `model` without it (a pool task).
+
+    run_mixture's limit is sought at MIXTURE_FRACTION of the runs turning and stated as their
+    yaw rate.
+    """
     cause = BY_NAME[evaluation.cause]
     without = replace(model, effects={name: values for name, values in model.effects.items()
                                       if name != cause.name})
-    everyone = len(CAUSES)
-    return detection_limit(
+    everyone = len(CANDIDATES)
+    fitted = dict(evaluation.model.effects.get(cause.name) or {})
+    if cause.kind == 'mixture':
+        fitted['fraction'] = MIXTURE_FRACTION
+    limit = detection_limit(
         Simulator(halves.test, settings.seed), without, evaluation.estimates[cause.name],
         cause.floor(halves.run_scale), decision_z(settings.decision_alpha, everyone),
         float(stats.norm.isf(settings.alpha / everyone)), halves.scales, halves.test.n,
-        settings.score_runs, seen.detectable[cause.parameter])
+        settings.score_runs, seen.detectable[cause.parameter], fitted, base)
+    if cause.kind == 'mixture' and limit.size is not None:
+        share = MIXTURE_FRACTION * (1 - MIXTURE_FRACTION)
+        limit = replace(limit, size=limit.size / math.sqrt(share))
+    return limit
 
 
 def _final_fit(halves: _Halves, model: FittedModel, settings: DiagnosisSettings
@@ -414,9 +615,10 @@ def _final_fit(halves: _Halves, model: FittedModel, settings: DiagnosisSettings
     return fit_causes(halves.every, model, model.causes, settings.fit(1))
 
 
-def _named_causes(steps, final: FittedModel, estimates: dict, halves: _Halves,
-                  settings: DiagnosisSettings) -> list[NamedCause]:
-    named = []
+def _named(steps, final: FittedModel, estimates: dict, halves: _Halves,
+           settings: DiagnosisSettings) -> tuple[list[NamedCause], list[NamedExtension]]:
+    """Return the named causes of the table and the named extensions, refit on all runs."""
+    causes, extensions = [], []
     for step in steps:
         if step.chosen is None:
             continue
@@ -425,8 +627,47 @@ def _named_causes(steps, final: FittedModel, estimates: dict, halves: _Halves,
         verdict = judge(estimates[step.chosen], cause.floor(halves.run_scale),
                         decision_z(settings.decision_alpha, 1)) \
             if step.chosen in estimates else None
-        named.append(NamedCause.of(step.chosen, final.effects[step.chosen], verdict, entry))
-    return named
+        if not cause.is_extension:
+            causes.append(NamedCause.of(step.chosen, final.effects[step.chosen], verdict,
+                                        entry))
+            continue
+        values = final.effects[step.chosen]
+        interval, error = extension_intervals(cause, values, estimates.get(step.chosen),
+                                              verdict, entry, halves)
+        extensions.append(NamedExtension(
+            cause.label, cause.name, family_form(cause.name, values)[1], interval, error,
+            entry.gain, entry.p_value, entry.relative, entry.gain_cm, entry.step,
+            describe(cause.name, values, interval, estimates.get(step.chosen), halves.every),
+            step.rival))
+    return causes, extensions
+
+
+def extension_intervals(cause: Cause, values: dict, estimate: SizeEstimate | None,
+                        verdict, entry: CandidateResult, halves: _Halves
+                        ) -> tuple[dict, dict]:
+    """
+    Return the 95 % interval and standard error of each fitted parameter of an extension.
+
+    The main one from the size's verdict; the others (change_point's time, run_mixture's
+    fraction and yaw rate, periodic_heading's frequency) from their own errors.
+    """
+    z = float(stats.norm.isf(0.025))
+    if cause.kind == 'mixture':
+        errors = dict(estimate.others) if estimate else {}
+        interval = {key: [values[key] - z * errors.get(key, math.inf),
+                          values[key] + z * errors.get(key, math.inf)] for key in values}
+        interval['fraction'] = [max(interval['fraction'][0], 0.0),
+                                min(interval['fraction'][1], 1.0)]
+        return interval, errors
+    main = cause.parameter
+    interval = {main: list(verdict.interval) if verdict else entry.interval[main]}
+    errors = {main: verdict.standard_error if verdict else entry.standard_error}
+    for key, error in (estimate.others if estimate else {}).items():
+        interval[key] = [values[key] - z * error, values[key] + z * error]
+        errors[key] = error
+    if cause.name == 'periodic_heading' and halves.every.wobble_interval is not None:
+        interval['frequency_hz'] = list(halves.every.wobble_interval)
+    return interval, errors
 
 
 def _gain_summary(baseline: Scores, extended: Scores, halves: _Halves) -> ScoreSummary:

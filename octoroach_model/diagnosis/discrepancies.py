@@ -66,6 +66,39 @@ def _noise_cm(f: np.ndarray) -> float:
     return float(noise_std_m(np.log(np.mean(np.exp(f[:, INDEX['log_noise']])))) * 100)
 
 
+def _trend(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+    """Return the change of a feature from the first run to the last (least squares)."""
+    index, place = INDEX[column], INDEX['position']
+
+    def change(f: np.ndarray) -> float:
+        x = f[:, place] - f[:, place].mean()
+        denominator = float(x @ x)
+        return float(x @ f[:, index]) / denominator * scale if denominator > 0 else 0.0
+    return change
+
+
+def _rms(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+    """Return the root of the mean of exp(feature): an amplitude from its log square."""
+    index = INDEX[column]
+    return lambda f: float(np.sqrt(np.mean(np.exp(f[:, index]))) * scale)
+
+
+def _root_mean(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+    index = INDEX[column]
+    return lambda f: float(np.sqrt(max(np.mean(f[:, index]), 0.0)) * scale)
+
+
+def _kurtosis(column: str) -> Callable[[np.ndarray], float]:
+    """Excess kurtosis across runs: two groups of runs make it negative, heavy tails positive."""
+    index = INDEX[column]
+
+    def kurtosis(f: np.ndarray) -> float:
+        values = f[:, index] - f[:, index].mean()
+        variance = float(np.mean(values ** 2))
+        return float(np.mean(values ** 4)) / variance ** 2 - 3.0 if variance > 0 else 0.0
+    return kurtosis
+
+
 def _growth_exponent(f: np.ndarray) -> float:
     """
     Return the slope of log(lateral spread) against log(time).
@@ -111,6 +144,23 @@ STATISTICS: tuple[Statistic, ...] = (
               1e-4, 'mean', feature='lateral_sway_1'),
     Statistic('sideways sway at twice the stride frequency', 'cm', _mean('lateral_sway_2', 100),
               1e-4, 'mean', feature='lateral_sway_2'),
+    # what the extension families move (docs/extensions.md)
+    Statistic('stride frequency change from the first run to the last', 'Hz',
+              _trend('stride_frequency'), 1e-4, 'mean', feature='stride_frequency'),
+    Statistic('heading rate change from the first run to the last', 'deg/s',
+              _trend('heading_rate', DEG), 0.01, 'mean', feature='heading_rate'),
+    Statistic('heading to travel angle change from the first run to the last', 'deg',
+              _trend('slip_angle', DEG), 0.01, 'mean', feature='slip_angle'),
+    Statistic('log speed ratio, 2nd quarter / 1st quarter', '', _mean('progress_early'), 1e-4,
+              'mean', feature='progress_early'),
+    Statistic('log speed ratio, 4th quarter / 3rd quarter', '', _mean('progress_late'), 1e-4,
+              'mean', feature='progress_late'),
+    Statistic('stride length change from cycle to cycle', 'cm',
+              _root_mean('stride_length_var', 100), 1e-4, 'spread'),
+    Statistic('heading wobble at the wobble frequency', 'deg', _rms('heading_wobble', DEG),
+              0.01, 'spread'),
+    Statistic('heading rate excess kurtosis across runs', '', _kurtosis('heading_rate'), 1e-3,
+              'absolute', material=0.5),
 )
 
 

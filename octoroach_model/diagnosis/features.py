@@ -20,9 +20,23 @@ of these rows, so a bootstrap over runs only resamples rows.
 | lateral_sway_1, _2 | amplitude of the sideways sway at f and 2f, m | geometry, slip |
 | quarter_lateral | displacement across the start heading at a quarter of the run, m | growth |
 | increment_autocorr | lag-1 autocorrelation of the per-cycle heading changes | biases |
+| position | the run's place in the recording, 0 (first) to 1 (last) (2) | run-order drifts |
+| progress_early | log(distance in 2nd quarter / distance in 1st quarter) | change_point |
+| progress_late | log(distance in 4th quarter / distance in 3rd quarter) | change_point |
+| stride_length_var | half the mean squared change of the distance per cycle, m^2 (3) | spread |
+| heading_wobble | log squared amplitude of the heading at the wobble frequency (4) | periodic |
 
 (1) A smooth gait has almost no fourth difference; white noise of standard deviation s gives
 70 s^2 x 0.455 (the median of a chi-square with one degree of freedom).
+(2) A covariate, not an outcome: scores leave it out, and a model whose terms depend on the run
+order (run_order_drift) predicts each run's features at its place.
+(3) The random angles vary each stride's length; a heading that wanders (heading_random_walk)
+turns strides without changing their length, so this tells the two apart where the per-cycle
+heading change (increment_var) cannot. Successive differences: a slow trend of the speed
+(speed_decay, change_point) adds almost nothing.
+(4) Linear trend removed, Hann window, at the frequency the diagnosis chose for the runs
+(`wobble_hz`, the largest excess of the data's heading spectrum over the baseline's, away from
+the stride frequency); without one the column is 0.
 
 Runs that end early (NaN tails, see `Paths`) give their features over their own samples; the
 diagnosis gives simulated runs the same lengths, so the two stay comparable.
@@ -34,18 +48,24 @@ import warnings
 import numpy as np
 
 from octoroach_model.paths import Paths
-from octoroach_model.validation.gait import heading_sway, lateral_sway, valid_mask
+from octoroach_model.validation.gait import (
+    heading_sway, lateral_sway, valid_mask, windowed_sway)
 
 FEATURES = ('start_heading', 'start_x', 'start_y', 'log_noise', 'slip_angle',
             'stride_frequency', 'progress_ratio', 'heading_rate', 'increment_var',
             'end_lateral', 'end_progress', 'sway_amplitude', 'lateral_sway_1', 'lateral_sway_2',
-            'quarter_lateral', 'increment_autocorr')
+            'quarter_lateral', 'increment_autocorr', 'position', 'progress_early',
+            'progress_late', 'stride_length_var', 'heading_wobble')
 INDEX = {name: i for i, name in enumerate(FEATURES)}
+COVARIATES = ('position',)
+# the columns a model is scored on: every feature but the covariates
+OUTCOMES = np.array([name not in COVARIATES for name in FEATURES])
 
 # Resolution of each feature: differences below it are not told apart, and the smallest
 # spread a feature is taken to have when scores are standardised.
 RESOLUTION = np.array([1e-4, 1e-5, 1e-5, 1e-2, 1e-4, 1e-3, 1e-4, 1e-4, 1e-8, 1e-5, 1e-5, 1e-5,
-                       1e-6, 1e-6, 1e-5, 1e-3])
+                       1e-6, 1e-6, 1e-5, 1e-3, 1e-3, 1e-4, 1e-4, 1e-10, 1e-2])
+WOBBLE_FLOOR_RAD2 = 1e-12      # keeps heading_wobble finite for a heading without that tone
 NOISE_FLOOR_M2 = 1e-14          # keeps log_noise finite for a perfectly smooth run
 MEDIAN_CHI2_1 = 0.454936        # median of a chi-square with 1 degree of freedom
 
@@ -55,8 +75,15 @@ def noise_std_m(log_noise: np.ndarray | float) -> np.ndarray | float:
     return np.sqrt(np.exp(log_noise) / (70.0 * MEDIAN_CHI2_1))
 
 
-def run_features(paths: Paths, stride_frequency: float, reference_heading: float) -> np.ndarray:
-    """(n, len(FEATURES)) features of each run; see the module table."""
+def run_features(paths: Paths, stride_frequency: float, reference_heading: float,
+                 positions: np.ndarray | None = None, wobble_hz: float | None = None
+                 ) -> np.ndarray:
+    """
+    (n, len(FEATURES)) features of each run; see the module table.
+
+    `positions` (n,): each run's place in the recording (default 0); `wobble_hz`: where the
+    heading's wobble is measured (default: not measured, 0).
+    """
     t, poses = paths.t, paths.poses
     n = poses.shape[0]
     dt = float(t[1] - t[0])
@@ -73,7 +100,8 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     out[:, 3] = np.log(np.nan_to_num(median, nan=0.0) + NOISE_FLOOR_M2)
     cycle = max(2, int(round(1.0 / (stride_frequency * dt))))
     out[:, 4] = _slip_angle(xy, heading, cycle)
-    out[:, 5], out[:, 11] = heading_sway(heading, t, stride_frequency)
+    windowed = windowed_sway(heading, t)
+    out[:, 5], out[:, 11] = heading_sway(heading, t, stride_frequency, windowed)
     out[:, 12], out[:, 13] = lateral_sway(xy, heading, t, out[:, 5])
     half = lengths // 2
     first_half = np.linalg.norm(xy[rows, half] - xy[:, 0], axis=-1)
@@ -90,7 +118,50 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     out[:, 10] = end @ forward
     quarter = np.rint(0.25 * last).astype(int)
     out[:, 14] = (xy[rows, quarter] - xy[:, 0]) @ right
+    out[:, 16] = 0.0 if positions is None else positions
+    three_quarters = np.rint(0.75 * last).astype(int)
+    quarters = [np.linalg.norm(xy[rows, end] - xy[rows, begin], axis=-1) for begin, end in (
+        (0, quarter), (quarter, half), (half, three_quarters), (three_quarters, last))]
+    out[:, 17] = _log_ratio(quarters[1], quarters[0])
+    out[:, 18] = _log_ratio(quarters[3], quarters[2])
+    out[:, 19] = _stride_length_variance(xy, cycle)
+    out[:, 20] = 0.0 if not wobble_hz else np.log(
+        _amplitudes(*windowed, t, np.array([wobble_hz]))[:, 0] ** 2 + WOBBLE_FLOOR_RAD2)
     return out
+
+
+def _log_ratio(numerator: np.ndarray, denominator: np.ndarray) -> np.ndarray:
+    return np.log(np.maximum(numerator, 1e-9) / np.maximum(denominator, 1e-9))
+
+
+def _stride_length_variance(xy: np.ndarray, cycle: int) -> np.ndarray:
+    """Half the mean squared change of the distance covered per cycle, over each run."""
+    later = xy[:, cycle::cycle]
+    distance = np.linalg.norm(later - xy[:, :-cycle:cycle][:, :later.shape[1]], axis=-1)
+    change = np.diff(distance, axis=1) ** 2
+    usable = np.isfinite(change)
+    count = usable.sum(axis=1)
+    total = np.where(usable, change, 0.0).sum(axis=1)
+    return np.where(count > 0, 0.5 * total / np.maximum(count, 1), 0.0)
+
+
+def wobble_amplitude(heading: np.ndarray, t: np.ndarray, frequency_hz: float) -> np.ndarray:
+    """Amplitude (rad) of each run's heading at `frequency_hz`: trend removed, Hann window."""
+    return heading_amplitudes(heading, t, np.array([frequency_hz]))[:, 0]
+
+
+def heading_amplitudes(heading: np.ndarray, t: np.ndarray, frequencies: np.ndarray
+                       ) -> np.ndarray:
+    """(n, K) amplitude (rad) of each run's heading at each frequency (Hz), as above."""
+    return _amplitudes(*windowed_sway(heading, t), t, frequencies)
+
+
+def _amplitudes(residual: np.ndarray, window: np.ndarray, t: np.ndarray,
+                frequencies: np.ndarray) -> np.ndarray:
+    angle = 2 * np.pi * np.asarray(frequencies)[:, None] * t[None, :]       # (K, T)
+    cosine = residual @ np.cos(angle).T
+    sine = residual @ np.sin(angle).T
+    return 2 * np.hypot(cosine, sine) / np.maximum(window.sum(axis=1), 1e-12)[:, None]
 
 
 def _nanmedian_rows(values: np.ndarray) -> np.ndarray:
@@ -142,4 +213,5 @@ def _slip_angle(xy: np.ndarray, heading: np.ndarray, cycle: int) -> np.ndarray:
     return np.where(usable, offset, 0.0).sum(axis=1) / count
 
 
-__all__ = ['FEATURES', 'INDEX', 'RESOLUTION', 'noise_std_m', 'run_features']
+__all__ = ['COVARIATES', 'FEATURES', 'INDEX', 'OUTCOMES', 'RESOLUTION', 'heading_amplitudes',
+           'noise_std_m', 'run_features', 'wobble_amplitude']

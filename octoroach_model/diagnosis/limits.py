@@ -35,8 +35,7 @@ from scipy import stats
 
 from octoroach_model.diagnosis.causes import BY_NAME, Cause
 from octoroach_model.diagnosis.decide import POWER, se_u_if_true
-from octoroach_model.diagnosis.features import run_features
-from octoroach_model.diagnosis.modelfit import FittedModel, Simulator, SizeEstimate
+from octoroach_model.diagnosis.modelfit import at_size, FittedModel, Simulator, SizeEstimate
 from octoroach_model.diagnosis.scoring import feature_log_score
 
 PSEUDO_RUNS = 1000
@@ -81,29 +80,35 @@ def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float) -> 
 
 def _features(simulator: Simulator, model: FittedModel, runs: int, purpose: int,
               scales: np.ndarray) -> np.ndarray:
-    paths = simulator.paths(model, runs, purpose)
-    data = simulator.data
-    return run_features(paths, data.stride_frequency, data.reference_heading) / scales
+    return simulator.features(model, runs, purpose) / scales
+
+
+def limit_base(simulator: Simulator, without: FittedModel, scales: np.ndarray,
+               score_runs: int) -> np.ndarray:
+    """Return the scored runs of the model without the cause: features in data spreads."""
+    return _features(simulator, without, score_runs, MODEL_PURPOSE, scales)
 
 
 def expected_t(simulator: Simulator, without: FittedModel, without_features: np.ndarray,
                cause: Cause, size: float, scales: np.ndarray, held_out: int,
-               score_runs: int) -> float:
+               score_runs: int, fitted_values: dict | None = None) -> float:
     """
     Return the expected t statistic of the held-out test for a cause of `size`.
 
-    See the module docstring;
-    `without_features` are the scored runs of the model without the cause.
+    See the module docstring; `without_features` are the scored runs of the model without
+    the cause; `fitted_values` the cause's other parameters as fitted (modelfit.at_size).
     """
-    values = {cause.parameter: size}
+    values = at_size(cause, size, fitted_values, simulator.data)
     if cause.name == 'initial_pose_error':
         values['position_std_cm'] = float((without.effects.get(cause.name) or {}).get(
             'position_std_cm', 0.0))
     extended = without.with_effect(cause.name, values)
-    pseudo = _features(simulator, extended, PSEUDO_RUNS, PSEUDO_PURPOSE, scales)
+    # as many pseudo-data runs as the models are scored with, at most PSEUDO_RUNS
+    pseudo = _features(simulator, extended, min(PSEUDO_RUNS, score_runs), PSEUDO_PURPOSE,
+                       scales)
     gain = (feature_log_score(_features(simulator, extended, score_runs, MODEL_PURPOSE,
-                                        scales), pseudo)
-            - feature_log_score(without_features, pseudo))
+                                        scales), pseudo, extended.order_dependent)
+            - feature_log_score(without_features, pseudo, without.order_dependent))
     spread = float(np.std(gain, ddof=1))
     if spread <= 0:
         return math.inf if gain.mean() > 0 else 0.0
@@ -112,20 +117,23 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: np.
 
 def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEstimate,
                     floor: float, z_bound: float, z_test: float, scales: np.ndarray,
-                    held_out: int, score_runs: int, start: float | None) -> Limit:
+                    held_out: int, score_runs: int, start: float | None,
+                    fitted_values: dict | None = None, base: np.ndarray | None = None
+                    ) -> Limit:
     """
     Return the size at which the cause is named with POWER (module docstring).
 
-    `start` is the size
-    bound's own 80 % limit (decide.py), where the search begins.
+    `start` is the size bound's own 80 % limit (decide.py), where the search begins;
+    `base`, the scored runs of `without` (`limit_base`), when already simulated.
     """
     cause = BY_NAME[estimate.cause]
     first = max(start or 0.0, 2 * floor, 1e-9)
-    base = _features(simulator, without, score_runs, MODEL_PURPOSE, scales)
+    if base is None:
+        base = limit_base(simulator, without, scales, score_runs)
 
     def t_computed(size: float) -> float:
         return min(max(expected_t(simulator, without, base, cause, size, scales, held_out,
-                                  score_runs), 1e-9), T_CAP)
+                                  score_runs, fitted_values), 1e-9), T_CAP)
 
     return limit_from(t_computed, first, estimate, floor, z_bound, z_test)
 

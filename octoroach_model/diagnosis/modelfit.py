@@ -22,13 +22,15 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 import math
+from typing import Any
 
 import numpy as np
 
-from octoroach_model.diagnosis.causes import BY_NAME, Cause
+from octoroach_model.diagnosis.causes import BY_NAME, Cause, MIXTURE_FRACTION
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.model import model_poses, ModelParameters, nominal_sigmas, RandomStreams
 from octoroach_model.model.effects import mean_gait_rate
+from octoroach_model.model.extensions import TERM_BY_NAME
 from octoroach_model.paths import Paths
 from octoroach_model.validation.fit import (
     average_target, AverageTarget, fit_nominal, FreeEffect, MeanPathSettings, residual_vector,
@@ -60,11 +62,21 @@ class FittedModel:
         return replace(self, effects={**self.effects, cause: dict(values)})
 
     def poses(self, n_runs: int, t: np.ndarray, seed: np.random.SeedSequence,
-              effects: Effects | None = None) -> np.ndarray:
-        """(n, T, 3) runs of the model (with `effects` instead of its own, if given)."""
+              effects: Effects | None = None, positions: np.ndarray | None = None
+              ) -> np.ndarray:
+        """
+        (n, T, 3) runs of the model (with `effects` instead of its own, if given).
+
+        `positions` (n,): each run's place in the recording (what run-order terms read).
+        """
         return model_poses(self.parameters, RandomStreams(seed), n_runs, t, *self.sigmas,
                            'stance', dict(self.effects if effects is None else effects), None,
-                           self.start_pose)
+                           self.start_pose, positions)
+
+    @property
+    def order_dependent(self) -> bool:
+        """Return whether a term of the model depends on the run's place in the recording."""
+        return any(BY_NAME[name].order_dependent for name in self.effects if name in BY_NAME)
 
     def table(self) -> dict:
         """Geometry, start pose and spreads as the report prints them (cm, deg, rad)."""
@@ -93,20 +105,44 @@ class RunData:
     """
     One set of measured runs, prepared once: features, lengths, the average path target.
 
-    `stride_frequency` and `reference_heading` fix the features' cycle window and axes for
-    the whole diagnosis (data and every model are measured with the same ruler).
+    `stride_frequency`, `reference_heading` and `wobble_hz` fix the features' cycle window,
+    axes and wobble frequency for the whole diagnosis (data and every model are measured with
+    the same ruler); `positions` (n,) is each run's place in the recording (0 first, 1 last).
     """
 
     paths: Paths
     stride_frequency: float
     reference_heading: float
+    positions: np.ndarray | None = None
+    wobble_hz: float | None = None
+    wobble_interval: tuple[float, float] | None = None    # 95 %, of the choice
     features: np.ndarray = field(init=False)
     target: AverageTarget = field(init=False)
 
     def __post_init__(self) -> None:
-        self.features = run_features(self.paths, self.stride_frequency, self.reference_heading)
+        if self.positions is None:
+            self.positions = self.paths.recording_positions()[0]
+        self.features = self.features_of(self.paths, self.positions)
         start = (0.0, 0.0, self.reference_heading)
         self.target = average_target(self.paths, start, self.stride_frequency, align_gait=False)
+
+    def features_of(self, paths: Paths, positions: np.ndarray | None) -> np.ndarray:
+        """Features of any runs measured with this data's ruler (module features)."""
+        return run_features(paths, self.stride_frequency, self.reference_heading, positions,
+                            self.wobble_hz)
+
+    def subset(self, index: np.ndarray) -> RunData:
+        """Return the runs picked by `index`, with their places and this ruler."""
+        assert self.positions is not None
+        return RunData(self.paths.subset(index), self.stride_frequency,
+                       self.reference_heading, self.positions[index], self.wobble_hz,
+                       self.wobble_interval)
+
+    def with_wobble(self, wobble_hz: float | None,
+                    interval: tuple[float, float] | None = None) -> RunData:
+        """Return the same runs measured with the heading wobble at `wobble_hz`."""
+        return RunData(self.paths, self.stride_frequency, self.reference_heading,
+                       self.positions, wobble_hz, interval)
 
     @property
     def n(self) -> int:
@@ -153,6 +189,9 @@ class SizeEstimate:
     slope_relative_se: float = 0.0   # the slope's relative Monte Carlo error (its simulated
     #                                  runs draw the cause afresh: 7 % at 400 runs for a spread)
     reference_slope_relative_se: float = 0.0   # the same at the reference size (limits.py)
+    others: Mapping[str, float] = field(default_factory=dict)   # errors of other parameters
+    detail: Mapping[str, Any] = field(default_factory=dict)     # kind-specific (run_mixture:
+    #                                                              the turning runs)
 
 
 @dataclass
@@ -167,20 +206,34 @@ class Simulator:
                  effects: Effects | None = None, lengths: np.ndarray | None = None
                  ) -> np.ndarray:
         """Features of `n_runs` runs of `model` for a purpose (its own random numbers)."""
-        paths = self.paths(model, n_runs, purpose, effects, lengths)
-        return run_features(paths, self.data.stride_frequency, self.data.reference_heading)
+        paths, positions = self.runs(model, n_runs, purpose, effects, lengths)
+        return self.data.features_of(paths, positions)
 
     def paths(self, model: FittedModel, n_runs: int, purpose: int,
               effects: Effects | None = None, lengths: np.ndarray | None = None) -> Paths:
+        """`n_runs` runs of `model`, cut to lengths drawn from the data's."""
+        return self.runs(model, n_runs, purpose, effects, lengths)[0]
+
+    def runs(self, model: FittedModel, n_runs: int, purpose: int,
+             effects: Effects | None = None, lengths: np.ndarray | None = None
+             ) -> tuple[Paths, np.ndarray]:
+        """
+        Return runs of `model` and each one's place in the recording.
+
+        Simulated run j stands for data run picks[j]: it takes that run's length and place
+        (a drift over the session is predicted where the data has its runs).
+        """
         t = self.data.paths.t
         seed = np.random.SeedSequence([self.seed, purpose])
-        poses = model.poses(n_runs, t, seed, effects)
+        rng = np.random.default_rng([self.seed, purpose, 7])
         source = self.data.lengths if lengths is None else lengths
+        picks = rng.integers(0, len(source), n_runs)
+        assert self.data.positions is not None
+        positions = self.data.positions[picks % len(self.data.positions)]
+        poses = model.poses(n_runs, t, seed, effects, positions)
         if source.min() < len(t):
-            rng = np.random.default_rng([self.seed, purpose, 7])
-            picks = rng.integers(0, len(source), n_runs)
-            return Paths(t, poses).cut_to(source[picks])
-        return Paths(t, poses)
+            return Paths(t, poses).cut_to(source[picks]), positions
+        return Paths(t, poses), positions
 
 
 SWAY_COLUMNS = [INDEX['sway_amplitude'], INDEX['lateral_sway_1'], INDEX['lateral_sway_2']]
@@ -194,10 +247,11 @@ class GeometryUncertainty:
     Covariance of the geometry fit's vector.
 
     The vector: leg length [m], touchdown angles [rad], stride
-    frequency [Hz], then the sizes of the path causes in `free` (their own units).
+    frequency [Hz], then the free parameters of the path causes, `free` (cause, parameter)
+    pairs, in their own units.
     """
 
-    free: tuple[str, ...]
+    free: tuple[tuple[str, str], ...]
     covariance: np.ndarray
     cost: float = 0.0            # the fit's least-squares cost (compares restarts)
 
@@ -215,10 +269,10 @@ class GeometryUncertainty:
             parameters = replace(parameters,
                                  stride_frequency=parameters.stride_frequency + step)
         else:
-            cause = BY_NAME[self.free[index - 6]]
-            values = dict(model.effects[cause.name])
-            values[cause.parameter] += step
-            return model.with_effect(cause.name, values)
+            cause, parameter = self.free[index - 6]
+            values = dict(model.effects[cause])
+            values[parameter] += step
+            return model.with_effect(cause, values)
         return replace(model, parameters=parameters.with_paper_liftoff())
 
 
@@ -241,14 +295,27 @@ def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
                ) -> CausesFit:
     """Fit the model with `causes`, every size refit together (module docstring)."""
     simulator = Simulator(data, settings.seed)
-    model = replace(start, effects={cause: dict(start.effects.get(cause) or _zero(cause))
+    model = replace(start, effects={cause: dict(start.effects.get(cause) or _zero(cause, data))
                                     for cause in causes})
     estimates: dict[str, SizeEstimate] = {}
     path_causes = tuple(c for c in causes if BY_NAME[c].kind == 'path')
     moment_causes = tuple(c for c in causes if BY_NAME[c].kind == 'moments')
+    trend_causes = tuple(c for c in causes if BY_NAME[c].kind == 'trend')
+    mixtures = tuple(c for c in causes if BY_NAME[c].kind == 'mixture')
     uncertainty = None
     new_path_causes = [cause for cause in path_causes if cause not in start.effects]
     for round_number in range(rounds or settings.rounds):
+        # the order and shape terms first: their statistics hardly see the geometry, which
+        # is then refit around them (a drift or a share of turning runs moves the mean path)
+        for cause in mixtures:
+            estimate, values = fit_mixture(simulator, model, BY_NAME[cause], settings)
+            estimates[cause] = estimate
+            model = model.with_effect(cause, values)
+        for cause in trend_causes:
+            estimate = fit_trend(simulator, model, BY_NAME[cause], settings)
+            estimates[cause] = estimate
+            model = model.with_effect(cause, {BY_NAME[cause].parameter: estimate.size})
+        geometry = geometry or bool(mixtures) or bool(trend_causes)
         if new_path_causes and round_number == 0:
             model, path_estimates, uncertainty = restarted_geometry(
                 simulator, model, path_causes, new_path_causes, settings)
@@ -266,9 +333,45 @@ def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
     return CausesFit(model, estimates, uncertainty)
 
 
-def _zero(cause: str) -> dict[str, float]:
+def _zero(cause: str, data: RunData | None = None) -> dict[str, float]:
+    """
+    Return the parameters of a term at no effect.
+
+    periodic_heading sits at the data's wobble frequency, change_point at half the runs.
+    """
     from octoroach_model.model import EFFECT_PARAMETERS
-    return dict.fromkeys(EFFECT_PARAMETERS[cause], 0.0)
+    if cause in EFFECT_PARAMETERS:
+        return dict.fromkeys(EFFECT_PARAMETERS[cause], 0.0)
+    values = dict(TERM_BY_NAME[cause].checked({}))
+    if cause == 'periodic_heading' and data is not None and data.wobble_hz:
+        values['frequency_hz'] = float(data.wobble_hz)
+    if cause == 'change_point' and data is not None:
+        values['time_s'] = 0.5 * float(data.paths.t[-1])
+    return values
+
+
+def at_size(cause: Cause, size: float, values: Mapping[str, float] | None = None,
+            data: RunData | None = None) -> dict[str, float]:
+    """
+    Return the term's parameters with its main one at `size`, the others as in `values`.
+
+    For run_mixture the size is the spread it adds, |w| sqrt(f (1 - f)): the fraction stays
+    (MIXTURE_FRACTION where it is unknown or degenerate) and the yaw rate follows. A term
+    whose null is not 0 (change_point's speed factor, null 1) takes `size` as the distance
+    from it, on the side the values have (a slowdown where they have none).
+    """
+    base = {**_zero(cause.name, data), **dict(values or {})}
+    if cause.null != 0.0:
+        side = 1.0 if base.get(cause.parameter, cause.null) > cause.null else -1.0
+        return {**base, cause.parameter: float(cause.null + side * abs(size))}
+    if cause.kind == 'mixture':
+        fraction = base.get('fraction', 0.0)
+        fraction = fraction if 0.02 <= fraction <= 0.98 else MIXTURE_FRACTION
+        sign = -1.0 if base.get('yaw_rate_deg_s', 0.0) < 0 else 1.0
+        rate = sign * size / math.sqrt(fraction * (1 - fraction))
+        return {**base, 'fraction': fraction,
+                'yaw_rate_deg_s': float(np.clip(rate, -90.0, 90.0))}
+    return {**base, cause.parameter: float(size)}
 
 
 def _values(model: FittedModel, cause: Cause, estimate: SizeEstimate, data: RunData,
@@ -279,7 +382,7 @@ def _values(model: FittedModel, cause: Cause, estimate: SizeEstimate, data: RunD
     The main one from its estimate, initial_pose_error's position
     spread from the excess start-position variance over the model without it.
     """
-    values = {cause.parameter: estimate.size}
+    values = at_size(cause, estimate.size, model.effects.get(cause.name), data)
     if cause.name == 'initial_pose_error':
         without = {name: v for name, v in model.effects.items() if name != cause.name}
         simulated = simulator.features(model, settings.moment_runs, MOMENTS, without)
@@ -308,25 +411,31 @@ def restarted_geometry(simulator: Simulator, model: FittedModel,
     angle = float(np.mean(model.parameters.touchdown_angles))
     symmetric = replace(model, parameters=replace(
         model.parameters, touchdown_angles=(angle, angle, angle, angle)).with_paper_liftoff())
+    # a constant gait cannot mimic a change in time: change_point alone needs no second start
+    starts = (model,) if set(new) == {'change_point'} else (model, symmetric)
     fits = []
-    for start in (model, symmetric):
+    for start in starts:
         for cause in new:
-            size = path_start(simulator, start, BY_NAME[cause], settings)
-            start = start.with_effect(cause, {BY_NAME[cause].parameter: size})
-        fits.append(fit_geometry(simulator.data, same_strides(start, model), path_causes,
-                                 settings))
+            values = path_start(simulator, start, BY_NAME[cause], settings)
+            start = start.with_effect(cause, {**start.effects[cause], **values})
+        duration = float(simulator.data.paths.t[-1])
+        fits.append(fit_geometry(simulator.data, same_strides(start, model, duration),
+                                 path_causes, settings))
     return min(fits, key=lambda fit: fit[2].cost)
 
 
-def same_strides(model: FittedModel, before: FittedModel) -> FittedModel:
+def same_strides(model: FittedModel, before: FittedModel, duration_s: float | None = None
+                 ) -> FittedModel:
     """
     Return `model` with its stride frequency set to keep `before`'s strides per run.
 
-    A speed decay slows the gait clock (on average by fraction / 2): entering it at the old
-    stride frequency would take strides away from every run, and the geometry fit would then
-    bend the legs to make up for them (a local optimum it does not leave).
+    A speed decay slows the gait clock (on average by fraction / 2), a change point speeds it
+    up or slows it from its time on: entering either at the old stride frequency would add or
+    take strides from every run, and the geometry fit would then bend the legs to make up for
+    them (a local optimum it does not leave).
     """
-    ratio = mean_gait_rate(before.effects) / mean_gait_rate(model.effects)
+    ratio = (mean_gait_rate(before.effects, duration_s)
+             / mean_gait_rate(model.effects, duration_s))
     if ratio == 1.0:
         return model
     return replace(model, parameters=replace(
@@ -342,9 +451,10 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
     Geometry and path-cause sizes on the average path and the sway within a stride (means of
     simulated runs); their covariance from resampling the runs through the fit's Jacobian.
     """
-    free = tuple(FreeEffect(cause, BY_NAME[cause].parameter, *BY_NAME[cause].bounds,
-                            start=float(model.effects[cause][BY_NAME[cause].parameter]))
-                 for cause in path_causes)
+    free = tuple(FreeEffect(cause, parameter, low, high,
+                            start=float(np.clip(model.effects[cause][parameter], low, high)))
+                 for cause in path_causes
+                 for parameter, (low, high) in free_parameters(BY_NAME[cause], data))
     held = {name: values for name, values in model.effects.items() if name not in path_causes}
     mean = MeanPathSettings(model.sigmas, settings.mean_path_runs,
                             int(np.random.SeedSequence([settings.seed, 5]).generate_state(1)[0]),
@@ -359,9 +469,33 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
     errors = np.sqrt(np.diag(covariance))
     estimates = {}
     for offset, item in enumerate(free):
+        if item.parameter != BY_NAME[item.cause].parameter:
+            continue
         size = float(fit.effects[item.cause][item.parameter])
-        estimates[item.cause] = SizeEstimate(item.cause, size, float(errors[6 + offset]))
-    return fitted, estimates, GeometryUncertainty(path_causes, covariance, fit.cost)
+        estimates[item.cause] = SizeEstimate(item.cause, size, float(errors[6 + offset]),
+                                             others=_other_errors(free, errors, item.cause))
+    return fitted, estimates, GeometryUncertainty(
+        tuple((item.cause, item.parameter) for item in free), covariance, fit.cost)
+
+
+def free_parameters(cause: Cause, data: RunData) -> list[tuple[str, tuple[float, float]]]:
+    """
+    Return the parameters of a path cause fitted with the geometry, each with its bounds.
+
+    The main one within the cause's bounds; change_point's time too, within 5-95 % of the
+    runs' duration (a change at either end is not told from a different gait).
+    """
+    free = [(cause.parameter, cause.bounds)]
+    if cause.name == 'change_point':
+        duration = float(data.paths.t[-1])
+        free.append(('time_s', (0.05 * duration, 0.95 * duration)))
+    return free
+
+
+def _other_errors(free, errors: np.ndarray, cause: str) -> dict[str, float]:
+    """Return the standard errors of a path cause's parameters other than its main one."""
+    return {item.parameter: float(errors[6 + offset]) for offset, item in enumerate(free)
+            if item.cause == cause and item.parameter != BY_NAME[cause].parameter}
 
 
 def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSettings,
@@ -410,13 +544,84 @@ def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSet
 
 
 def path_start(simulator: Simulator, model: FittedModel, cause: Cause,
-               settings: FitSettings) -> float:
+               settings: FitSettings) -> dict[str, float]:
     """
-    Return where the joint fit of a path cause starts.
+    Return where the joint fit of a path cause starts: {parameter: value}.
 
-    Its signature statistic read off the line
-    through the model without the cause and with it at the reference size.
+    Its signature statistic read off the line through the model without the cause and with
+    it at the reference size; change_point's from the runs' speed profile.
     """
+    if cause.name == 'change_point':
+        return change_point_start(simulator, model)
+    return {cause.parameter: signature_start(simulator, model, cause, settings)}
+
+
+def change_point_start(simulator: Simulator, model: FittedModel) -> dict[str, float]:
+    """Return where a change point's joint fit starts (`change_point_step`)."""
+    values, _ = change_point_step(simulator, model)
+    return values
+
+
+CHANGE_POINT_RUNS = 200
+CHANGE_POINT_BOOTSTRAP = 60
+
+
+def change_point_step(simulator: Simulator, model: FittedModel, n_boot: int = 0
+                      ) -> tuple[dict[str, float], float]:
+    """
+    Return the step that best fits the speed ratio data / model, and its factor's error.
+
+    The ratio of the data's mean speed to the model's (without the change), over each
+    stride cycle, is fitted by 1 before a time and a constant after it (least squares over
+    the times of 10-90 % of the run); with `n_boot`, the factor's standard error from as many
+    resamples of the runs (else 0).
+    """
+    data = simulator.data
+    without = {name: values for name, values in model.effects.items() if name != 'change_point'}
+    t = data.paths.t
+    simulated = simulator.paths(model, CHANGE_POINT_RUNS, MOMENTS, without)
+    cycle = max(2, int(round(1.0 / (data.stride_frequency * float(t[1] - t[0])))))
+
+    def cycle_speeds(paths: Paths) -> np.ndarray:
+        xy = paths.positions
+        return np.linalg.norm(xy[:, cycle:] - xy[:, :-cycle], axis=-1)
+
+    with np.errstate(invalid='ignore'):
+        model_speed = np.nanmean(cycle_speeds(simulated), axis=0)
+        runs = cycle_speeds(data.paths)
+    middle = t[:len(model_speed)] + 0.5 * cycle * float(t[1] - t[0])
+    duration = float(t[-1])
+
+    def step(rows: np.ndarray) -> tuple[float, float]:
+        with np.errstate(invalid='ignore'):
+            ratio = np.nanmean(rows, axis=0) / np.maximum(model_speed, 1e-12)
+        usable = np.isfinite(ratio)
+        return _best_step(ratio[usable], middle[usable], duration)
+
+    time, factor = step(runs)
+    rng = np.random.default_rng([simulator.seed, 43])
+    factors = [step(runs[rng.integers(0, len(runs), len(runs))])[1] for _ in range(n_boot)]
+    error = float(np.std(factors, ddof=1)) if n_boot > 1 else 0.0
+    return {'time_s': time, 'speed_factor': float(np.clip(factor, 0.25, 2.9))}, error
+
+
+def _best_step(ratio: np.ndarray, middle: np.ndarray, duration: float) -> tuple[float, float]:
+    """Return (time, factor) of the step 1 -> factor that fits `ratio` best."""
+    best = (math.inf, 0.5 * duration, 1.0)
+    for time in np.linspace(0.1, 0.9, 33) * duration:
+        after = middle >= time
+        if after.sum() < 2 or (~after).sum() < 2:
+            continue
+        factor = float(np.mean(ratio[after]))
+        cost = float(np.sum((ratio[~after] - 1.0) ** 2) + np.sum((ratio[after] - factor) ** 2))
+        if cost < best[0]:
+            best = (cost, float(time), factor)
+    return best[1], best[2]
+
+
+def signature_start(simulator: Simulator, model: FittedModel, cause: Cause,
+                    settings: FitSettings) -> float:
+    """Return a path cause's main size read off its signature's line (path_start)."""
     signature = cause.signature
     assert signature is not None, f'{cause.name} is not a path cause'
     without = {name: values for name, values in model.effects.items() if name != cause.name}
@@ -429,18 +634,35 @@ def path_start(simulator: Simulator, model: FittedModel, cause: Cause,
     return float(np.clip(size, 0.9 * cause.bounds[0], 0.9 * cause.bounds[1]))
 
 
+HEADING_TERMS = ('heading_random_walk', 'periodic_heading')
+
+
+def spread_statistic(model: FittedModel) -> str:
+    """
+    Return the feature the spread scale is read off for `model`.
+
+    The within-run variance of the per-cycle heading change, unless a term turns the heading
+    within runs (heading_random_walk, periodic_heading), which raises that variance too: then
+    the variance of the stride length, which the random angles move and a turned heading does
+    not.
+    """
+    turned = any(name in model.effects for name in HEADING_TERMS)
+    return 'stride_length_var' if turned else 'increment_var'
+
+
 def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings) -> float:
     """
-    Fit the spread scale to the within-run variance of the per-cycle heading change.
+    Fit the spread scale to its statistic (`spread_statistic`) on a line.
 
     u = scale^2 is read off a line through simulated points, refined once.
     """
-    target = float(simulator.data.features[:, INDEX['increment_var']].mean())
+    column = INDEX[spread_statistic(model)]
+    target = float(simulator.data.features[:, column].mean())
 
     def statistic(scale: float) -> float:
         trial = replace(model, sigma_scale=scale)
         simulated = simulator.features(trial, settings.moment_runs, SPREAD)
-        return float(simulated[:, INDEX['increment_var']].mean())
+        return float(simulated[:, column].mean())
 
     points = {0.0: statistic(0.0), 1.0: statistic(1.0)}
     for _ in range(2):
@@ -495,7 +717,7 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
     slope_errors: list[float] = []
 
     def slope_at(size: float) -> float:
-        effects = {**without, cause.name: {**_zero(cause.name), cause.parameter: size}}
+        effects = {**without, cause.name: at_size(cause, size, None, data)}
         features = simulator.features(model, settings.moment_runs, MOMENTS, effects)
         value = statistic(features)
         spread = _bootstrap_se(statistic, features, rng, n_boot // 2)
@@ -522,6 +744,165 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
     size = math.sqrt(max(u, 0.0))
     se = se_u / (2 * max(size, math.sqrt(se_u))) if se_u > 0 else 0.0
     return replace(estimate, size=size, se=se, se_u=se_u)
+
+
+def fit_trend(simulator: Simulator, model: FittedModel, cause: Cause,
+              settings: FitSettings, n_boot: int = 100) -> SizeEstimate:
+    """
+    Estimate a run-order drift: its statistic (a slope against run order) read off a line.
+
+    T(c) = T(0) + kappa c through the model without the drift and with it at the reference
+    size (common random numbers, simulated runs at the data's places); the error adds the
+    data's (bootstrap over runs), the simulated intercept's and the slope's. A model without
+    any term that depends on the run order has T(0) = 0 exactly (its runs are exchangeable):
+    then the intercept is taken as 0, not simulated (a simulated slope of 300 runs is off by
+    0.4 deg/s per session for a yaw rate, noise the estimate need not carry).
+    """
+    statistic = cause.statistic
+    assert statistic is not None, f'{cause.name} has no statistic'
+    data = simulator.data
+    rng = np.random.default_rng([settings.seed, 29])
+    data_value = statistic(data.features)
+    data_se = _bootstrap_se(statistic, data.features, rng, n_boot)
+    without = {name: values for name, values in model.effects.items() if name != cause.name}
+    zero = simulator.features(model, settings.moment_runs, MOMENTS, without)
+    reference = simulator.features(model, settings.moment_runs, MOMENTS, {
+        **without, cause.name: at_size(cause, cause.reference, None, data)})
+    exchangeable = not replace(model, effects=without).order_dependent
+    intercept = 0.0 if exchangeable else statistic(zero)
+    intercept_se = 0.0 if exchangeable else _bootstrap_se(statistic, zero, rng, n_boot)
+    slope = (statistic(reference) - statistic(zero)) / cause.reference
+    if not abs(slope) > 0:
+        return SizeEstimate(cause.name, 0.0, math.inf, intercept=intercept,
+                            data_statistic=data_value, data_se=data_se)
+    changes = []
+    for _ in range(n_boot):
+        picks = rng.integers(0, zero.shape[0], zero.shape[0])
+        changes.append(statistic(reference[picks]) - statistic(zero[picks]))
+    slope_relative_se = float(np.std(changes, ddof=1)) / abs(slope * cause.reference)
+    size = (data_value - intercept) / slope
+    se = math.hypot(data_se / abs(slope), intercept_se / abs(slope), slope_relative_se * size)
+    return SizeEstimate(cause.name, float(size), float(se), intercept=intercept, slope=slope,
+                        data_statistic=data_value, data_se=data_se, intercept_se=intercept_se,
+                        slope_relative_se=slope_relative_se)
+
+
+MIXTURE_STARTS = (0.1, 0.3, 0.5)
+EM_STEPS = 200
+
+
+def fit_mixture(simulator: Simulator, model: FittedModel, cause: Cause,
+                settings: FitSettings, n_boot: int = 60
+                ) -> tuple[SizeEstimate, dict[str, float]]:
+    """
+    Estimate run_mixture: which share of the runs turns, and at what rate.
+
+    The runs' heading rates are two normals w apart, each with the model's spread of the
+    heading rate without the mixture, shifted together by d (the geometry, refit next, takes
+    the shift): maximum likelihood over (d, w, fraction), errors by a bootstrap over runs.
+    The size is the spread the mixture adds, |w| sqrt(f (1 - f)) [deg/s].
+    """
+    data = simulator.data
+    column = INDEX['heading_rate']
+    without = {name: values for name, values in model.effects.items() if name != cause.name}
+    base = simulator.features(model, settings.moment_runs, MOMENTS, without)[:, column]
+    centre, spread = float(np.mean(base)), max(float(np.std(base, ddof=1)), 1e-6)
+    rates = data.features[:, column]
+    shift, rate, fraction = two_groups(rates, centre, spread)
+    if fraction > 0.5:
+        # the larger group is taken as the runs without the extra yaw rate (its turning is
+        # the geometry's): the same likelihood, labelled the other way round
+        shift, rate, fraction = shift + rate, -rate, 1.0 - fraction
+    rng = np.random.default_rng([settings.seed, 31])
+    draws = []
+    for _ in range(n_boot):
+        pick = rng.integers(0, len(rates), len(rates))
+        draws.append(two_groups(rates[pick], centre, spread, (shift, rate, fraction),
+                                others=False))
+    boot = np.array([(d + w, -w, 1.0 - f) if f > 0.5 else (d, w, f) for d, w, f in draws])
+    sizes = np.abs(boot[:, 1]) * np.sqrt(boot[:, 2] * (1 - boot[:, 2]))
+    size = math.degrees(abs(rate) * math.sqrt(fraction * (1 - fraction)))
+    rate_deg = math.degrees(rate)
+    estimate = SizeEstimate(cause.name, size, math.degrees(float(np.std(sizes, ddof=1))),
+                            others={'fraction': float(np.std(boot[:, 2], ddof=1)),
+                                    'yaw_rate_deg_s': math.degrees(float(np.std(boot[:, 1],
+                                                                                ddof=1)))})
+    values = {'fraction': float(fraction), 'yaw_rate_deg_s': float(np.clip(rate_deg, -90, 90))}
+    return replace(estimate, detail={
+        'turning_runs': turning_runs(rates - centre - shift, rate, fraction, spread,
+                                     data.positions),
+        'log_likelihood_ratio': two_groups_evidence(rates - centre, shift, rate, fraction,
+                                                    spread)}), values
+
+
+def two_groups_evidence(deviation: np.ndarray, shift: float, separation: float,
+                        fraction: float, spread: float) -> float:
+    """
+    Return how much better two groups fit than one normal of free centre and spread (nats).
+
+    The log-likelihood of the two groups (each of the model's spread) minus that of the best
+    single normal: a spread of turning rates that is one normal, only wider
+    (persistent_turning), gives no evidence of two groups, however wide.
+    """
+    first = (1 - fraction) * np.exp(-0.5 * ((deviation - shift) / spread) ** 2)
+    second = fraction * np.exp(-0.5 * ((deviation - shift - separation) / spread) ** 2)
+    two = float(np.sum(np.log(np.maximum(first + second, 1e-300)))) - len(deviation) * math.log(
+        spread)
+    single = max(float(np.std(deviation)), 1e-300)
+    one = -0.5 * len(deviation) - len(deviation) * math.log(single)
+    return two - one
+
+
+def turning_runs(deviation: np.ndarray, separation: float, fraction: float, spread: float,
+                 positions: np.ndarray | None) -> list[int]:
+    """Return the runs more likely in the turning group than not, numbered in recording order."""
+    first = (1 - fraction) * np.exp(-0.5 * (deviation / spread) ** 2)
+    second = fraction * np.exp(-0.5 * ((deviation - separation) / spread) ** 2)
+    turning = second > first
+    if positions is None or len(positions) < 2:
+        return [int(i) for i in np.flatnonzero(turning)]
+    order = np.rint(positions * (len(positions) - 1)).astype(int)
+    return sorted(int(i) for i in order[turning])
+
+
+def two_groups(values: np.ndarray, centre: float, spread: float,
+               start: tuple[float, float, float] | None = None, others: bool = True
+               ) -> tuple[float, float, float]:
+    """
+    Fit (shift d, separation w, fraction f) of two normals of spread `spread` by likelihood.
+
+    (1 - f) N(centre + d, spread) + f N(centre + d + w, spread); expectation-maximisation
+    from `start` and (with `others`) a few starts more, the best likelihood kept. A bootstrap
+    resample starts from the fit of the whole data alone.
+    """
+    starts = [start] if start is not None else []
+    deviation = values - centre
+    for fraction in MIXTURE_STARTS if others else ():
+        for side in (1.0, -1.0):
+            tail = np.quantile(deviation, 1 - fraction / 2 if side > 0 else fraction / 2)
+            starts.append((0.0, float(tail), fraction))
+    best, best_loglik = (float(np.mean(deviation)), 0.0, 0.0), -math.inf
+    for shift, separation, fraction in starts:
+        for _ in range(EM_STEPS):
+            before = (shift, separation, fraction)
+            first = (1 - fraction) * np.exp(-0.5 * ((deviation - shift) / spread) ** 2)
+            second = fraction * np.exp(-0.5 * ((deviation - shift - separation) / spread) ** 2)
+            total = np.maximum(first + second, 1e-300)
+            weight = second / total
+            fraction = float(np.clip(weight.mean(), 1e-4, 1 - 1e-4))
+            # shift and separation by weighted least squares (common spread)
+            shift = float(np.mean(deviation - weight * separation))
+            separation = float(np.sum(weight * (deviation - shift))
+                               / max(float(np.sum(weight)), 1e-12))
+            if max(abs(shift - before[0]) / spread, abs(separation - before[1]) / spread,
+                   abs(fraction - before[2])) < 1e-6:
+                break
+        first = (1 - fraction) * np.exp(-0.5 * ((deviation - shift) / spread) ** 2)
+        second = fraction * np.exp(-0.5 * ((deviation - shift - separation) / spread) ** 2)
+        loglik = float(np.sum(np.log(np.maximum(first + second, 1e-300))))
+        if loglik > best_loglik + 1e-9:
+            best, best_loglik = (shift, separation, fraction), loglik
+    return best
 
 
 def moments_se_u(estimate: SizeEstimate, u: float, data_se: float | None = None,

@@ -21,7 +21,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from octoroach_model.diagnosis.discrepancies import Discrepancy  # noqa: E402
-from octoroach_model.diagnosis.features import INDEX, run_features  # noqa: E402
+from octoroach_model.diagnosis.features import (  # noqa: E402
+    heading_amplitudes, INDEX, run_features)
 from octoroach_model.paths import Paths  # noqa: E402
 from octoroach_model.validation.region import t_multiplier  # noqa: E402
 
@@ -45,7 +46,8 @@ def write_plots(report, measured: Paths, out: Path) -> tuple[dict[str, Path], di
     jobs = {'paths_plot': (_paths_plot, out / 'paths.png'),
             'violation_plot': (_violation_plot, out / 'violation_grid.png'),
             'statistic_plot': (_statistic_plot, out / 'deciding_statistic.png'),
-            'discrepancy_plot': (_discrepancy_plot, out / 'discrepancies.png')}
+            'discrepancy_plot': (_discrepancy_plot, out / 'discrepancies.png'),
+            'extension_plot': (_extension_plot, out / 'extensions.png')}
     written, errors = {}, {}
     for name, (draw, path) in jobs.items():
         try:
@@ -58,9 +60,16 @@ def write_plots(report, measured: Paths, out: Path) -> tuple[dict[str, Path], di
     return written, errors
 
 
-def _simulate(model, measured: Paths, n: int) -> Paths:
-    poses = model.poses(n, measured.t, np.random.SeedSequence(7))
+def _simulate(model, measured: Paths, n: int, positions: np.ndarray | None = None) -> Paths:
+    poses = model.poses(n, measured.t, np.random.SeedSequence(7), positions=positions)
     return Paths(measured.t, poses)
+
+
+def _at_places(model, measured: Paths, n: int) -> tuple[Paths, np.ndarray]:
+    """`n` runs of `model` at places drawn from the measured runs' (run-order terms)."""
+    places = measured.recording_positions()[0]
+    picks = np.random.default_rng(7).integers(0, len(places), n)
+    return _simulate(model, measured, n, places[picks]), places[picks]
 
 
 def _paths_plot(report, measured: Paths, path: Path) -> bool:
@@ -140,6 +149,8 @@ def _bins(*samples: np.ndarray, count: int = 40) -> np.ndarray:
 
 def _statistic_plot(report, measured: Paths, path: Path) -> bool:
     causes = [c.cause for c in report.causes]
+    if not causes and report.extensions:
+        return False            # the extensions' own plot shows their evidence
     if not causes:
         causes = [max(report.candidates, key=lambda c: c.gain).cause]
     frequency = report.nominal['stride_frequency_hz']
@@ -195,3 +206,140 @@ def _discrepancy_plot(report, measured: Paths, path: Path) -> bool:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     return True
+
+
+# run-order drift term -> (feature, scale to the axis unit, axis label)
+DRIFT_AXES = {
+    'run_order_drift:stride_frequency': ('stride_frequency', 1.0, 'stride frequency [Hz]'),
+    'run_order_drift:yaw_rate': ('heading_rate', DEG, 'heading rate over the run [deg/s]'),
+    'run_order_drift:lateral_velocity': ('slip_angle', DEG,
+                                         'direction of travel - heading [deg]'),
+}
+MODEL_RUNS = 600
+
+
+def _extension_plot(report, measured: Paths, path: Path) -> bool:
+    """One panel per named extension: its evidence where a person would look for it."""
+    named = list(report.extensions)
+    if not named:
+        return False
+    fig, axes = plt.subplots(1, len(named), figsize=(6.5 * len(named), 4.8), squeeze=False)
+    panels = {'run_order_drift': _drift_panel, 'heading_random_walk': _walk_panel,
+              'periodic_heading': _spectrum_panel, 'change_point': _speed_panel,
+              'run_mixture': _groups_panel}
+    for ax, extension in zip(axes[0], named):
+        panels[extension.family](ax, report, measured, extension)
+        ax.set_title(f'{extension.family}: ' + ', '.join(
+            f'{key} = {value:.3g}' if isinstance(value, float) else f'{key} = {value}'
+            for key, value in extension.parameters.items()), fontsize=10)
+        ax.legend(fontsize=8)
+    fig.suptitle('The evidence for each extension: data, baseline and extended model')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return True
+
+
+def _features_of(report, paths: Paths, places: np.ndarray | None) -> np.ndarray:
+    frequency = report.nominal['stride_frequency_hz']
+    heading = math.radians(report.nominal['start_pose']['heading_deg'])
+    return run_features(paths, frequency, heading, places)
+
+
+def _drift_panel(ax, report, measured: Paths, extension) -> None:
+    feature, scale, label = DRIFT_AXES[extension.term]
+    column = INDEX[feature]
+    places = measured.recording_positions()[0]
+    order = places * max(measured.n_paths - 1, 1)
+    data = _features_of(report, measured, places)[:, column] * scale
+    ax.plot(order, data, '.', color='0.4', ms=3, label='measured run')
+    grid = np.linspace(0.0, 1.0, 50)
+    for model, colour, style, name in ((report.baseline_model, 'tab:blue', '-', 'baseline'),
+                                       (report.extended_model, 'tab:orange', '--',
+                                        'extended model')):
+        runs, where = _at_places(model, measured, MODEL_RUNS)
+        values = _features_of(report, runs, where)[:, column] * scale
+        slope, intercept = np.polyfit(where, values, 1)
+        ax.plot(grid * max(measured.n_paths - 1, 1), intercept + slope * grid, color=colour,
+                ls=style, lw=2, label=f'{name}: mean at each place')
+    ax.set_xlabel('run, in recording order [-]')
+    ax.set_ylabel(label)
+
+
+def _walk_panel(ax, report, measured: Paths, extension) -> None:
+    frequency = report.nominal['stride_frequency_hz']
+    stance_s = 0.5 / frequency
+    dt = float(measured.t[1] - measured.t[0])
+    picks = np.arange(0, len(measured.t), max(1, int(round(stance_s / dt))))
+    stances = picks * dt / stance_s
+
+    def spread(paths: Paths) -> np.ndarray:
+        change = paths.poses[:, picks, 2] - paths.poses[:, :1, 2]
+        with np.errstate(invalid='ignore'):
+            return np.nanstd(change, axis=0, ddof=1) * DEG
+
+    ax.plot(stances, spread(measured), 'k.-', label='measured runs')
+    ax.plot(stances, spread(_simulate(report.baseline_model, measured, MODEL_RUNS)),
+            color='tab:blue', lw=2, label='baseline (paper model)')
+    ax.plot(stances, spread(_simulate(report.extended_model, measured, MODEL_RUNS)),
+            color='tab:orange', ls='--', lw=2, label='extended model')
+    ax.set_xlabel('stances since the start [-]')
+    ax.set_ylabel('spread of the heading change across runs [deg]')
+
+
+def _spectrum_panel(ax, report, measured: Paths, extension) -> None:
+    frequency = float(extension.parameters['frequency_hz'])
+    stride = report.nominal['stride_frequency_hz']
+    grid = np.linspace(0.05 * stride, 1.9 * stride, 120)
+
+    def amplitude(paths: Paths) -> np.ndarray:
+        return np.sqrt((heading_amplitudes(paths.poses[..., 2], paths.t, grid) ** 2)
+                       .mean(axis=0)) * DEG
+
+    ax.plot(grid, amplitude(measured), 'k', lw=1.5, label='measured runs')
+    ax.plot(grid, amplitude(_simulate(report.baseline_model, measured, MODEL_RUNS)),
+            color='tab:blue', lw=2, label='baseline (paper model)')
+    ax.plot(grid, amplitude(_simulate(report.extended_model, measured, MODEL_RUNS)),
+            color='tab:orange', ls='--', lw=2, label='extended model')
+    ax.axvline(frequency, color='tab:red', ls=':', label=f'fitted {frequency:.3g} Hz')
+    ax.axvline(stride, color='0.5', ls=':', label=f'stride frequency {stride:.3g} Hz')
+    ax.set_xlabel('frequency [Hz]')
+    ax.set_ylabel('rms amplitude of the heading (trend removed) [deg]')
+
+
+def _speed_panel(ax, report, measured: Paths, extension) -> None:
+    frequency = report.nominal['stride_frequency_hz']
+    dt = float(measured.t[1] - measured.t[0])
+    cycle = max(2, int(round(1.0 / (frequency * dt))))
+
+    def speed(paths: Paths) -> np.ndarray:
+        step = np.linalg.norm(paths.positions[:, cycle:] - paths.positions[:, :-cycle], axis=-1)
+        with np.errstate(invalid='ignore'):
+            return np.nanmean(step, axis=0) / (cycle * dt) * 100
+
+    middle = measured.t[:-cycle] + 0.5 * cycle * dt
+    ax.plot(middle, speed(measured), 'k', lw=1.5, label='measured runs')
+    ax.plot(middle, speed(_simulate(report.baseline_model, measured, MODEL_RUNS)),
+            color='tab:blue', lw=2, label='baseline (paper model)')
+    ax.plot(middle, speed(_simulate(report.extended_model, measured, MODEL_RUNS)),
+            color='tab:orange', ls='--', lw=2, label='extended model')
+    ax.axvline(float(extension.parameters['time_s']), color='tab:red', ls=':',
+               label='fitted change')
+    ax.set_xlabel('time in the run [s]')
+    ax.set_ylabel('mean speed over a stride cycle [cm/s]')
+
+
+def _groups_panel(ax, report, measured: Paths, extension) -> None:
+    column = INDEX['heading_rate']
+    data = _features_of(report, measured, None)[:, column] * DEG
+    base = _features_of(report, _simulate(report.baseline_model, measured, MODEL_RUNS),
+                        None)[:, column] * DEG
+    extended = _features_of(report, _simulate(report.extended_model, measured, MODEL_RUNS),
+                            None)[:, column] * DEG
+    bins = _bins(data, base, extended)
+    ax.hist(data, bins=bins, density=True, alpha=0.45, color='k', label='measured runs')
+    ax.hist(base, bins=bins, density=True, histtype='step', lw=2, color='tab:blue',
+            label='baseline (paper model)')
+    ax.hist(extended, bins=bins, density=True, histtype='step', lw=2, color='tab:orange',
+            ls='--', label='extended model (two groups)')
+    ax.set_xlabel('heading rate over the run [deg/s]')
+    ax.set_ylabel('density [1 / (deg/s)]')

@@ -19,6 +19,7 @@ from octoroach_model.diagnosis.causes import BY_NAME
 from octoroach_model.diagnosis.discrepancies import Discrepancy
 from octoroach_model.diagnosis.limits import Limit, METHOD as LIMIT_METHOD
 from octoroach_model.jsonio import dumps, fields_jsonable, jsonable
+from octoroach_model.model.extensions import family_form
 from octoroach_model.paths import Paths
 
 if TYPE_CHECKING:
@@ -71,19 +72,24 @@ class CandidateResult:
     named_here: bool
     step: int
     statistic: str
+    family: str = ''             # the extension family ('' for a cause of the table)
+    screened: bool = False       # its bound could not reach the floor: neither refit nor scored
 
     @classmethod
     def of(cls, evaluation: Evaluation, verdict: SizeVerdict, step: int, significant: bool,
            named_here: bool, relative: float) -> CandidateResult:
         cause = BY_NAME[evaluation.cause]
         values = dict(evaluation.model.effects[evaluation.cause])
+        if cause.is_extension:
+            values = family_form(evaluation.cause, values)[1]
         return cls(evaluation.cause, values, evaluation.gain.mean, evaluation.gain.standard_error,
                    evaluation.gain.p_value, relative, evaluation.gain_cm,
                    {cause.parameter: list(verdict.interval)},
                    verdict.standard_error, verdict.lower_bound, verdict.floor,
                    {cause.parameter: verdict.limit}, 'size bound only (before the limit '
                    'of the whole decision is computed)', {}, verdict.clears_floor,
-                   significant, named_here, step, cause.statistic_name)
+                   significant, named_here, step, cause.statistic_name, cause.family,
+                   evaluation.screened)
 
     def with_limit(self, limit: Limit) -> CandidateResult:
         """Return this result with the detection limit of the whole decision (limits.py)."""
@@ -91,6 +97,22 @@ class CandidateResult:
                        detectable_method=LIMIT_METHOD,
                        detectable_power={'size_bound': limit.size_bound_power,
                                          'held_out_test': limit.test_power})
+
+
+@dataclass(frozen=True)
+class Rival:
+    """
+    A qualifying candidate the chosen one cannot be told apart from on these runs.
+
+    Its fit, its gain, and the two-sided p-value of the paired difference of the two models'
+    held-out log scores (not below the test's level: the data do not say which it is).
+    """
+
+    cause: str
+    family: str
+    parameters: dict
+    gain: float
+    p_difference: float
 
 
 @dataclass(frozen=True)
@@ -102,6 +124,7 @@ class StepResult:
     chosen: str | None
     decision_z: float           # one-sided normal quantile of the size bounds
     test_level: float           # level of each held-out test
+    rival: Rival | None = None  # of the other table (cause vs extension), if undecided
 
 
 @dataclass(frozen=True)
@@ -126,6 +149,30 @@ class NamedCause:
         error = {parameter: verdict.standard_error if verdict else entry.standard_error}
         return cls(cause, dict(values), interval, error, entry.gain, entry.p_value,
                    entry.relative, entry.gain_cm, entry.step)
+
+
+@dataclass(frozen=True)
+class NamedExtension:
+    """
+    An extension family the diagnosis adds to the model: its fit on all runs, in words.
+
+    `parameters` in the family's form (run_order_drift names what drifts), `interval` the 95 %
+    interval of each fitted parameter, `description` what it is in the robot's terms, `rival`
+    a cause of the table it cannot be told apart from on these runs (both fits reported).
+    """
+
+    family: str
+    term: str
+    parameters: dict
+    interval: dict
+    standard_error: dict
+    gain: float
+    p_value: float
+    relative: float
+    gain_cm: float
+    step: int
+    description: str
+    rival: Rival | None = None
 
 
 @dataclass(frozen=True)
@@ -173,6 +220,8 @@ class DiagnosisReport:
     discrepancies: tuple[Discrepancy, ...]
     candidates: tuple[CandidateResult, ...]
     causes: tuple[NamedCause, ...]
+    extensions: tuple[NamedExtension, ...]
+    extension_candidates: tuple[CandidateResult, ...]
     steps: tuple[StepResult, ...]
     gain: ScoreSummary
     extended_discrepancies: tuple[Discrepancy, ...]
@@ -205,6 +254,7 @@ class DiagnosisReport:
         ordered['cause'] = self.cause
         ordered['parameters'] = jsonable(self.parameters)
         ordered['causes'] = plain.pop('causes')
+        ordered['extensions'] = plain.pop('extensions')
         ordered['extended'] = plain.pop('extended')
         ordered['gain'] = plain.pop('gain')
         ordered['adequate'] = plain.pop('adequate')
@@ -255,14 +305,42 @@ def _number(value: float | None, digits: int = 3) -> str:
     return f'{value:.{digits}g}'
 
 
+def conclusion(report: DiagnosisReport) -> str:
+    """
+    Return the summary's first line: what to conclude, in plain words.
+
+    Its numbers are the ones the summary gives below (the share of the baseline's gap the
+    extended model closes, the position gain: positive when the extended model is better).
+    """
+    added = [c.cause for c in report.causes] + [e.family for e in report.extensions]
+    if not added:
+        head = "The paper's model explains these runs: no cause of the table and no extension"
+        head += ' improves the prediction of held-out runs by a size that matters'
+    else:
+        closer = report.gain.energy_score_cm['baseline'] - report.gain.energy_score_cm['extended']
+        head = (f"The paper's model misses {_and(added)}: the model extended with "
+                f'{"it" if len(added) == 1 else "them"} closes {_percent(report.gain.relative)} '
+                "of the baseline's gap to the data on held-out runs, positions "
+                f'{_number(abs(closer), 2)} cm per run {"closer" if closer >= 0 else "further"}')
+    tail = ('; it explains every statistic' if report.adequate else
+            f'; it still misses {len(report.unexplained)} statistic'
+            f'{"s" if len(report.unexplained) != 1 else ""} (below)')
+    return f'**Conclusion:** {head}{tail}.'
+
+
+def _and(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else ', '.join(names[:-1]) + ' and ' + names[-1]
+
+
 def summary_text(report: DiagnosisReport) -> str:
     """
     Write summary.md in words.
 
-    summary.md: what the model gets wrong, the causes with sizes, what each adds, what is still
-    unexplained, and how small an effect could have been seen.
+    summary.md: a one-line conclusion, what the model gets wrong, the causes and extensions
+    with sizes, what each adds, what is still unexplained, and how small an effect could have
+    been seen.
     """
-    lines = ['# What the simulation gets wrong', '']
+    lines = ['# What the simulation gets wrong', '', conclusion(report), '']
     runs = report.runs
     early = ''
     if runs.ended_early_between_s is not None:
@@ -294,23 +372,37 @@ def summary_text(report: DiagnosisReport) -> str:
                      f'{_number(low)} to {_number(high)}). Adding it improved the held-out '
                      f'log score by {_number(named.gain)} nats per run (p = '
                      f'{named.p_value:.2g}), {_percent(named.relative)} of what the model '
-                     f'lacked then; positions {_number(named.gain_cm)} cm per run closer.')
+                     f'lacked then; positions {_closer(named.gain_cm)} per run.')
+        lines += _rival_lines(named.cause, _rival_of(report, named.cause))
+    lines += ['', '## Beyond the table of causes', '']
+    if not report.extensions:
+        lines.append('**None.** No extension family (run-order drift, heading random walk, '
+                     'periodic heading, change point, run mixture) improves the prediction of '
+                     'held-out runs with a size that clears its floor.')
+    for number, extension in enumerate(report.extensions, 1):
+        lines.append(f'{number}. **{extension.family}**: {extension.description}. Adding it '
+                     f'improved the held-out log score by {_number(extension.gain)} nats per '
+                     f'run (p = {extension.p_value:.2g}), {_percent(extension.relative)} of '
+                     f'what the model lacked then; positions {_closer(extension.gain_cm)} '
+                     'per run.')
+        lines += _rival_lines(extension.family, extension.rival)
     gain = report.gain
+    closer = gain.energy_score_cm['baseline'] - gain.energy_score_cm['extended']
     lines += ['', f'Held-out log score per run: baseline {_number(gain.baseline)}, extended '
                   f'{_number(gain.extended)}, the data themselves {_number(gain.ideal)} nats '
                   f'(higher is better): the extended model closes '
                   f"{_percent(gain.relative)} of the baseline's gap. Positions: "
                   f"{_number(gain.energy_score_cm['baseline'])} -> "
                   f"{_number(gain.energy_score_cm['extended'])} cm (energy score, lower is "
-                  'better).']
+                  f'better): {_closer(closer)} per run.']
     lines += ['', '## What the extended model still misses', '']
     if report.adequate:
         lines.append('Nothing material: every statistic of the data agrees with the extended '
                      f'model within the adequacy bound (|z| <= {report.adequacy_bound_z:.1f}).')
     else:
         lines.append('**The extended model is not adequate**: these statistics are still off, '
-                     'so the data carry an effect that no cause of the table explains (or '
-                     'explains only in part):')
+                     'so the data carry an effect that neither the table of causes nor the '
+                     'library of extensions explains (or explains only in part):')
         for row in report.unexplained:
             lines.append(f'- {row.statistic}: data {_number(row.data, 4)}{_unit(row.unit)}, '
                          f'model {_number(row.model, 4)}{_unit(row.unit)} (z = {row.z:+.1f})')
@@ -323,22 +415,53 @@ def summary_text(report: DiagnosisReport) -> str:
                          f"{_number(model['violation'])}"
                          + ('' if model.get('accepted') else ' (no spread admissible)') + '.')
     lines += ['', '## What could have been seen', '']
-    for candidate in report.candidates:
-        if candidate.cause in {c.cause for c in report.causes}:
+    named_terms = {c.cause for c in report.causes} | {e.term for e in report.extensions}
+    for candidate in (*report.candidates, *report.extension_candidates):
+        if candidate.cause in named_terms:
             continue
-        parameter = BY_NAME[candidate.cause].parameter
-        limit = candidate.detectable[parameter]
-        unit = BY_NAME[candidate.cause].unit
-        text = (f'below {_number(limit)} {unit}'.rstrip() if limit is not None
-                else 'of any size on the grid')
-        name = candidate.cause.replace('_', ' ')
-        article = 'an' if name[0] in 'aeiou' else 'a'
-        lines.append(f'- {article} {name} ({parameter}) {text} would go '
-                     f'unseen in {report.paths} runs like these (80 % power; estimate here '
-                     f'{_number(candidate.parameters[parameter])}).')
+        lines.append(_unseen_line(candidate, report.paths))
     if report.notes:
         lines += ['', '## Notes on the input', ''] + [f'- {note}' for note in report.notes]
     return '\n'.join(lines) + '\n'
+
+
+def _closer(gain_cm: float) -> str:
+    """Say a position gain in words: positive when the extended model is better."""
+    return f'{_number(abs(gain_cm), 2)} cm ' + ('closer' if gain_cm >= 0 else 'further')
+
+
+def _rival_of(report: DiagnosisReport, cause: str) -> Rival | None:
+    step = next((s for s in report.steps if s.chosen == cause), None)
+    return step.rival if step else None
+
+
+def _rival_lines(chosen: str, rival: Rival | None) -> list[str]:
+    if rival is None:
+        return []
+    values = ', '.join(f'{key} = {_number(value) if isinstance(value, float) else value}'
+                       for key, value in rival.parameters.items())
+    return [f'   These runs cannot tell it from **{rival.family}** ({values}; held-out gain '
+            f'{_number(rival.gain)} nats per run, p = {rival.p_difference:.2g} for the '
+            f'difference): {chosen} entered for its larger gain, but either may be what is '
+            'there; more runs, or runs that separate the two, would decide.']
+
+
+def _unseen_line(candidate: CandidateResult, paths: int) -> str:
+    """One line of 'What could have been seen' for a cause or family not named."""
+    cause = BY_NAME[candidate.cause]
+    parameter = cause.parameter
+    limit = candidate.detectable[parameter]
+    unit = cause.unit
+    distance = ' from 1' if cause.null != 0 else ''
+    text = (f'below {_number(limit)} {unit}{distance}'.rstrip() if limit is not None
+            else 'of any size on the grid')
+    label = cause.label + (f' ({cause.name.split(":", 1)[1]})' if ':' in cause.name else '')
+    name = label.replace('_', ' ')
+    article = 'an' if name[0] in 'aeiou' else 'a'
+    estimate = candidate.parameters.get(parameter)
+    shown = _number(estimate) if isinstance(estimate, (int, float)) else 'n/a'
+    return (f'- {article} {name} ({parameter}) {text} would go unseen in {paths} runs like '
+            f'these (80 % power; estimate here {shown}).')
 
 
 def write_report(report: DiagnosisReport, out_dir: Path | str, measured: Paths | None = None,

@@ -17,6 +17,12 @@ How well a model predicts held-out runs: proper scores per run, and their compar
   (data predicting data). A relative gain is the share of the gap between a model and this
   ideal that another model closes.
 
+A model whose terms depend on the run's place in the recording (run_order_drift) predicts each
+held-out run at its place: the mean of each feature is the least-squares line of the model's
+simulated runs against their places, the spread that line's residual spread (the place is a
+covariate, `features.COVARIATES`, and never itself scored). Every other model predicts all
+runs alike, as before.
+
 Every comparison is paired run by run: the per-run gain's mean, and a one-sided t-test.
 """
 from __future__ import annotations
@@ -27,7 +33,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from octoroach_model.diagnosis.features import RESOLUTION
+from octoroach_model.diagnosis.features import INDEX, OUTCOMES, RESOLUTION
 
 ENERGY_FRACTIONS = (0.2, 0.4, 0.6, 0.8, 1.0)
 PAIR_RUNS = 400           # model runs used for the energy score's spread term
@@ -49,16 +55,30 @@ def feature_scales(calibration_features: np.ndarray) -> np.ndarray:
     return np.maximum(np.std(calibration_features, axis=0, ddof=1), RESOLUTION)
 
 
-def feature_log_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
+def feature_log_score(sample: np.ndarray, observed: np.ndarray, by_position: bool = False
+                      ) -> np.ndarray:
     """
     Return the summed normal log density of each observed row under the sample.
 
-    Summed over columns, each at the sample's column mean and spread (the spread never below
-    FLOOR, the distance never beyond CAP spreads); columns in data spreads.
+    Summed over the outcome columns, each at the sample's column mean and spread (the spread
+    never below FLOOR, the distance never beyond CAP spreads); columns in data spreads.
+    `by_position`: the mean and spread are those of the sample's least-squares line against
+    the position column, taken at each observed row's position (module docstring).
     """
-    mean = sample.mean(axis=0)
-    spread = np.maximum(sample.std(axis=0, ddof=1), FLOOR)
-    z = np.clip((observed - mean) / spread, -CAP, CAP)
+    outcomes, observed_outcomes = sample[:, OUTCOMES], observed[:, OUTCOMES]
+    if by_position:
+        place = sample[:, INDEX['position']]
+        design = np.column_stack([np.ones_like(place), place - place.mean()])
+        coefficients, *_ = np.linalg.lstsq(design, outcomes, rcond=None)
+        residual = outcomes - design @ coefficients
+        spread = np.maximum(np.sqrt((residual ** 2).sum(axis=0) / max(len(place) - 2, 1)),
+                            FLOOR)
+        observed_place = observed[:, INDEX['position']] - place.mean()
+        mean = coefficients[0] + observed_place[:, None] * coefficients[1]
+    else:
+        mean = outcomes.mean(axis=0)
+        spread = np.maximum(outcomes.std(axis=0, ddof=1), FLOOR)
+    z = np.clip((observed_outcomes - mean) / spread, -CAP, CAP)
     return (stats.norm.logpdf(z) - np.log(spread)).sum(axis=1)
 
 
@@ -87,9 +107,10 @@ def position_points_cm(positions: np.ndarray, lengths: np.ndarray) -> np.ndarray
 
 def score_model(model_features: np.ndarray, model_points_cm: np.ndarray,
                 observed_features: np.ndarray, observed_points_cm: np.ndarray,
-                scales: np.ndarray) -> Scores:
+                scales: np.ndarray, by_position: bool = False) -> Scores:
     """Scores of the observed (held-out) runs under a model's simulated runs."""
-    return Scores(feature_log_score(model_features / scales, observed_features / scales),
+    return Scores(feature_log_score(model_features / scales, observed_features / scales,
+                                    by_position),
                   energy_score(model_points_cm, observed_points_cm))
 
 

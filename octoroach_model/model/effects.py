@@ -1,6 +1,9 @@
 """
 The model extensions of the table of causes (docs/causes.md), exactly as defined there.
 
+The terms of the extension families (extensions.py) are applied here too, each at its stage,
+so that one effects mapping {term: {parameter: value}} describes any model a diagnosis fits.
+
 Two kinds: time warps act on the gait phase before the kinematics are evaluated
 (`gait_frequency_variation`, `speed_decay`); the others transform finished runs
 (`persistent_turning`, `lateral_slip`, `initial_pose_error`, `measurement_noise`). Parameter
@@ -11,12 +14,15 @@ random numbers from its own generator, so adding one leaves every other draw unc
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 import math
 from typing import Protocol
 
 import numpy as np
 
 from octoroach_model.errors import ParameterError
+from octoroach_model.model.extensions import (
+    positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext)
 
 # Canonical order of application; also the order of their random streams.
 EFFECT_PARAMETERS: dict[str, tuple[str, ...]] = {
@@ -28,7 +34,10 @@ EFFECT_PARAMETERS: dict[str, tuple[str, ...]] = {
     'measurement_noise': ('position_std_cm',),
 }
 EFFECT_NAMES = tuple(EFFECT_PARAMETERS)
-TIME_WARPS = ('gait_frequency_variation', 'speed_decay')
+# every term a model run can carry: the causes, then the extension families' terms
+MODEL_TERMS = EFFECT_NAMES + TERM_NAMES
+TIME_WARPS = ('gait_frequency_variation', 'speed_decay') + tuple(
+    term.name for term in TERM_BY_NAME.values() if term.stage in ('clock', 'stretch'))
 
 # Ranges accepted for each parameter (inclusive), in the parameter's own unit.
 PARAMETER_RANGES: dict[str, tuple[float, float]] = {
@@ -44,9 +53,16 @@ Effects = Mapping[str, Mapping[str, float]]
 
 
 def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
-    """Check an effects mapping {name: {parameter: value}}; return a copy, missing ones 0."""
+    """
+    Check an effects mapping {name: {parameter: value}}; return a copy, missing ones 0.
+
+    Names are causes of the table or extension terms (extensions.py, their own defaults).
+    """
     checked: dict[str, dict[str, float]] = {}
     for name, params in (effects or {}).items():
+        if name in TERM_BY_NAME:
+            checked[name] = TERM_BY_NAME[name].checked(params)
+            continue
         if name not in EFFECT_PARAMETERS:
             raise ParameterError(f'unknown effect {name!r}; known: {", ".join(EFFECT_NAMES)}')
         extra = set(params) - set(EFFECT_PARAMETERS[name])
@@ -61,7 +77,7 @@ def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
                 raise ParameterError(f'{name}.{key} = {value} is outside [{low}, {high}]')
             values[key] = value
         checked[name] = values
-    return {name: checked[name] for name in EFFECT_NAMES if name in checked}
+    return {name: checked[name] for name in MODEL_TERMS if name in checked}
 
 
 class NormalSource(Protocol):
@@ -72,49 +88,98 @@ class NormalSource(Protocol):
 
 
 def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
-                rngs: Mapping[str, NormalSource]) -> np.ndarray:
+                rngs: Mapping[str, NormalSource], positions: np.ndarray | None = None
+                ) -> np.ndarray:
     """
     Give the (n, T) gait clock: the times at which the unwarped model is evaluated.
 
-    speed_decay warps first, then each run's gait_frequency_variation stretches the result:
-    clock = (1 + e) (t - fraction t^2 / (2 T)).
+    speed_decay warps first, then the clock terms of the extensions (change_point: the rates
+    multiply), then each run's gait_frequency_variation and run-order stretch scale the
+    result: clock = (1 + e) (t - fraction t^2 / (2 T)). `positions` (n,): each run's place in
+    the recording (extensions.py).
     """
-    clock = np.broadcast_to(t, (n_runs, len(t))).astype(float)
     duration = float(t[-1]) if len(t) else 0.0
-    if 'speed_decay' in effects and duration > 0:
-        fraction = effects['speed_decay']['fraction']
-        clock = clock - fraction * clock ** 2 / (2.0 * duration)
+
+    def decayed(times: np.ndarray) -> np.ndarray:
+        if 'speed_decay' in effects and duration > 0:
+            return times - effects['speed_decay']['fraction'] * times ** 2 / (2.0 * duration)
+        return times
+
+    context = _context(t, n_runs, positions, duration)
+    shared = decayed(np.asarray(t, dtype=float))
+    for name, values in _terms(effects, 'clock'):
+        shared = TERM_BY_NAME[name].function(values, replace(
+            context, source=rngs[name], clock_of=decayed))
+    clock = np.broadcast_to(shared, (n_runs, len(t))).astype(float)
     if 'gait_frequency_variation' in effects:
         std = effects['gait_frequency_variation']['relative_std']
         stretch = 1.0 + std * rngs['gait_frequency_variation'].standard_normal(n_runs)
         clock = clock * stretch[:, None]
+    for name, values in _terms(effects, 'stretch'):
+        clock = clock * TERM_BY_NAME[name].function(values, replace(
+            context, source=rngs[name]))[:, None]
     return clock
 
 
-def mean_gait_rate(effects: Effects) -> float:
+def _terms(effects: Effects, stage: str) -> list[tuple[str, Mapping[str, float]]]:
+    """Return the extension terms of `effects` applied at `stage`, in canonical order."""
+    return [(name, effects[name]) for name in TERM_NAMES
+            if name in effects and TERM_BY_NAME[name].stage == stage]
+
+
+def _context(t: np.ndarray, n_runs: int, positions: np.ndarray | None, duration: float
+             ) -> TermContext:
+    places = positions_in_order(n_runs) if positions is None else np.asarray(positions, float)
+    return TermContext(np.asarray(t, dtype=float), places, duration, None)
+
+
+def mean_gait_rate(effects: Effects, duration_s: float | None = None) -> float:
     """
     Return the gait clock's mean rate over a run, relative to the model's stride frequency.
 
     speed_decay's clock runs at 1 - fraction t / T, on average 1 - fraction / 2: the stride
-    frequency seen in a run (a spectral peak) is the model's times this.
+    frequency seen in a run (a spectral peak) is the model's times this. With `duration_s`, a
+    change_point counts too: its clock runs at speed_factor from time_s on (the rates
+    multiply, so the decay's mean is taken over each part).
     """
-    if 'speed_decay' not in effects:
-        return 1.0
-    return 1.0 - 0.5 * float(effects['speed_decay']['fraction'])
+    decay = float(effects['speed_decay']['fraction']) if 'speed_decay' in effects else 0.0
+    if 'change_point' not in effects or not duration_s:
+        return 1.0 - 0.5 * decay
+    change = effects['change_point']
+    split = min(max(float(change['time_s']) / duration_s, 0.0), 1.0)
+    before = split * (1.0 - 0.5 * decay * split)
+    after = (1.0 - split) * (1.0 - 0.5 * decay * (1.0 + split))
+    return before + float(change['speed_factor']) * after
 
 
 def apply_pose_effects(poses: np.ndarray, t: np.ndarray, effects: Effects,
-                       rngs: Mapping[str, NormalSource]) -> np.ndarray:
-    """Apply the non-warp effects to runs, in canonical order. poses: (n, T, 3), SI."""
+                       rngs: Mapping[str, NormalSource], positions: np.ndarray | None = None,
+                       phase: np.ndarray | None = None) -> np.ndarray:
+    """
+    Apply the non-warp effects to runs, in canonical order. poses: (n, T, 3), SI.
+
+    The extensions' heading perturbations come after persistent_turning (their sum turns
+    heading and velocity together), their sideways drifts after lateral_slip. `positions`:
+    each run's place in the recording; `phase`: the stance phase (n, T) or (T,).
+    """
     poses = poses.copy()
     n_runs = poses.shape[0]
+    duration = float(t[-1]) if len(t) else 0.0
+    context = replace(_context(t, n_runs, positions, duration), phase=phase)
     if 'persistent_turning' in effects:
         std = math.radians(effects['persistent_turning']['yaw_rate_std_deg_s'])
         yaw_rate = std * rngs['persistent_turning'].standard_normal(n_runs)
         poses = turn_persistently(poses, t, yaw_rate)
+    headings = [TERM_BY_NAME[name].function(values, replace(context, source=rngs[name]))
+                for name, values in _terms(effects, 'heading')]
+    if headings:
+        poses = perturb_heading(poses, np.sum(headings, axis=0))
     if 'lateral_slip' in effects:
         velocity = effects['lateral_slip']['velocity_cm_s'] / 100.0
         poses = slip_sideways(poses, t, velocity)
+    for name, values in _terms(effects, 'drift'):
+        each_run = TERM_BY_NAME[name].function(values, replace(context, source=rngs[name]))
+        poses = slip_sideways(poses, t, each_run[:, None, None])
     if 'initial_pose_error' in effects:
         params = effects['initial_pose_error']
         rng = rngs['initial_pose_error']
@@ -157,11 +222,31 @@ def turn_persistently(poses: np.ndarray, t: np.ndarray, yaw_rate: np.ndarray) ->
     return out
 
 
-def slip_sideways(poses: np.ndarray, t: np.ndarray, velocity: float) -> np.ndarray:
+def perturb_heading(poses: np.ndarray, perturbation: np.ndarray) -> np.ndarray:
+    """
+    Turn each run by a(t): theta + a, p(0) + integral of R(a(s)) p_dot(s) ds.
+
+    `perturbation` (n, T); each sample step is rotated by a at its midpoint (as
+    turn_persistently, of which this is the general form).
+    """
+    steps = np.diff(poses[..., :2], axis=1)
+    mid_angle = 0.5 * (perturbation[:, 1:] + perturbation[:, :-1])
+    cos_a, sin_a = np.cos(mid_angle), np.sin(mid_angle)
+    turned = np.stack([cos_a * steps[..., 0] - sin_a * steps[..., 1],
+                       sin_a * steps[..., 0] + cos_a * steps[..., 1]], axis=-1)
+    out = poses.copy()
+    out[:, 1:, :2] = poses[:, :1, :2] + np.cumsum(turned, axis=1)
+    out[..., 2] = poses[..., 2] + perturbation
+    return out
+
+
+def slip_sideways(poses: np.ndarray, t: np.ndarray, velocity: float | np.ndarray
+                  ) -> np.ndarray:
     """
     Add a sideways drift: p + integral of v r(theta) ds, r = (sin theta, -cos theta).
 
-    The integral follows the trapezoid rule on the sample times.
+    The integral follows the trapezoid rule on the sample times; `velocity` is one number or
+    one per run, shaped (n, 1, 1).
     """
     heading = poses[..., 2]
     right = np.stack([np.sin(heading), -np.cos(heading)], axis=-1)

@@ -16,8 +16,10 @@ import numpy as np
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.model.effects import (
-    apply_pose_effects, check_effects, EFFECT_NAMES, Effects, NormalSource, TIME_WARPS,
+    apply_pose_effects, check_effects, Effects, MODEL_TERMS, NormalSource, TIME_WARPS,
     warped_time)
+from octoroach_model.model.extensions import (
+    Extensions, family_form, family_terms, positions_in_order)
 from octoroach_model.model.kinematics import integrate_stances, stance_angles
 from octoroach_model.model.parameters import ModelParameters, nominal_sigmas, SIGMA_LIMIT
 from octoroach_model.paths import Paths
@@ -60,14 +62,15 @@ class RandomStreams:
                                               pool_size=seed.pool_size)
         else:
             sequence = np.random.SeedSequence(seed)
-        children = sequence.spawn(2 + len(EFFECT_NAMES))
+        # child i is the same whatever the count: streams of later terms leave earlier ones
+        children = sequence.spawn(2 + len(MODEL_TERMS))
         wrap = AntitheticNormal if antithetic else (lambda generator: generator)
         self.seed_entropy = sequence.entropy
         self.angles = wrap(np.random.default_rng(children[0]))
         self.extra_stances = wrap(np.random.default_rng(children[1]))
         self.effects: dict[str, NormalSource] = {
             name: wrap(np.random.default_rng(child))
-            for name, child in zip(EFFECT_NAMES, children[2:])}
+            for name, child in zip(MODEL_TERMS, children[2:])}
 
 
 def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = None,
@@ -75,7 +78,8 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
              parameters: ModelParameters | None = None,
              draws: str = 'stance', effects: Effects | None = None,
              start_pose: Sequence[float] = DEFAULT_START_POSE,
-             t: np.ndarray | None = None) -> Paths:
+             t: np.ndarray | None = None, extensions: Extensions | None = None,
+             positions: np.ndarray | None = None) -> Paths:
     """
     `n_paths` runs of the stochastic model on a common time grid.
 
@@ -101,6 +105,13 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
         x [m], y [m], heading [rad] at t = 0 (before any initial_pose_error).
     t : (T,) array or None
         Sample times in seconds starting at 0; default `parameters.time_grid(cycles)`.
+    extensions : dict, sequence of pairs, or None
+        Extension families beyond the table of causes, {family: {parameter: value}}
+        (docs/extensions.md), e.g. {'run_order_drift': {'parameter': 'stride_frequency',
+        'change': -0.15}}; or (family, parameters) pairs.
+    positions : (n_paths,) array or None
+        Each run's place in the recording, 0 (first) to 1 (last), which the run-order terms
+        read; default i / (n_paths - 1): the runs in the order drawn.
 
     Returns
     -------
@@ -127,24 +138,40 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
     if not cycles > 0:
         raise ParameterError(f'cycles must be positive, got {cycles}')
     checked = check_effects(effects)
+    terms = family_terms(extensions)
+    checked.update(terms)
     t = parameters.time_grid(cycles) if t is None else np.asarray(t, dtype=float)
     streams = RandomStreams(seed)
+    if positions is not None:
+        positions = np.asarray(positions, dtype=float)
+        if positions.shape != (int(n_paths),) or not np.all((positions >= 0) & (positions <= 1)):
+            raise ParameterError(f'positions must be {int(n_paths)} numbers in [0, 1]')
     poses = model_poses(parameters, streams, int(n_paths), t, sigma1, sigma2, draws,
-                        checked, cycles, start_pose)
+                        checked, cycles, start_pose, positions)
     info = {'model': 'four_bar', 'seed': seed, 'seed_entropy': streams.seed_entropy,
             'sigma1': sigma1, 'sigma2': sigma2, 'draws': draws, 'cycles': cycles,
-            'effects': checked, 'parameters': parameters.table()}
+            'effects': {name: values for name, values in checked.items() if name not in terms},
+            'extensions': [dict(zip(('family', 'parameters'), family_form(name, values)))
+                           for name, values in terms.items()],
+            'parameters': parameters.table()}
     return Paths(t, poses, info)
 
 
 def model_poses(parameters: ModelParameters, streams: RandomStreams, n_runs: int,
                 t: np.ndarray, sigma1: float, sigma2: float, draws: str = 'stance',
                 effects: Effects | None = None, cycles: float | None = None,
-                start_pose: Sequence[float] = DEFAULT_START_POSE) -> np.ndarray:
-    """(n, T, 3) poses; the array-level core of `simulate` (no validation of arguments)."""
+                start_pose: Sequence[float] = DEFAULT_START_POSE,
+                positions: np.ndarray | None = None) -> np.ndarray:
+    """
+    (n, T, 3) poses; the array-level core of `simulate` (no validation of arguments).
+
+    `positions` (n,): each run's place in the recording, 0 (first) to 1 (last); default
+    i / (n - 1), the runs in the order drawn. Only the run-order terms read it.
+    """
     effects = effects or {}
+    positions = positions_in_order(n_runs) if positions is None else positions
     # one shared (T,) gait clock unless a time warp gives each run its own (n, T)
-    clock = warped_time(effects, t, n_runs, streams.effects) \
+    clock = warped_time(effects, t, n_runs, streams.effects, positions) \
         if any(name in effects for name in TIME_WARPS) else t
     phase = 2.0 * parameters.stride_frequency * clock
     base_stances = int(math.ceil(2 * (cycles if cycles else t[-1] * parameters.stride_frequency)
@@ -160,5 +187,5 @@ def model_poses(parameters: ModelParameters, streams: RandomStreams, n_runs: int
     poses = integrate_stances(angles, phase, start_pose, parameters.leg_length,
                               parameters.hip_distance)
     if any(name not in TIME_WARPS for name in effects):
-        poses = apply_pose_effects(poses, t, effects, streams.effects)
+        poses = apply_pose_effects(poses, t, effects, streams.effects, positions, phase)
     return poses

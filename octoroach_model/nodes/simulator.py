@@ -26,7 +26,8 @@ from octoroach_model.nodes.common import (
     set_parameters_callback, split_ros_args, UsageError, vicon_qos)
 from octoroach_model.nodes.messages import (
     fill_transform, planar_rows, PlanarPose, run_marker, transform_message)
-from octoroach_model.run_settings import EFFECT_PREFIX, marker_topic, pose_topic, RunSettings
+from octoroach_model.run_settings import (
+    EFFECT_PREFIX, EXTENSION_PREFIX, marker_topic, pose_topic, RunSettings)
 
 __all__ = ['RunSettings', 'Simulator', 'main', 'marker_topic', 'pose_topic',
            'simulator_specs']
@@ -38,6 +39,8 @@ SUMMARY = ('ROS node: publishes model-generated VICON poses (geometry_msgs/msg/T
 NOTES = """
 Effect parameters keep the causes' own keys and units (heading_std_deg is in degrees,
 position_std_cm in centimetres, ...); only the ones of the selected `effect` are used.
+The same holds for `extension` and its extension_params.* (docs/extensions.md);
+run_order_drift places run k of the session at k / (runs - 1), so it needs runs >= 2.
 With robots > 1 each robot i is subject SUBJECT_i (segment SEGMENT_i, or SUBJECT_i when
 segment is empty) on /vicon/SUBJECT_i/SEGMENT_i with markers on /SUBJECT_i/run_start; all
 robots start their runs together. QoS of every topic: reliable, volatile, keep_last 100.
@@ -61,6 +64,7 @@ def simulator_specs() -> list[ParamSpec]:
     from octoroach_model.model import (
         DRAWS, EFFECT_NAMES, EFFECT_PARAMETERS, PARAMETER_RANGES, ModelParameters,
         nominal_sigmas)
+    from octoroach_model.model.extensions import DRIFTED, FAMILY_NAMES
     from octoroach_model.model.simulate import DEFAULT_START_POSE
 
     nominal = ModelParameters.nominal()
@@ -103,7 +107,36 @@ def simulator_specs() -> list[ParamSpec]:
         users = ', '.join(name for name, keys in EFFECT_PARAMETERS.items() if key in keys)
         specs.append(ParamSpec(f'{EFFECT_PREFIX}{key}', 0.0, f'parameter of {users}',
                                _effect_unit(key), float(low), float(high)))
+    specs.append(ParamSpec('extension', 'none', 'an extension family beyond the table of causes '
+                           '(docs/extensions.md) added to the runs; run_order_drift needs '
+                           'runs >= 2', choices=('none', *FAMILY_NAMES)))
+    specs.append(ParamSpec(f'{EXTENSION_PREFIX}parameter', DRIFTED[0],
+                           'what run_order_drift moves over the session', choices=DRIFTED))
+    for key, (default, unit, low, high, users) in extension_parameter_table().items():
+        specs.append(ParamSpec(f'{EXTENSION_PREFIX}{key}', default, f'parameter of {users}',
+                               unit, low, high))
     return specs
+
+
+def extension_parameter_table() -> dict[str, tuple[float, str, float, float, str]]:
+    """
+    Each numeric key of the extension terms: default, unit, widest range, terms using it.
+
+    run_order_drift's `change` takes the unit of what drifts (relative, deg/s or cm/s).
+    """
+    from octoroach_model.model.extensions import TERMS
+
+    table: dict[str, tuple[float, str, float, float, str]] = {}
+    for term in TERMS:
+        for key, unit, (low, high) in zip(term.parameters, term.units, term.ranges):
+            default = float(term.defaults.get(key, 0.0))
+            if key in table:
+                old = table[key]
+                table[key] = (old[0], old[1] if old[1] == unit else 'see the family',
+                              min(old[2], low), max(old[3], high), f'{old[4]}, {term.name}')
+            else:
+                table[key] = (default, unit or '1', low, high, term.name)
+    return table
 
 
 def _reject_reason(values: dict[str, ParamValue]) -> str | None:
@@ -215,7 +248,7 @@ class Simulator(Node):
         values = current_values(self, self._specs)
         settings = RunSettings.from_values(values)
         seed = settings.run_seed(self._run_index)
-        paths = settings.simulate(seed)
+        paths = settings.simulate(seed, self._run_index)
         messages = [transform_message(settings.world_frame, f'vicon/{subject}/{segment}')
                     for subject, segment in settings.subjects()]
         return _PreparedRun(values, settings, seed, float(paths.t[-1]),

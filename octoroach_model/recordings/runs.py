@@ -95,6 +95,9 @@ class RunSet:
     def from_paths(cls, paths: Paths, source: str = 'paths') -> RunSet:
         """Each path as a run; non-finite samples are dropped (and interpolated later)."""
         run_set = cls(notes=[f'{source}: {note}' for note in paths.info.get('notes', [])])
+        stamps = paths.info.get('start_stamps_s')
+        if not (isinstance(stamps, list) and len(stamps) == paths.n_paths):
+            stamps = [None] * paths.n_paths
         dropped_samples = 0
         for index in range(paths.n_paths):
             finite = np.isfinite(paths.poses[index]).all(axis=1) & np.isfinite(paths.t)
@@ -105,8 +108,10 @@ class RunSet:
                 continue
             times, poses = paths.t[finite], paths.poses[index][finite].copy()
             poses[:, HEADING] = np.unwrap(poses[:, HEADING])
-            run_set.runs.append(Run(times - times[0], poses, f'{source} path {index}',
-                                    float('nan')))
+            stamp = stamps[index]
+            start = float(stamp) + float(times[0]) if isinstance(stamp, (int, float)) \
+                else float('nan')
+            run_set.runs.append(Run(times - times[0], poses, f'{source} path {index}', start))
         if dropped_samples:
             run_set.notes.append(f'{source}: {dropped_samples} non-finite samples dropped')
         return run_set

@@ -16,8 +16,9 @@ import math
 
 import numpy as np
 
-from octoroach_model.model import EFFECT_NAMES, ModelParameters, nominal_sigmas
+from octoroach_model.model import ModelParameters, nominal_sigmas
 from octoroach_model.studies.spec import Arm, RobotSpec, StudySpec
+from octoroach_model.studies.terms import TERMS
 
 # children of a replicate's SeedSequence, in spawn order
 ROBOT, DATA, DAMAGE, SIGNS = range(4)
@@ -91,10 +92,14 @@ def draw_robot(spec: StudySpec, replicate: int) -> RobotDraw:
 
 
 def draw_signs(spec: StudySpec, replicate: int) -> dict[str, float]:
-    """Draw +1 or -1 per cause, for arms whose sign is 'both' (the same for every arm)."""
-    u = np.random.default_rng(replicate_seeds(spec.seed, replicate)[SIGNS]).random(
-        len(EFFECT_NAMES))
-    return {name: 1.0 if value < 0.5 else -1.0 for name, value in zip(EFFECT_NAMES, u)}
+    """
+    Draw +1 or -1 per term, for arms whose sign is 'both' (the same for every arm).
+
+    The causes of the table come first, so their draws are those of studies run before the
+    extension terms joined.
+    """
+    u = np.random.default_rng(replicate_seeds(spec.seed, replicate)[SIGNS]).random(len(TERMS))
+    return {name: 1.0 if value < 0.5 else -1.0 for name, value in zip(TERMS, u)}
 
 
 def task_key(arm: Arm, runs_cell: int | None, replicate: int) -> str:

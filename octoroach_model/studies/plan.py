@@ -32,13 +32,13 @@ import numpy as np
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
-from octoroach_model.model import EFFECT_PARAMETERS
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import check_where, CONNECT_TIMEOUT_S, run_tasks, where_to_run
 from octoroach_model.studies.spec import (
     Arm, diagnosis_min_runs, nominal_robot, parse_spec, robot_spec, RobotSpec, StudySpec)
 from octoroach_model.studies.summary import wilson
-from octoroach_model.studies.table import write_table
+from octoroach_model.studies.table import cell, write_table
+from octoroach_model.studies.terms import main_parameter, null_value
 
 PILOT_RUNS = 200
 MAX_ROUNDS = 3
@@ -188,7 +188,7 @@ def _pilot(base: StudySpec, run: Callable, min_runs: int, max_runs: int) -> dict
     spec = StudySpec(base.name, base.seed, 1, (pilot_runs,), base.robot, (Arm('null', 'none'),),
                      diagnosis=base.diagnosis)
     row = run(spec, 'pilot')[0]
-    limit = row.get(f'limit_{arm.cause}') if row['status'] == 'ok' else None
+    limit = cell(row, 'limit', arm.cause) if row['status'] == 'ok' else None
     if limit is not None and math.isfinite(limit) and limit > 0:
         guess = pilot_runs * (limit / arm.size) ** 2
         how = (f'the pilot reported a detection limit of {limit:.4g}; runs scaled by '
@@ -239,7 +239,7 @@ def fit_power_curve(rows: Sequence[Mapping[str, Any]], cause: str, target: float
     if not usable:
         raise ParameterError('no data set of the plan could be diagnosed; see the rows')
     x = np.log([row['runs'] for row in usable])
-    y = np.array([1.0 if row[f'named_{cause}'] else 0.0 for row in usable])
+    y = np.array([1.0 if cell(row, 'named', cause) else 0.0 for row in usable])
     replicate = np.array([row['replicate'] for row in usable])
     intercept, slope = _logistic(x, y)
     crossing = _crossing(intercept, slope, target)
@@ -335,15 +335,16 @@ def _next_counts(fit: PowerFit, counts: list[int], min_runs: int, max_runs: int)
 def _result(base: StudySpec, cause: str, size: float, power: float,
             rows: list[dict[str, Any]], fit: PowerFit, pilot: dict[str, Any], seed: int,
             replicates: int, min_runs: int, max_runs: int, elapsed_s: float) -> PlanResult:
-    parameter = EFFECT_PARAMETERS[cause][0]
+    parameter = main_parameter(cause)
     curve = []
     for runs in fit.counts:
         group = [row for row in rows if row['runs'] == runs and row['status'] == 'ok']
-        rate = wilson(sum(bool(row[f'named_{cause}']) for row in group), len(group))
+        rate = wilson(sum(bool(cell(row, 'named', cause)) for row in group), len(group))
         assert rate.rate is not None and rate.interval is not None  # fit.counts have ok rows
         curve.append(PowerPoint(runs, rate.successes, rate.trials, rate.rate, rate.interval))
     answer = fit.runs_at_target
-    what = f'{cause} with {parameter} = {size:g}'
+    what = (f'{cause} with {parameter} {null_value(cause):g} - {size:g}' if null_value(cause)
+            else f'{cause} with {parameter} = {size:g}')
     if answer > max_runs or not math.isfinite(answer):
         status, needed = 'above_max_runs', None
         statement = (f'more than {max_runs} runs are needed to name {what} with '

@@ -15,9 +15,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from octoroach_model.model import EFFECT_PARAMETERS
 from octoroach_model.studies.summary import (
     AT_LIMIT_RANGE, AT_TWICE_MIN, FALSE_POSITIVE_TARGET, POWER_TARGET)
+from octoroach_model.studies.terms import main_parameter
 
 
 def write_plots(summary: Mapping[str, Any], out: Path) -> list[Path]:
@@ -90,7 +90,7 @@ def _power(plt, summary):
         axis.axhline(POWER_TARGET, color='grey', linestyle='--',
                      label=f'{POWER_TARGET:.0%} power')
         axis.set_ylim(-0.02, 1.02)
-        axis.set_xlabel(f'true {EFFECT_PARAMETERS[cause][0]} (size of the effect)')
+        axis.set_xlabel(f'true {main_parameter(cause)} (size of the effect)')
         axis.set_ylabel('share of data sets with the cause named')
         axis.set_title(f'Power: {cause}')
         axis.legend(title='run count (95 % intervals)', fontsize=8)

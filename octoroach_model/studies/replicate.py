@@ -16,13 +16,14 @@ import time
 from typing import Any
 
 from octoroach_model.jsonio import jsonable
-from octoroach_model.model import check_effects, EFFECT_NAMES, EFFECT_PARAMETERS, simulate
+from octoroach_model.model import check_effects, simulate
 from octoroach_model.paths import Paths
 from octoroach_model.studies.damage import damage_paths
 from octoroach_model.studies.design import (
     DAMAGE, draw_robot, draw_signs, replicate_seeds, RobotDraw, Task)
 from octoroach_model.studies.spec import StudySpec
 from octoroach_model.studies.table import COLUMN_NAMES, typed_row
+from octoroach_model.studies.terms import column, main_parameter, null_value, term_values, TERMS
 
 OK, ERROR, SKIPPED = 'ok', 'error', 'skipped'
 
@@ -70,7 +71,7 @@ def run_task(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None = N
     assert runs is not None  # without run-count cells, every replicate draws its own count
     row = _empty_row(task, spec, draw, runs)
     try:
-        effects = task_effects(task, spec, null_row)
+        effects = task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
         row.update(_truth_columns(effects, task))
         measured = simulate_data(spec, draw, runs, effects, row)
         from octoroach_model.diagnosis import diagnose
@@ -86,17 +87,28 @@ def run_task(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None = N
     return typed_row(row)
 
 
-def task_effects(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None
-                 ) -> dict[str, dict[str, float]]:
-    """Return the effects put into the task's data set, signs applied and sizes checked."""
+def task_effects(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None,
+                 duration_s: float) -> dict[str, dict[str, float]]:
+    """
+    Return the effects put into the task's data set, signs applied and sizes checked.
+
+    A size is the distance of the main parameter from its value of no effect (change_point's
+    speed factor from 1); change_point's time defaults to half the run and run_mixture's
+    fraction to 0.3 (studies/terms.py).
+    """
     arm = task.arm
     effects = arm.effect_dict()
     if arm.kind in ('absolute', 'relative'):
-        main = EFFECT_PARAMETERS[arm.cause][0]
         sign = {'positive': 1.0, 'negative': -1.0}.get(
             arm.sign, draw_signs(spec, task.replicate)[arm.cause])
         size = arm.size if arm.kind == 'absolute' else _limit_size(task, null_row)
-        effects[arm.cause][main] = sign * size
+        effects[arm.cause] = term_values(arm.cause, sign * size, effects[arm.cause],
+                                         duration_s)
+    else:
+        for term, values in effects.items():
+            main = main_parameter(term)
+            effects[term] = term_values(term, values[main] - null_value(term), values,
+                                        duration_s)
     return check_effects(effects)
 
 
@@ -104,7 +116,7 @@ def _limit_size(task: Task, null_row: Mapping[str, Any] | None) -> float:
     cause = task.arm.cause
     if null_row is None or null_row.get('status') != OK:
         raise Skip('the null data set of this replicate has no diagnosis to read the limit from')
-    limit = null_row.get(f'limit_{cause}')
+    limit = null_row.get(f'limit_{column(cause)}')
     if limit is None or not math.isfinite(limit) or limit <= 0:
         raise Skip(f'the diagnosis reported no detection limit for {cause} on the null data '
                    f'set of this replicate')
@@ -129,10 +141,18 @@ def simulate_data(spec: StudySpec, draw: RobotDraw, runs: int,
 
 def outcome_columns(report: Mapping[str, Any], effects: Mapping[str, Mapping[str, float]]
                     ) -> dict[str, Any]:
-    """Compare what the diagnosis named and estimated with the truth put into the data."""
+    """
+    Compare what the diagnosis named and estimated with the truth put into the data.
+
+    Causes of the table and extension terms alike (`named` lists both, by term); a size's
+    relative error is that of its distance from the value of no effect.
+    """
     named_entries = {entry['cause']: entry for entry in report['causes']}
-    candidates = {entry.get('cause'): entry for entry in report['candidates']}
-    named = [entry['cause'] for entry in report['causes']]
+    named_entries.update({entry['term']: entry for entry in report.get('extensions') or []})
+    candidates = {entry.get('cause'): entry for entry in (
+        *report['candidates'], *(report.get('extension_candidates') or []))}
+    named = [entry['cause'] for entry in report['causes']] + [
+        entry['term'] for entry in report.get('extensions') or []]
     true = list(effects)
     columns: dict[str, Any] = {
         'named': named, 'false_causes': [cause for cause in named if cause not in true],
@@ -141,28 +161,29 @@ def outcome_columns(report: Mapping[str, Any], effects: Mapping[str, Mapping[str
         'unexplained': [item.get('statistic', '?') if isinstance(item, Mapping) else str(item)
                         for item in report.get('unexplained') or []],
     }
-    for cause in EFFECT_NAMES:
-        main = EFFECT_PARAMETERS[cause][0]
+    for cause in TERMS:
+        main, key = main_parameter(cause), column(cause)
         entry = named_entries.get(cause)
         candidate = candidates.get(cause, {})
         source = entry if entry is not None else candidate
         estimate = _number((source.get('parameters') or {}).get(main))
         interval = ((entry or {}).get('interval') or {}).get(main) or [None, None]
         truth = effects.get(cause, {}).get(main)
-        columns[f'named_{cause}'] = entry is not None
-        columns[f'estimate_{cause}'] = estimate
-        columns[f'low_{cause}'] = _number(interval[0])
-        columns[f'high_{cause}'] = _number(interval[1])
-        columns[f'limit_{cause}'] = _number((candidate.get('detectable') or {}).get(main))
-        columns[f'rel_error_{cause}'] = (estimate - truth) / truth \
-            if truth and math.isfinite(estimate) else math.nan
+        distance = truth - null_value(cause) if truth is not None else None
+        columns[f'named_{key}'] = entry is not None
+        columns[f'estimate_{key}'] = estimate
+        columns[f'low_{key}'] = _number(interval[0])
+        columns[f'high_{key}'] = _number(interval[1])
+        columns[f'limit_{key}'] = _number((candidate.get('detectable') or {}).get(main))
+        columns[f'rel_error_{key}'] = (estimate - truth) / distance \
+            if truth is not None and distance and math.isfinite(estimate) else math.nan
     return columns
 
 
 def _truth_columns(effects: Mapping[str, Mapping[str, float]], task: Task) -> dict[str, Any]:
     columns: dict[str, Any] = {'true_causes': list(effects)}
-    for cause in EFFECT_NAMES:
-        columns[f'true_{cause}'] = effects[cause][EFFECT_PARAMETERS[cause][0]] \
+    for cause in TERMS:
+        columns[f'true_{column(cause)}'] = effects[cause][main_parameter(cause)] \
             if cause in effects else math.nan
     return columns
 
@@ -183,8 +204,8 @@ def _empty_row(task: Task, spec: StudySpec, draw: RobotDraw, runs: int) -> dict[
     })
     for number, angle in enumerate(draw.touchdown_angles_deg, 1):
         row[f'touchdown_{number}_deg'] = angle
-    for cause in EFFECT_NAMES:
-        row[f'named_{cause}'] = None
+    for cause in TERMS:
+        row[f'named_{column(cause)}'] = None
     return row
 
 

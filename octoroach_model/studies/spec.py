@@ -19,11 +19,13 @@ from typing import Any
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
-from octoroach_model.model import EFFECT_NAMES, EFFECT_PARAMETERS, PARAMETER_RANGES
+from octoroach_model.studies.terms import (
+    main_parameter, parameter_range, parameters as term_parameters, signed, term_named,
+    term_of, TERMS)
 
 SIGNS = ('positive', 'negative', 'both')
 SIGN_MARK = {'positive': '', 'negative': '-', 'both': '+-'}
-SIGNED_CAUSES = ('speed_decay', 'lateral_slip')   # causes whose main parameter has a sign
+SIGNED_CAUSES = tuple(term for term in TERMS if signed(term))   # main parameter has a sign
 NULL = 'none'
 # DiagnosisSettings fields a spec may set (the seed comes from each replicate); a replicate
 # is one Dask task, so its diagnosis runs in that task's process (workers: 1)
@@ -208,7 +210,8 @@ def _arm_json(arm: Arm) -> dict:
 TOP_KEYS = ('name', 'seed', 'replicates', 'runs', 'robot', 'causes', 'damage', 'diagnosis')
 ROBOT_KEYS = (*RobotSpec.DRAWN, 'touchdown_offset_deg', 'touchdown_angles_deg')
 DAMAGE_KEYS = ('cut_share', 'cut_at', 'dropped_frames')
-CAUSE_KEYS = ('cause', 'sizes', 'limit_multiples', 'parameters', 'sign', 'together')
+CAUSE_KEYS = ('cause', 'extension', 'parameter', 'sizes', 'limit_multiples', 'parameters',
+              'sign', 'together')
 # (low, high) accepted for each robot key, in its unit; high may be inf
 ROBOT_LIMITS: dict[str, tuple[float, float]] = {
     'leg_length_cm': (0.1, 20.0), 'hip_distance_cm': (1.0, 100.0),
@@ -380,8 +383,8 @@ def _arms(value: Any) -> tuple[Arm, ...]:
 
 
 def _single(item: Mapping[str, Any], where: str) -> list[Arm]:
-    cause = _cause(item.get('cause'), where)
-    main = EFFECT_PARAMETERS[cause][0]
+    cause = term_of(item, where)
+    main = main_parameter(cause)
     sign = str(item.get('sign', 'positive'))
     if sign not in SIGNS:
         raise ParameterError(f'{where}.sign must be one of {", ".join(SIGNS)}, got {sign!r}')
@@ -399,7 +402,7 @@ def _single(item: Mapping[str, Any], where: str) -> list[Arm]:
     if has_sizes:
         sizes = _positive_list(item['sizes'], f'{where}.sizes')
         for size in sizes:
-            _check_parameter(cause, main, size, f'{where}.sizes')
+            _check_size(cause, size, sign, f'{where}.sizes')
         return [Arm('absolute', f'{cause}={SIGN_MARK[sign]}{size:g}',
                     ((cause, ((main, size), *extra)),), cause=cause, size=size, sign=sign)
                 for size in sizes]
@@ -414,39 +417,33 @@ def _together(item: Mapping[str, Any], where: str) -> Arm:
                              f'{", ".join(sorted(set(item) - {"together"}))})')
     causes = _mapping(item['together'], f'{where}.together')
     if len(causes) < 2:
-        raise ParameterError(f'{where}.together: name at least two causes')
+        raise ParameterError(f'{where}.together: name at least two causes or extension terms')
     effects = []
     for cause, value in causes.items():
-        cause = _cause(cause, f'{where}.together')
+        cause = term_named(cause, f'{where}.together')
+        main = main_parameter(cause)
         if isinstance(value, Mapping):
             params = _parameters(cause, value, f'{where}.together.{cause}')
-            if EFFECT_PARAMETERS[cause][0] not in dict(params):
+            if main not in dict(params):
                 raise ParameterError(f'{where}.together.{cause}: give its main parameter '
-                                     f'{EFFECT_PARAMETERS[cause][0]}')
+                                     f'{main}')
         else:
             size = _positive_list([value], f'{where}.together.{cause}')[0]
-            params = ((EFFECT_PARAMETERS[cause][0], size),)
-            _check_parameter(cause, params[0][0], size, f'{where}.together.{cause}')
+            params = ((main, size),)
+            _check_parameter(cause, main, size, f'{where}.together.{cause}')
         effects.append((cause, params))
-    label = '+'.join(f'{cause}={dict(params)[EFFECT_PARAMETERS[cause][0]]:g}'
+    label = '+'.join(f'{cause}={dict(params)[main_parameter(cause)]:g}'
                      for cause, params in effects)
     return Arm('together', label, tuple(effects))
-
-
-def _cause(value: Any, where: str) -> str:
-    if value not in EFFECT_PARAMETERS:
-        raise ParameterError(f'{where}: unknown cause {value!r}; known: '
-                             f'{", ".join(EFFECT_NAMES)}')
-    return str(value)
 
 
 def _parameters(cause: str, value: Any, where: str) -> tuple[tuple[str, float], ...]:
     params = _mapping(value, where)
     checked = []
     for key, number in params.items():
-        if key not in EFFECT_PARAMETERS[cause]:
+        if key not in term_parameters(cause):
             raise ParameterError(f'{where}: {cause} has no parameter {key!r}; it takes '
-                                 f'{", ".join(EFFECT_PARAMETERS[cause])}')
+                                 f'{", ".join(term_parameters(cause))}')
         number = _number(number, f'{where}.{key}')
         _check_parameter(cause, key, number, f'{where}.{key}')
         checked.append((str(key), number))
@@ -454,10 +451,19 @@ def _parameters(cause: str, value: Any, where: str) -> tuple[tuple[str, float], 
 
 
 def _check_parameter(cause: str, key: str, value: float, where: str) -> None:
-    low, high = PARAMETER_RANGES[key]
+    low, high = parameter_range(cause, key)
     if not low <= value <= high:
         raise ParameterError(f'{where}: {cause}.{key} = {value:g} is outside [{low:g}, '
                              f'{high:g}]')
+
+
+def _check_size(cause: str, size: float, sign: str, where: str) -> None:
+    """Check a size (a distance from the value of no effect, with the arm's signs)."""
+    from octoroach_model.studies.terms import null_value
+
+    main = main_parameter(cause)
+    for side in {'positive': (1.0,), 'negative': (-1.0,), 'both': (1.0, -1.0)}[sign]:
+        _check_parameter(cause, main, null_value(cause) + side * size, where)
 
 
 def _positive_list(value: Any, where: str) -> tuple[float, ...]:

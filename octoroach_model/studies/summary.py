@@ -1,5 +1,7 @@
 """
-What a study measured: false-positive rate, power, estimation error, two-cause recovery.
+What a study measured: false-positive rate, power, estimation error, recovery, confusions.
+
+The confusion table says which cause or extension was named for which.
 
 Every rate comes with its 95 % Wilson score interval (scipy's `binomtest(...).proportion_ci`),
 which keeps its coverage at the small counts and the rates near 0 or 1 that studies give.
@@ -13,9 +15,10 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from octoroach_model.model import EFFECT_PARAMETERS
+from octoroach_model.diagnosis.causes import BY_NAME
 from octoroach_model.studies.spec import StudySpec
-from octoroach_model.studies.table import causes_of
+from octoroach_model.studies.table import causes_of, cell
+from octoroach_model.studies.terms import main_parameter, null_value, TERMS
 
 LEVEL = 0.95
 POWER_TARGET = 0.8
@@ -80,6 +83,7 @@ def summarize(spec: StudySpec, rows: Sequence[Mapping[str, Any]],
         'estimation': _estimation(spec, ok),
         'two_cause_recovery': _recovery(spec, ok),
         'detection_limits': _limits(spec, ok),
+        'confusion': confusion(ok),
         'timing': _timing(rows, wall_time_s),
     }
 
@@ -96,16 +100,16 @@ def _false_positive(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> dict[st
     nulls = [row for row in ok if row['kind'] == 'null']
     overall = wilson(sum(bool(row['named']) for row in nulls), len(nulls))
     by_cell = []
-    for cell in sorted({_cell(spec, row) for row in nulls}, key=str):
-        members = [row for row in nulls if _cell(spec, row) == cell]
-        by_cell.append({'runs': cell, **wilson(sum(bool(r['named']) for r in members),
-                                               len(members)).to_json()})
+    for cell_of in sorted({_cell(spec, row) for row in nulls}, key=str):
+        members = [row for row in nulls if _cell(spec, row) == cell_of]
+        by_cell.append({'runs': cell_of, **wilson(sum(bool(r['named']) for r in members),
+                                                  len(members)).to_json()})
     named_counts: dict[str, int] = {}
     for row in nulls:
         for cause in causes_of(row['named']):
             named_counts[cause] = named_counts.get(cause, 0) + 1
     return {'definition': "share of data sets from the paper's model (no effect) in which "
-                          'any cause was named',
+                          'any cause or extension was named',
             **overall.to_json(), 'target': FALSE_POSITIVE_TARGET,
             'by_runs': by_cell, 'causes_named': named_counts}
 
@@ -120,12 +124,12 @@ def _power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, A
     entries = []
     for arm in (arm for arm in spec.arms if arm.kind == 'absolute'):
         members = [row for row in ok if row['arm'] == arm.label]
-        for cell in sorted({_cell(spec, row) for row in members}, key=str):
-            group = [row for row in members if _cell(spec, row) == cell]
+        for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
+            group = [row for row in members if _cell(spec, row) == cell_of]
             entries.append({
-                'cause': arm.cause, 'parameter': EFFECT_PARAMETERS[arm.cause][0],
-                'size': arm.size, 'sign': arm.sign, 'runs': cell,
-                **wilson(sum(bool(row[f'named_{arm.cause}']) for row in group),
+                'cause': arm.cause, 'parameter': main_parameter(arm.cause),
+                'size': arm.size, 'sign': arm.sign, 'runs': cell_of,
+                **wilson(sum(bool(cell(row, 'named', arm.cause)) for row in group),
                          len(group)).to_json()})
     return entries
 
@@ -134,12 +138,14 @@ def _relative_power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[di
     entries = []
     for arm in (arm for arm in spec.arms if arm.kind == 'relative'):
         members = [row for row in ok if row['arm'] == arm.label]
-        for cell in sorted({_cell(spec, row) for row in members}, key=str):
-            group = [row for row in members if _cell(spec, row) == cell]
-            rate = wilson(sum(bool(row[f'named_{arm.cause}']) for row in group), len(group))
-            missed = [row for row in group if not row[f'named_{arm.cause}']]
-            entry = {'cause': arm.cause, 'limit_multiple': arm.limit_multiple, 'runs': cell,
-                     'median_size': _median(abs(row[f'true_{arm.cause}']) for row in group),
+        null = null_value(arm.cause)
+        for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
+            group = [row for row in members if _cell(spec, row) == cell_of]
+            rate = wilson(sum(bool(cell(row, 'named', arm.cause)) for row in group), len(group))
+            missed = [row for row in group if not cell(row, 'named', arm.cause)]
+            entry = {'cause': arm.cause, 'limit_multiple': arm.limit_multiple, 'runs': cell_of,
+                     'median_size': _median(abs(cell(row, 'true', arm.cause) - null)
+                                            for row in group),
                      **rate.to_json(), 'missed': len(missed),
                      'missed_not_adequate': sum(row['adequate'] is False for row in missed)}
             if arm.limit_multiple == 1 and rate.rate is not None:
@@ -162,15 +168,15 @@ def _estimation(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[s
     for arm in (arm for arm in spec.arms if arm.kind in ('absolute', 'relative', 'together')):
         members = [row for row in ok if row['arm'] == arm.label]
         for cause in arm.causes:
-            for cell in sorted({_cell(spec, row) for row in members}, key=str):
-                named = [row for row in members if _cell(spec, row) == cell
-                         and row[f'named_{cause}']]
-                errors = _finite(row[f'rel_error_{cause}'] for row in named)
-                with_interval = [row for row in named if math.isfinite(row[f'low_{cause}'])]
-                covered = sum(row[f'low_{cause}'] <= row[f'true_{cause}'] <= row[f'high_{cause}']
-                              for row in with_interval)
+            for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
+                named = [row for row in members if _cell(spec, row) == cell_of
+                         and cell(row, 'named', cause)]
+                errors = _finite(cell(row, 'rel_error', cause) for row in named)
+                with_interval = [row for row in named if math.isfinite(cell(row, 'low', cause))]
+                covered = sum(cell(row, 'low', cause) <= cell(row, 'true', cause)
+                              <= cell(row, 'high', cause) for row in with_interval)
                 entries.append({
-                    'arm': arm.label, 'cause': cause, 'runs': cell, 'named': len(named),
+                    'arm': arm.label, 'cause': cause, 'runs': cell_of, 'named': len(named),
                     'median_abs_relative_error': _median(abs(e) for e in errors),
                     'median_relative_error': _median(errors),
                     'interval_coverage': wilson(covered, len(with_interval)).to_json()})
@@ -181,15 +187,16 @@ def _recovery(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str
     entries = []
     for arm in (arm for arm in spec.arms if arm.kind == 'together'):
         members = [row for row in ok if row['arm'] == arm.label]
-        for cell in sorted({_cell(spec, row) for row in members}, key=str):
-            group = [row for row in members if _cell(spec, row) == cell]
+        for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
+            group = [row for row in members if _cell(spec, row) == cell_of]
             entries.append({
-                'arm': arm.label, 'causes': list(arm.causes), 'runs': cell,
+                'arm': arm.label, 'causes': list(arm.causes), 'runs': cell_of,
                 'definition': 'share of data sets in which every true cause was named',
                 **wilson(sum(bool(row['all_true_named']) for row in group),
                          len(group)).to_json(),
-                'each_named': {cause: wilson(sum(bool(row[f'named_{cause}']) for row in group),
-                                             len(group)).to_json() for cause in arm.causes},
+                'each_named': {cause: wilson(sum(bool(cell(row, 'named', cause))
+                                                 for row in group), len(group)).to_json()
+                               for cause in arm.causes},
                 'other_named': wilson(sum(bool(row['false_causes']) for row in group),
                                       len(group)).to_json()})
     return entries
@@ -199,14 +206,43 @@ def _limits(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, 
     """Median detection limit each cause reported on null data sets, per run count."""
     nulls = [row for row in ok if row['kind'] == 'null']
     entries = []
-    for cell in sorted({_cell(spec, row) for row in nulls}, key=str):
-        group = [row for row in nulls if _cell(spec, row) == cell]
-        for cause, params in EFFECT_PARAMETERS.items():
-            limits = _finite(row[f'limit_{cause}'] for row in group)
-            entries.append({'cause': cause, 'parameter': params[0], 'runs': cell,
+    for cell_of in sorted({_cell(spec, row) for row in nulls}, key=str):
+        group = [row for row in nulls if _cell(spec, row) == cell_of]
+        for cause in TERMS:
+            limits = _finite(cell(row, 'limit', cause) for row in group)
+            entries.append({'cause': cause, 'parameter': main_parameter(cause), 'runs': cell_of,
                             'median_limit': _median(limits), 'reported': len(limits),
                             'data_sets': len(group)})
     return entries
+
+
+NOTHING = 'nothing'
+
+
+def confusion(ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """
+    Return, for each cause or family put alone into data, how often each one was named.
+
+    Rows: the true cause or extension family (run_order_drift's terms together), data sets
+    with exactly one; columns: each cause or family named (and 'nothing' where none was),
+    as counts; a data set that names two counts in both columns. The nulls are the row
+    'none'.
+    """
+    table: dict[str, dict[str, int]] = {}
+    totals: dict[str, int] = {}
+    for row in ok:
+        truth = causes_of(row['true_causes'])
+        if len(truth) > 1:
+            continue
+        true_label = BY_NAME[truth[0]].label if truth else 'none'
+        named = {BY_NAME[term].label for term in causes_of(row['named']) if term in BY_NAME}
+        counts = table.setdefault(true_label, {})
+        totals[true_label] = totals.get(true_label, 0) + 1
+        for label in named or {NOTHING}:
+            counts[label] = counts.get(label, 0) + 1
+    return {'definition': 'data sets with one true cause or extension family (or none): how '
+                          'many named each cause or family',
+            'data_sets': totals, 'named': table}
 
 
 def _timing(rows: Sequence[Mapping[str, Any]], wall_time_s: float | None) -> dict[str, Any]:

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from octoroach_model.errors import DataError
-from octoroach_model.model import EFFECT_NAMES
+from octoroach_model.studies.terms import column, TERMS
 
 TABLE_NAME = 'table.csv'
 MANIFEST_NAME = 'study.json'
@@ -46,7 +46,7 @@ _PER_CAUSE: tuple[tuple[str, type], ...] = (
 )
 _TAIL: tuple[tuple[str, type], ...] = (('status', str), ('note', str), ('elapsed_s', float))
 COLUMNS: tuple[tuple[str, type], ...] = (
-    _FIXED + tuple((f'{prefix}_{cause}', kind) for cause in EFFECT_NAMES
+    _FIXED + tuple((f'{prefix}_{column(term)}', kind) for term in TERMS
                    for prefix, kind in _PER_CAUSE) + _TAIL)
 COLUMN_NAMES = tuple(name for name, _ in COLUMNS)
 # columns that depend on the machine rather than the spec (left out when tables are compared)
@@ -87,6 +87,11 @@ def typed_row(row: Mapping[str, Any]) -> dict[str, Any]:
     whether just computed or read.
     """
     return {name: parse_cell(format_cell(row[name]), kind) for name, kind in COLUMNS}
+
+
+def cell(row: Mapping[str, Any], prefix: str, term: str) -> Any:
+    """Return a row's per-term cell: `prefix` such as 'named', `term` a cause or term."""
+    return row[f'{prefix}_{column(term)}']
 
 
 def causes_of(cell: str) -> list[str]:

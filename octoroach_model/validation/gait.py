@@ -57,7 +57,15 @@ def band_spectrum(signal: np.ndarray, t: np.ndarray, frequencies: np.ndarray) ->
     return np.abs(signal @ phase)
 
 
-def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float
+def windowed_sway(heading: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return each run's heading, its own line removed, times its Hann window; and the window."""
+    lengths = valid_mask(heading).sum(axis=1)
+    window = hann_windows(lengths, heading.shape[1])
+    return detrended(heading, t) * window, window
+
+
+def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float,
+                 windowed: tuple[np.ndarray, np.ndarray] | None = None
                  ) -> tuple[np.ndarray, np.ndarray]:
     """
     Per-run stride frequency (Hz) and sway amplitude (rad) of the heading.
@@ -65,11 +73,10 @@ def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float
     The body sways once per cycle (the right stance turns it one way, the left the other);
     how far depends on the leg geometry. Heading, unlike a speed from differenced positions,
     is not drowned by position noise. The peak of the windowed spectrum within BAND of
-    `nominal_hz` is refined by a parabola through its neighbours.
+    `nominal_hz` is refined by a parabola through its neighbours. `windowed`: the result of
+    `windowed_sway`, where the caller has it already.
     """
-    lengths = valid_mask(heading).sum(axis=1)
-    window = hann_windows(lengths, heading.shape[1])
-    sway = detrended(heading, t) * window
+    sway, window = windowed if windowed is not None else windowed_sway(heading, t)
     frequencies = np.linspace(BAND[0] * nominal_hz, BAND[1] * nominal_hz, BAND_POINTS)
     spectrum = band_spectrum(sway, t, frequencies)
     rows = np.arange(heading.shape[0])
