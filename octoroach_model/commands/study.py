@@ -7,7 +7,7 @@ import sys
 import time
 from typing import Any, TextIO
 
-from octoroach_model.commands.common import finite_float, nonnegative_int, OneLineParser
+from octoroach_model.commands.common import add_workers_argument, finite_float, OneLineParser
 
 
 class ProgressBar:
@@ -55,9 +55,7 @@ def add_where_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--scheduler', metavar='ADDRESS', default=None,
                         help='address of a running Dask scheduler (e.g. tcp://host:8786) to '
                         'send the data sets to; default: a local Dask cluster')
-    parser.add_argument('--workers', type=nonnegative_int, default=None,
-                        help='worker processes of the local cluster (one thread each); '
-                        'default one per core; 0 runs everything in this process, in order')
+    add_workers_argument(parser, 'the data sets (a local Dask cluster)')
     parser.add_argument('--connect-timeout-s', type=finite_float, default=10.0,
                         help='how long to wait for the scheduler to answer, s')
 

@@ -25,7 +25,6 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-import struct
 import warnings
 
 import c3d
@@ -52,8 +51,10 @@ from octoroach_model.recordings.options import ReadOptions
 __all__ = ['iter_c3d_pose_chunks']
 
 MODEL_OUTPUT_PARAMETERS = ('ANGLES', 'FORCES', 'MOMENTS', 'POWERS', 'SCALARS', 'REACTIONS')
-_C3D_ERRORS = (ValueError, struct.error, AssertionError, IndexError, KeyError, TypeError,
-               UnicodeDecodeError, OverflowError, MemoryError, AttributeError, EOFError)
+# What the c3d package raises on a malformed file: besides the usual ValueError, struct.error
+# and EOFError, a broken header can reach its own bugs (an UnboundLocalError, a
+# ZeroDivisionError); any of them means "not a readable C3D file", never a traceback.
+_C3D_ERRORS = (Exception,)
 
 
 @contextmanager
@@ -213,8 +214,9 @@ def _frame_blocks(reader: c3d.Reader, chosen: list[int], scale: float, block: in
             raise BagError(f'{where}: unreadable C3D frame data ({_reason(exc)})') from None
         if count == 0:
             return
-        markers = points[:count, :, :3].astype(np.float64) * scale
-        markers[points[:count, :, 3] < 0] = np.nan
+        with np.errstate(invalid='ignore', over='ignore'):   # garbage in a broken file: NaN
+            markers = points[:count, :, :3].astype(np.float64) * scale
+            markers[~(points[:count, :, 3] >= 0)] = np.nan
         yield numbers[:count], markers
         if count < block:
             return

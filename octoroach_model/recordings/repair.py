@@ -19,11 +19,11 @@ from pathlib import Path
 from typing import NamedTuple
 
 from mcap.records import Channel, Message, Schema
-import yaml
 
 from octoroach_model.errors import BagError
 from octoroach_model.recordings.qos import load_profiles
 from octoroach_model.recordings.reader import FileDamage, iter_mcap_records, TRUNCATION_KEY
+from octoroach_model.recordings.safe_yaml import load_yaml_file
 from octoroach_model.recordings.sources import bag_files, METADATA_FILE, PathLike, ROS1_SUFFIX
 from octoroach_model.recordings.writer import (
     FileRecord,
@@ -224,8 +224,8 @@ def _custom_data(directory: Path | None) -> dict[str, str] | None:
     if directory is None or not (directory / METADATA_FILE).is_file():
         return None
     try:
-        info = yaml.safe_load((directory / METADATA_FILE).read_text())
+        info = load_yaml_file(directory / METADATA_FILE)
         data = info['rosbag2_bagfile_information'].get('custom_data')
-    except (yaml.YAMLError, KeyError, TypeError, AttributeError):
+    except (BagError, KeyError, TypeError, AttributeError):
         return None
     return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else None
