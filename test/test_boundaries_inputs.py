@@ -29,11 +29,11 @@ from mcap.reader import make_reader
 from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
-from mocap_helpers import body_rotations, write_c3d, write_vicon_csv
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from mocap_helpers import body_rotations, write_c3d, write_vicon_csv
 import octoroach_model as om
 from octoroach_model.errors import BagError
 from octoroach_model.recordings import BagReader, save_dataset, write_paths_bag
@@ -52,14 +52,14 @@ GIB = 1 << 30
 # -- files ----------------------------------------------------------------------------------
 
 def standard_bag(directory: Path, runs: int = 3) -> Path:
-    """A bag as `simulate` writes it: metadata.yaml and one uncompressed MCAP file."""
+    """Write a bag as `simulate` writes it: metadata.yaml and one uncompressed MCAP file."""
     bag = directory / 'bag'
     write_paths_bag(bag, om.simulate(runs, seed=1, cycles=2))
     return bag
 
 
 def zstd_mcap(directory: Path, bag: Path) -> Path:
-    """The bag's messages in one .mcap file written by mcap's Writer with zstd chunks."""
+    """Copy the bag's messages into one .mcap file written by mcap's Writer with zstd chunks."""
     reader = BagReader(bag)
     reader.topics()
     path = directory / 'zstd.mcap'
@@ -94,7 +94,7 @@ def chunk_offsets(path: Path) -> list[int]:
 
 def chunk_claiming(directory: Path, bag: Path, claimed: int) -> Path:
     """
-    The zstd file with its first chunk claiming `claimed` bytes decompressed.
+    Write the zstd file with its first chunk claiming `claimed` bytes decompressed.
 
     Patched: the chunk record's uncompressed_size, a uint64 after its opcode (1 byte), record
     length (8) and message start and end times (8 + 8).
@@ -110,7 +110,7 @@ def chunk_claiming(directory: Path, bag: Path, claimed: int) -> Path:
 
 def int8_bomb(directory: Path, runs: int = 33_334, samples: int = 1000) -> Path:
     """
-    A data set whose poses are int8 zeros, deflated: 100 MB of int8, 800 MB as float64.
+    Write a data set whose poses are int8 zeros, deflated: 100 MB of int8, 800 MB as float64.
 
     Written with numpy's public .npy header writer into a zip member, the zeros streamed in
     pieces (an .npz is a zip of .npy files, as np.savez_compressed writes it).
@@ -134,7 +134,7 @@ def int8_bomb(directory: Path, runs: int = 33_334, samples: int = 1000) -> Path:
 
 
 def alias_bomb(directory: Path, bag: Path) -> Path:
-    """The bag with a 'billion laughs' metadata.yaml (nine levels of nine aliases)."""
+    """Copy the bag with a 'billion laughs' metadata.yaml (nine levels of nine aliases)."""
     target = directory / 'laughs'
     target.mkdir()
     for file in bag.iterdir():
@@ -149,7 +149,7 @@ def alias_bomb(directory: Path, bag: Path) -> Path:
 
 
 def link_loop(directory: Path) -> Path:
-    """A folder holding two links to itself (and nothing to read)."""
+    """Make a folder holding two links to itself (and nothing to read)."""
     folder = directory / 'loop'
     folder.mkdir()
     (folder / 'again').symlink_to('.')
@@ -158,7 +158,7 @@ def link_loop(directory: Path) -> Path:
 
 
 def long_csv_cell(directory: Path) -> Path:
-    """A Vicon CSV export whose names line holds one cell of 200 000 characters."""
+    """Write a Vicon CSV export whose names line holds one cell of 200 000 characters."""
     path = directory / 'long_cell.csv'
     path.write_text('Objects\r\n100\r\n,,' + 'x' * 200_000 + '\r\n'
                     'Frame,Sub Frame,RX,RY,RZ,TX,TY,TZ\r\n,,deg,deg,deg,mm,mm,mm\r\n'
@@ -167,7 +167,7 @@ def long_csv_cell(directory: Path) -> Path:
 
 
 def secret_file(directory: Path) -> Path:
-    """A text file with an MCAP name whose first bytes must never reach an error message."""
+    """Write a text file with an MCAP name whose first bytes must never reach an error message."""
     path = directory / 'shadow.mcap'
     path.write_text('root:*:20000:0:99999:7:::\n')
     return path
@@ -240,7 +240,7 @@ def mutants(seeds: dict[str, Path], directory: Path, rng: random.Random) -> list
 
 # -- the child that reads every case --------------------------------------------------------
 
-CHILD = r'''
+CHILD = r"""
 import contextlib, io, json, resource, sys, time, traceback
 from octoroach_model.commands import run_command
 
@@ -257,7 +257,7 @@ for path in json.loads(sys.argv[1]):
                     'seconds': time.monotonic() - started,
                     'peak_mb': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024})
 print(json.dumps(results))
-'''
+"""
 
 
 def read_in_child(paths: list[Path]) -> list[dict]:
@@ -268,7 +268,7 @@ def read_in_child(paths: list[Path]) -> list[dict]:
 
 
 def check_one_line(case: dict) -> str:
-    """The case ended as exit 0, or as one `error:` line and exit 1, without a traceback."""
+    """Check that the case ended in exit 0, or in one `error:` line and exit 1, untraced."""
     where = f'{case["path"]}: exit {case["code"]}\n{case["stderr"]}'
     assert 'Traceback' not in case['stderr'], where
     if case['code'] == 0:
