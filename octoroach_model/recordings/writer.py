@@ -31,6 +31,7 @@ from mcap.writer import Writer as McapWriter
 import yaml
 
 from octoroach_model.errors import BagError, DataError, OutputError
+from octoroach_model.fileio import write_text_atomic
 from octoroach_model.recordings.msgtypes import standard_definition, TypeDefinition
 from octoroach_model.recordings.qos import dump_profiles, load_profiles, QosProfile
 from octoroach_model.recordings.sources import METADATA_FILE, PathLike
@@ -102,16 +103,14 @@ def metadata_document(files: Sequence[FileRecord], topics: Sequence[TopicRecord]
 
 
 def write_metadata_yaml(directory: Path, document: Mapping[str, Any]) -> Path:
-    """Write ``metadata.yaml`` atomically (temporary file, then rename)."""
+    """Write ``metadata.yaml`` atomically (`fileio.write_text_atomic`; a link is replaced)."""
     target = directory / METADATA_FILE
-    partial = directory / (METADATA_FILE + '.partial')
     try:
-        partial.write_text(yaml.safe_dump({'rosbag2_bagfile_information': dict(document)},
-                                          sort_keys=False, default_flow_style=False))
-        partial.replace(target)
+        write_text_atomic(target, yaml.safe_dump({'rosbag2_bagfile_information': dict(document)},
+                                                 sort_keys=False, default_flow_style=False),
+                          replace=True, what='bag metadata')
     except OSError as exc:
-        partial.unlink(missing_ok=True)
-        raise BagError(f'{target}: cannot write: {exc.strerror or exc}') from None
+        raise OutputError(f'{target}: cannot write: {exc.strerror or exc}') from None
     return target
 
 
