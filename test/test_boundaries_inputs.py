@@ -342,6 +342,23 @@ def test_the_same_input_given_twice_is_refused(tmp_path):
         om.load_measured([data, str(data)])
 
 
+def test_the_same_runs_under_two_names_are_said(tmp_path):
+    """A bag and its copy doubled every run in silence (1001 runs, "gain 108 %")."""
+    bag = standard_bag(tmp_path)
+    copy = tmp_path / 'copy'
+    copy.mkdir()
+    for file in bag.iterdir():
+        (copy / file.name.replace('bag', 'copy')).write_bytes(file.read_bytes())
+    metadata = copy / 'metadata.yaml'
+    metadata.write_text(metadata.read_text().replace('bag_0.mcap', 'copy_0.mcap'))
+    assert not [n for n in om.load_measured([bag]).info['notes'] if 'same samples' in n]
+    notes = om.load_measured([bag, copy]).info['notes']
+    assert [n for n in notes if n.startswith('3 of 6 runs hold the same samples')], notes
+    result = subprocess.run([sys.executable, '-m', 'octoroach_model', 'validate', str(bag),
+                             str(copy)], cwd=REPO, capture_output=True, text=True)
+    assert 'note: 3 of 6 runs hold the same samples' in result.stderr, result.stderr
+
+
 def test_repair_never_leaves_the_bag_directory(tmp_path):
     bag = standard_bag(tmp_path)
     victim = tmp_path / 'victim.mcap'

@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 import sys
 import time
-from typing import NoReturn, TYPE_CHECKING
+from typing import Any, NoReturn, TYPE_CHECKING
 
 from octoroach_model.errors import (
     EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, OutputError)
@@ -112,6 +112,15 @@ def new_output(path: Path, option: str, *, directory_ok: bool = False) -> Path:
             else 'exists already'
         raise OutputError(f'{option} {path} {kind}; choose a new path')
     return check_writable(path, option)
+
+
+def say_repeated_runs(measured: Any) -> None:
+    """Print the note on runs given twice (`recordings.duplicates`) on stderr, as `note:`."""
+    from octoroach_model.recordings.duplicates import REPEATED_RUNS
+
+    for note in measured.info.get('notes', ()):
+        if REPEATED_RUNS in note:
+            sys.stderr.write(f'note: {note}\n')
 
 
 def add_workers_argument(parser: argparse.ArgumentParser, what: str) -> None:

@@ -14,7 +14,7 @@ import sys
 
 from octoroach_model.commands.common import (
     add_input_arguments, add_workers_argument, new_output, nonnegative_int, OneLineParser,
-    progress_printer, read_options)
+    progress_printer, read_options, say_repeated_runs)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -79,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
 
     new_output(args.out, '--out', directory_ok=True)
     measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s)
+    say_repeated_runs(measured)
     workers = default_workers() if args.workers is None else args.workers
     settings = DiagnosisSettings(seed=args.seed, workers=1)
     with worker_pool(workers) as pool:
