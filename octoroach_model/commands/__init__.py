@@ -25,6 +25,16 @@ OFFLINE: dict[str, str] = {
 }
 
 
+def one_line(text: str) -> str:
+    """
+    Make a message one printable line.
+
+    Whitespace runs become one space, other control characters (read from the names in a
+    broken file) '?'.
+    """
+    return ''.join(ch if ch.isprintable() else '?' for ch in ' '.join(text.split()))
+
+
 def run_command(name: str, argv: list[str] | None) -> int:
     """Parse argv for command `name` and run it; one-line errors, exit codes 0/1/2/3/130."""
     module = importlib.import_module(f'octoroach_model.commands.{name}')
@@ -32,7 +42,7 @@ def run_command(name: str, argv: list[str] | None) -> int:
         args = module.parser().parse_args(argv)   # defaults come from config files: may fail
         return int(module.run(args) or 0)
     except OctoroachError as error:
-        sys.stderr.write(f'error: {name}: {error}\n')
+        sys.stderr.write(f'error: {name}: {one_line(str(error))}\n')
         return exit_code(error)
     except KeyboardInterrupt:
         sys.stderr.write(f'error: {name}: interrupted\n')

@@ -187,8 +187,15 @@ def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
 
 
 def _reason(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
+    """
+    Name what went wrong by the kind of error only.
+
+    The c3d package's messages can quote names and values read from the file, and an error
+    must never show a file's content.
+    """
+    known: dict[type[BaseException], str] = {EOFError: 'the file ends early',
+                                             MemoryError: 'a size in it is too large'}
+    return known.get(type(exc), f'{type(exc).__name__} while parsing it')
 
 
 def _frame_blocks(reader: c3d.Reader, chosen: list[int], scale: float, block: int,

@@ -404,8 +404,8 @@ class BagReader:
             if connection.msgdef.data:
                 try:
                     types.update(get_types_from_msg(connection.msgdef.data, connection.msgtype))
-                except TypesysError as error:
-                    self.types.unreadable[connection.msgtype] = f'unreadable definition: {error}'
+                except TypesysError:         # its message quotes the file's definition text
+                    self.types.unreadable[connection.msgtype] = 'unreadable definition'
         noetic = get_typestore(Stores.ROS1_NOETIC)
         store = get_typestore(Stores.EMPTY)
         store.register({**{name: noetic.fielddefs[name] for name in noetic.fielddefs},
