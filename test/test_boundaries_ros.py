@@ -106,13 +106,15 @@ def test_the_recorders_dataset_is_read_only_and_only_its_own_file_is_replaced(tm
         assert recorder.stop() == 3, recorder.log      # the data set on exit: refused too
     assert dataset.read_text() == 'a user put a file here meanwhile'
 
+
+def test_a_recorder_whose_dataset_exists_does_not_start(tmp_path, capfd):
+    from octoroach_model.nodes import recorder
+
     taken = tmp_path / 'taken.npz'
     taken.write_text('mine')
-    with NodeSet(tmp_path) as nodes:
-        refused = nodes.start('recorder', '-o', str(tmp_path / 'bag2'), '--dataset', str(taken))
-        assert refused.wait(timeout=60) == 3, refused.log
-    assert 'exists already' in refused.log and taken.read_text() == 'mine'
-    assert not (tmp_path / 'bag2').exists()
+    assert recorder.main(['-o', str(tmp_path / 'bag'), '--dataset', str(taken)]) == 3
+    assert 'exists already' in capfd.readouterr().err and taken.read_text() == 'mine'
+    assert not (tmp_path / 'bag').exists()
 
 
 def test_report_dir_is_read_only_and_a_report_never_writes_through_a_link(
