@@ -114,13 +114,22 @@ def qos_profile_of(profile: Any) -> Any:
         avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions))
 
 
-def _identity(path: str) -> tuple[int, int] | None:
-    """Return the (device, inode) of `path` itself (a link is not followed), or None."""
+FileIdentity = tuple[int, int, int, int, int]
+
+
+def _identity(path: str) -> FileIdentity | None:
+    """
+    Return what tells the file at `path` (a link is not followed) from any other, or None.
+
+    Device and inode, and size and change times: a file removed and made anew often gets
+    the inode number back.
+    """
     try:
         status = os.lstat(path)
     except OSError:
         return None
-    return status.st_dev, status.st_ino
+    return (status.st_dev, status.st_ino, status.st_size, status.st_mtime_ns,
+            status.st_ctime_ns)
 
 
 def _message_class(msgtype: str) -> Any:
@@ -171,7 +180,7 @@ class Recorder(Node):
         from octoroach_model.recordings.recording import Recording, REORDER_WINDOW_S
 
         output = Path(values['output'] or default_output())
-        self._own_dataset: tuple[int, int] | None = None   # the file this recorder wrote
+        self._own_dataset: FileIdentity | None = None   # the file this recorder wrote
         if values['dataset']:
             if os.path.lexists(values['dataset']):
                 raise OutputError(f'dataset {values["dataset"]} exists already; choose a new '
