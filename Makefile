@@ -5,7 +5,13 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 JOBS ?= 2
 
-.PHONY: venv test demo bench clean
+# make demo writes DEMO and marks it as its own; a DEMO without the mark is a user's, never
+# replaced. Each run replaces the demo's own previous output (diagnose writes it at once).
+DEMO ?= out/demo
+DEMO_INPUT ?= bags/
+DEMO_MARK := .written-by-make-demo
+
+.PHONY: venv test demo bench clean distclean
 
 venv: $(STAMP)
 
@@ -20,10 +26,19 @@ test: venv
 	$(PY) -m pytest -n $(JOBS) test
 
 demo: venv
-	$(PY) -m octoroach_model diagnose bags/ --out out/demo --seed 1
+	@if [ -L $(DEMO) ] || { [ -e $(DEMO) ] && [ ! -f $(DEMO)/$(DEMO_MARK) ]; }; then \
+	    echo "error: make demo: $(DEMO) exists and was not written by make demo;" \
+	        "move it away or run make demo DEMO=another/folder" >&2; exit 3; fi
+	rm -rf $(DEMO)
+	$(PY) -m octoroach_model diagnose $(DEMO_INPUT) --out $(DEMO) --seed 1 $(DEMO_ARGS)
+	touch $(DEMO)/$(DEMO_MARK)
 
 bench: venv
 	$(PY) benchmarks/run_all.py
 
+# the build and the outputs; the venv stays (distclean removes it too)
 clean:
-	rm -rf $(VENV) build install log out
+	rm -rf build install log out
+
+distclean: clean
+	rm -rf $(VENV)

@@ -83,7 +83,8 @@ def usage() -> str:
              '  ROS nodes: ' + ', '.join(NODES),
              '  offline programs:']
     lines += [f'    {name:<10} {text}' for name, text in offline.items()]
-    lines += ['  X --help explains X. Exit codes: 0 done, 1 bad data or value, 2 usage error.']
+    lines += ['  X --help explains X. Exit codes: 0 done, 1 bad data or value, 2 usage error, '
+              '3 output cannot be written, 130 interrupted.']
     return '\n'.join(lines) + '\n'
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from datetime import datetime
 import os
 from pathlib import Path
 from typing import Any
@@ -164,7 +165,8 @@ def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict[str, A
         from octoroach_model.diagnosis import write_report
 
         try:
-            written = write_report(report, Path(job.report_dir), measured=measured, plots=True)
+            written = write_report(report, new_report_folder(job.report_dir), measured=measured,
+                                   plots=True)
             files = {str(k): str(v) for k, v in dict(written or {}).items()}
         except Cancelled:
             raise
@@ -175,7 +177,26 @@ def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict[str, A
 
 
 def diagnosis_settings(job: Job) -> Any:
-    """Return the diagnosis settings of a call: the library defaults with its seed."""
+    """
+    Return the diagnosis settings of a call: the library's, with the node's own settings.
+
+    The seed, and the validation settings (rho, epsilon, delta, k, gamma, the search grid)
+    the diagnosis's validations of the baseline and the extended model use.
+    """
     from octoroach_model.diagnosis import DiagnosisSettings
 
-    return DiagnosisSettings(seed=job.settings.seed)
+    return DiagnosisSettings(seed=job.settings.seed, validation=job.settings)
+
+
+def new_report_folder(report_dir: str) -> Path:
+    """
+    Return a new folder in `report_dir` for one call's report: diagnosis_YYYYmmdd_HHMMSS[_N].
+
+    Each call writes a folder of its own (atomically, `write_report`), so no file of an
+    earlier report, nor anything else in report_dir, is ever replaced.
+    """
+    base = Path(report_dir) / datetime.now().strftime('diagnosis_%Y%m%d_%H%M%S')
+    folder, number = base, 1
+    while os.path.lexists(folder):
+        folder, number = base.with_name(f'{base.name}_{number}'), number + 1
+    return folder

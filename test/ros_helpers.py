@@ -388,7 +388,8 @@ def read_launch_file(path: Path, share: Path, package: str = 'octoroach_model',
     `share` stands for `$(find-pkg-share PACKAGE)` (the checkout: its config/ and launch/ are
     laid out as in share/PACKAGE); launch arguments take their defaults unless given. Only the
     subset of the launch XML format that this package uses is understood (arg, node with
-    param from=..., param name=/value=, remap; substitutions var and find-pkg-share); anything
+    ros_args, param from=..., param name=/value=, remap; substitutions var and
+    find-pkg-share); anything
     else fails the test, so the launch file cannot say more than the test checks. As
     launch_ros does, name/value parameters come after the parameters files and win.
     """
@@ -415,7 +416,8 @@ def read_launch_file(path: Path, share: Path, package: str = 'octoroach_model',
             values[name] = arguments.get(name, element.attrib.get('default', ''))
             continue
         assert element.tag == 'node', f'{path}: <{element.tag}> is not understood here'
-        assert set(element.attrib) <= {'pkg', 'exec', 'name', 'output'}, element.attrib
+        assert set(element.attrib) <= {'pkg', 'exec', 'name', 'output', 'ros_args'}, \
+            element.attrib
         assert element.attrib['pkg'] == package, element.attrib
         files: list[str] = []
         rules: list[str] = []
@@ -430,7 +432,8 @@ def read_launch_file(path: Path, share: Path, package: str = 'octoroach_model',
             else:
                 raise AssertionError(f'{path}: <{child.tag}> in a node is not understood here')
         name = element.attrib.get('name', element.attrib['exec'])
+        extra = substitute(element.attrib.get('ros_args', '')).split()
         launched.append(LaunchedNode(
             element.attrib['exec'], name,
-            ('--ros-args', '-r', f'__node:={name}', *files, *rules)))
+            ('--ros-args', '-r', f'__node:={name}', *extra, *files, *rules)))
     return launched

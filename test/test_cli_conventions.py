@@ -1,10 +1,11 @@
 """
 What every offline program does with a bad command line or bad data, before any work.
 
-Exit codes (README, "What it does, in one page"): 2 for a usage error (unknown option, a
-malformed or out-of-range value, which the message names), 1 for data or values that cannot be
-used; one line `error: ...` on stderr, never a traceback. An output that cannot be written is
-refused before any input is read. `--help` shows every option's default.
+Exit codes (README, "Exit codes"; the table in `octoroach_model.errors`): 2 for a usage error
+(unknown option, a malformed or out-of-range value, which the message names), 1 for data or
+values that cannot be used, 3 for an output that cannot be written; one line `error: ...` on
+stderr, never a traceback. An output that cannot be written is refused before any input is
+read. `--help` shows every option's default.
 """
 from __future__ import annotations
 
@@ -78,7 +79,7 @@ def test_diagnose_refuses_an_output_that_exists_before_reading_any_input(tmp_pat
     (existing / 'report.json').write_text('{}')
     started = time.monotonic()
     result = run('diagnose', REPO / 'bags', '--out', existing)
-    assert result.returncode == 1 and 'not empty' in one_line(result)
+    assert result.returncode == 3 and 'not empty' in one_line(result)
     assert time.monotonic() - started < 20     # no 500-run diagnosis happened first
     assert (existing / 'report.json').read_text() == '{}'   # nothing overwritten
 
@@ -89,3 +90,11 @@ def test_data_that_cannot_be_used_is_exit_1(tmp_path) -> None:
     result = run('validate', not_a_bag)
     assert result.returncode == 1
     one_line(result)
+
+
+def test_an_output_where_nothing_can_be_written_is_refused_at_once() -> None:
+    # /proc takes no new file: the check comes before the 500 runs are read and diagnosed
+    started = time.monotonic()
+    result = run('diagnose', REPO / 'bags', '--out', '/proc/octoroach_report')
+    assert result.returncode == 3 and 'cannot write in /proc' in one_line(result)
+    assert time.monotonic() - started < 20

@@ -264,7 +264,7 @@ def test_replay_keeps_the_recorded_best_effort_qos_unless_overridden(tmp_path):
 
 
 def test_replay_of_a_missing_bag_is_one_error_line(tmp_path, capfd):
-    assert replay_node.main([str(tmp_path / 'nothing')]) == 2
+    assert replay_node.main([str(tmp_path / 'nothing')]) == 1      # input unusable: exit 1
     err = capfd.readouterr().err
     assert err.startswith('error: ') and 'no such bag' in err and err.count('\n') == 1
 
@@ -276,9 +276,16 @@ def test_replay_rejects_a_rate_out_of_range(tmp_path, capfd):
     assert err.startswith('error: rate = 0.0 is outside [0.01, 1000]'), err
 
 
+def test_replay_of_a_data_set_says_what_it_is(tmp_path, capfd):
+    data = recordings.save_dataset(tmp_path / 'x.npz', simulate(2, seed=1, cycles=1))
+    assert replay_node.main([str(data)]) == 1
+    err = capfd.readouterr().err
+    assert 'a multisample data set' in err and 'not an MCAP' not in err, err
+
+
 def test_recorder_refuses_to_overwrite_a_bag(tmp_path, capfd):
     (tmp_path / 'exists').mkdir()
-    assert recorder_node.main(['-o', str(tmp_path / 'exists')]) == 2
+    assert recorder_node.main(['-o', str(tmp_path / 'exists')]) == 3     # as every program
     err = capfd.readouterr().err
     assert err.startswith('error: ') and 'exists already' in err, err
     assert 'Traceback' not in err and err.count('\n') == 1, err

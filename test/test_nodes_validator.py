@@ -165,7 +165,8 @@ def test_a_fixed_point_is_evaluated_and_a_half_set_pair_is_refused(start_node, c
 
 
 def test_runs_are_reloaded_when_bags_change(start_node, client, data60, tmp_path):
-    start_node(bags=[str(data60)], nominal='table2', **SMALL)
+    start_node(bags=[str(data60)], data_dirs=[str(data60.parent), str(tmp_path)],
+               nominal='table2', **SMALL)
     assert client.trigger('/validator/validate')[1]['paths_available'] == 60
 
     other = dataset(tmp_path, 50, seed=4)
@@ -288,7 +289,8 @@ def test_diagnose_answers_the_report_with_its_cause_without_blocking(
     assert report['cause'] == 'initial_pose_error'
     assert [c['cause'] for c in report['causes']] == ['initial_pose_error']
     assert isinstance(report['adequate'], bool) and isinstance(report['unexplained'], list)
-    assert (tmp_path / 'report' / 'report.json').is_file(), report['report_files']
+    written = Path(report['report_files']['report'])     # each call: a folder of its own
+    assert written.is_file() and written.parent.parent == tmp_path / 'report', written
     # the named causes are latched on ~/violation beside the last validation's statistics
     array = client.latched('/validator/violation')
     [status] = [s for s in array.status if s.name == validator.DIAGNOSIS_STATUS_NAME]
@@ -384,7 +386,7 @@ def test_a_bag_being_recorded_is_validated_as_it_grows(tmp_path, client_on):
 
 
 def test_call_prints_the_answer_of_a_running_validator(start_node, data60, capsys):
-    node = start_node(nominal='table2', **SMALL)
+    node = start_node(nominal='table2', data_dirs=[str(data60.parent)], **SMALL)
 
     assert validator.main(['--call', 'validate']) == 1          # no bags yet
     out, err = capsys.readouterr()
@@ -398,6 +400,12 @@ def test_call_prints_the_answer_of_a_running_validator(start_node, data60, capsy
     result = json.loads(out)
     assert (result['n'], result['k'], result['paths_available']) == (11, 4, 60)
     assert err == ''
+    # readable: indented, the 5 x 5 grid of estimates summarized (--raw: as received)
+    assert out.count('\n') > 20 and '\n  "n": 11,' in out
+    assert result['grid']['violation'].startswith('<5 x 5 numbers from ')
+    assert validator.main(['--call', 'validate', '--raw']) == 0
+    raw = capsys.readouterr().out
+    assert raw.count('\n') == 1 and len(json.loads(raw)['grid']['violation']) == 5
 
 
 def test_call_without_a_validator_says_so_in_one_line(capsys):
@@ -405,4 +413,4 @@ def test_call_without_a_validator_says_so_in_one_line(capsys):
     out, err = capsys.readouterr()
     assert out == '' and err.startswith('error: no service /nobody/diagnose within 1 s'), err
     assert validator.main(['--timeout', '1.0']) == 2
-    assert capsys.readouterr().err == 'error: --node and --timeout go with --call\n'
+    assert capsys.readouterr().err == 'error: --node, --timeout and --raw go with --call\n'

@@ -25,7 +25,7 @@ LAUNCH_FILE = REPO / 'launch' / 'octoroach.launch.xml'
 SPECS = {
     'simulator': simulator.simulator_specs(),
     'recorder': recorder.recorder_specs(),
-    'validator': [validator.BAGS, *validator.validator_specs()],
+    'validator': [*validator.ARRAYS, *validator.validator_specs()],
     'replay': replay.replay_specs(),
 }
 

@@ -57,9 +57,10 @@ def test_the_walk_through_runs_as_written(tmp_path):
     output = done.stdout.decode(errors='replace')
     assert done.returncode == 0, f'{output}\n{logs}'
 
-    answers = [json.loads(line) for line in output.splitlines() if line.startswith('{')]
+    # --call prints the answer indented: from a line '{' to a line '}'
+    answers = re.findall(r'^\{$.*?^\}$', output, flags=re.MULTILINE | re.DOTALL)
     assert len(answers) == 1, f'{output}\n{logs}'
-    result = answers[0]
+    result = json.loads(answers[0])
     assert 'error' not in result, f'{result}\n{logs}'
     assert (result['paths_available'], result['paths_used']) == (48, 44)
     assert (result['n'], result['k']) == (11, 4)

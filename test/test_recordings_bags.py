@@ -11,7 +11,7 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 import yaml
 
-from octoroach_model.errors import BagError, DataError
+from octoroach_model.errors import DataError, OutputError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import (
     bag_topics,
@@ -241,7 +241,7 @@ def test_samples_stream_in_chunks_and_each_stream_ends_with_a_last_chunk(
 
 
 def test_writing_over_an_existing_bag_is_refused(bag: Path, paths: Paths) -> None:
-    with pytest.raises(BagError, match=r'runs: cannot write the bag: .*exists already'):
+    with pytest.raises(OutputError, match=r'runs: cannot write the bag: .*exists already'):
         write_paths_bag(bag, paths)
 
 

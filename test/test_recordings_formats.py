@@ -426,7 +426,7 @@ def test_convert_on_the_command_line_writes_a_bag_and_a_data_set(
     assert summary['dataset']['runs'] == truth.n_paths
     assert set(bag_topics(out)) == {'/vicon/roach/roach', '/roach/run_start'}
     assert any('ROS 1 bag' in note for note in summary['notes'])
-    assert convert_main([str(source), '--out', str(out)]) == 1
+    assert convert_main([str(source), '--out', str(out)]) == 3   # the output exists: exit 3
     err = capsys.readouterr().err
     assert err.startswith('error: convert: ') and 'exists already' in err
 

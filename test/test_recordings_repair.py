@@ -12,7 +12,7 @@ from rosbags.rosbag2 import Reader, ReaderError
 
 from octoroach_model import simulate
 from octoroach_model.cli import repair_main
-from octoroach_model.errors import BagError
+from octoroach_model.errors import OutputError
 from octoroach_model.recordings import BagReader, read_runs, write_paths_bag
 from octoroach_model.recordings.repair import repair_bag
 
@@ -88,7 +88,7 @@ def test_repair_to_a_new_path_leaves_the_input_untouched(whole: Path, tmp_path: 
     assert (bag / 'runs_0.mcap').read_bytes() == data
     assert report.bag == tmp_path / 'fixed'
     assert any_reader(tmp_path / 'fixed') == stored(bag)
-    with pytest.raises(BagError, match=r'fixed: exists already'):
+    with pytest.raises(OutputError, match=r'fixed: exists already'):
         repair_bag(bag, tmp_path / 'fixed')
 
 
@@ -147,3 +147,46 @@ def test_repair_on_the_command_line(whole: Path, tmp_path: Path,
     (tmp_path / 'old.bag').write_bytes(b'#ROSBAG V2.0\n')
     assert repair_main([str(tmp_path / 'old.bag')]) == 1
     assert 'rosbag reindex' in capsys.readouterr().err
+
+
+def test_a_repair_killed_midway_is_run_again(whole: Path, tmp_path: Path) -> None:
+    """A killed repair left NAME.mcap.partial (and, later, only NAME.mcap.damaged): re-run."""
+    bag = killed_copy(whole, tmp_path / 'in')
+    survivors = stored(bag)
+    damaged = (bag / 'runs_0.mcap').read_bytes()
+    (bag / 'runs_0.mcap.partial').write_bytes(damaged[:1000])       # killed while copying
+    report = repair_bag(bag)
+    assert report.repaired and any('started over' in note for note in report.notes)
+    assert any_reader(bag) == survivors and not (bag / 'runs_0.mcap.partial').exists()
+
+    again = killed_copy(whole, tmp_path / 'again')                # killed between the renames
+    (again / 'runs_0.mcap').rename(again / 'runs_0.mcap.damaged')
+    (again / 'runs_0.mcap.partial').write_bytes(b'half a copy')
+    assert repair_main([str(again)]) == 0
+    assert any_reader(again) == survivors
+    assert (again / 'runs_0.mcap.damaged').read_bytes() == damaged
+
+    linked = killed_copy(whole, tmp_path / 'linked')               # never written through
+    victim = tmp_path / 'victim.txt'
+    victim.write_text('keep')
+    (linked / 'runs_0.mcap.partial').symlink_to(victim)
+    with pytest.raises(OutputError, match='not a file a repair left'):
+        repair_bag(linked)
+    assert victim.read_text() == 'keep'
+
+
+def test_a_repair_to_a_new_path_killed_midway_leaves_no_path_behind(
+        whole: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from octoroach_model.recordings import repair
+
+    bag = killed_copy(whole, tmp_path / 'in')
+
+    def killed(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(repair, 'write_metadata_yaml', killed)
+    with pytest.raises(KeyboardInterrupt):
+        repair_bag(bag, tmp_path / 'fixed')
+    monkeypatch.undo()
+    assert not (tmp_path / 'fixed').exists()
+    assert repair_bag(bag, tmp_path / 'fixed').repaired           # so it runs again

@@ -20,7 +20,7 @@ from rosbags.typesys import get_typestore, Stores
 import yaml
 
 from octoroach_model import simulate
-from octoroach_model.errors import BagError, DataError
+from octoroach_model.errors import DataError, OutputError
 from octoroach_model.recordings import (
     BagReader,
     BagWriter,
@@ -95,7 +95,7 @@ def test_rosbags_reads_the_qos_and_the_hash(bag: Path) -> None:
 
 def test_the_writer_refuses_an_existing_bag_and_negative_times(bag: Path,
                                                                tmp_path: Path) -> None:
-    with pytest.raises(BagError, match=r'runs: cannot write the bag: it exists already'):
+    with pytest.raises(OutputError, match=r'runs: cannot write the bag: it exists already'):
         BagWriter(bag).create()
     with pytest.raises(DataError, match=r'negative time stamps'):
         with PoseBagWriter(tmp_path / 'negative') as writer:

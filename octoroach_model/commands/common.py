@@ -1,29 +1,31 @@
 """
 What every offline program shares: the parser, argument types, progress lines, exit codes.
 
-Exit codes (README, "Offline programs"): 0 success, 1 the data or a value cannot be used
-(`error: ...` on stderr), 2 a usage error (unknown option, missing argument, malformed value),
-130 interrupted.
+Exit codes: the one table of `octoroach_model.errors` (README, "Exit codes"): 0 success, 1
+the data or a value cannot be used (`error: ...` on stderr), 2 a usage error (unknown option,
+missing argument, malformed value), 3 the output cannot be written, 130 interrupted.
 """
 from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
 import math
+import os
 from pathlib import Path
 import sys
 import time
-from typing import NoReturn, TYPE_CHECKING
+from typing import Any, NoReturn, TYPE_CHECKING
 
-from octoroach_model.errors import ParameterError
+from octoroach_model.errors import (
+    EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, OutputError)
+from octoroach_model.fileio import check_writable, is_empty_directory
 
 if TYPE_CHECKING:
     from octoroach_model.recordings.options import ReadOptions
 
-EXIT_OK = 0
-EXIT_ERROR = 1
-EXIT_USAGE = 2
-EXIT_INTERRUPTED = 130
+EXIT_ERROR = EXIT_DATA
+__all__ = ['EXIT_DATA', 'EXIT_ERROR', 'EXIT_INTERRUPTED', 'EXIT_OK', 'EXIT_OUTPUT',
+           'EXIT_USAGE']
 
 Progress = Callable[[float, str], None]
 
@@ -100,19 +102,32 @@ def _whole(text: str) -> int:
 
 def new_output(path: Path, option: str, *, directory_ok: bool = False) -> Path:
     """
-    Check before any work that `path` can be written.
+    Check before any work that `path` can be written; OutputError (exit 3) if not.
 
-    It must not be an existing file (nor, unless `directory_ok`, an existing directory), and
-    its parent must be creatable.
+    It must not exist (with `directory_ok`: or be an empty directory), and a file must be
+    creatable where it goes (`fileio.check_writable`).
     """
-    if path.exists() and not (directory_ok and path.is_dir()):
-        raise ParameterError(f'{option} {path} exists already; choose a new path')
-    parent = path.resolve().parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise ParameterError(f'{option} {path}: {parent} is not a directory')
-    return path
+    if os.path.lexists(path) and not (directory_ok and is_empty_directory(path)):
+        kind = 'is a directory that is not empty' if directory_ok and path.is_dir() \
+            else 'exists already'
+        raise OutputError(f'{option} {path} {kind}; choose a new path')
+    return check_writable(path, option)
+
+
+def say_repeated_runs(measured: Any) -> None:
+    """Print the note on runs given twice (`recordings.duplicates`) on stderr, as `note:`."""
+    from octoroach_model.recordings.duplicates import REPEATED_RUNS
+
+    for note in measured.info.get('notes', ()):
+        if REPEATED_RUNS in note:
+            sys.stderr.write(f'note: {note}\n')
+
+
+def add_workers_argument(parser: argparse.ArgumentParser, what: str) -> None:
+    """Add --workers, with the one meaning every program gives it (study, plan, diagnose)."""
+    parser.add_argument('--workers', type=nonnegative_int, default=None, metavar='N',
+                        help=f'worker processes for {what}, one thread each (default: one '
+                        'per core); 0 runs everything in this process, one after another')
 
 
 def add_input_arguments(parser: argparse.ArgumentParser) -> None:

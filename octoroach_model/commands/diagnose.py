@@ -2,13 +2,19 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterator
+from concurrent.futures import Executor, ProcessPoolExecutor
+from contextlib import contextmanager
 from dataclasses import replace
+import multiprocessing
+import os
 from pathlib import Path
+import signal
 import sys
 
 from octoroach_model.commands.common import (
-    add_input_arguments, new_output, nonnegative_int, OneLineParser, positive_int,
-    progress_printer, read_options)
+    add_input_arguments, add_workers_argument, new_output, nonnegative_int, OneLineParser,
+    progress_printer, read_options, say_repeated_runs)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -17,31 +23,68 @@ def parser() -> argparse.ArgumentParser:
         prog='diagnose', description='The main job: calibrates the paper model on measured '
         'runs, shows where it disagrees with them, names the causes, extends the model with '
         'them and measures the gain on held-out runs. Writes DIR/report.json, DIR/summary.md '
-        'and PNG plots.')
+        'and PNG plots, all at once (a stopped run leaves no DIR).')
     add_input_arguments(result)
     result.add_argument('--out', type=Path, required=True,
                         help='directory for the report (new, or an existing empty one)')
     result.add_argument('--seed', type=nonnegative_int, default=0,
                         help='seed of the split, the simulations and the bootstrap')
     result.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
-    result.add_argument('--workers', type=positive_int, default=2,
-                        help='processes for the side-by-side work (1: this process only)')
+    add_workers_argument(result, 'the side-by-side work of the diagnosis')
     return result
+
+
+# Worker processes leave Ctrl-C to this process: a terminal sends SIGINT to the whole
+# process group, and a worker interrupted while it waits for work prints a traceback of its
+# own. This process stops the pool on its KeyboardInterrupt.
+_workers_ignore_sigint = False
+
+
+def _ignore_sigint_in_worker() -> None:
+    if _workers_ignore_sigint:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+os.register_at_fork(after_in_child=_ignore_sigint_in_worker)
+
+
+@contextmanager
+def worker_pool(workers: int) -> Iterator[Executor | None]:
+    """
+    Yield the executor of `workers` processes (0: None, the diagnosis runs in this process).
+
+    The same meaning as `study --workers`; the pool's processes ignore SIGINT.
+    """
+    global _workers_ignore_sigint
+    if workers == 0:
+        yield None
+        return
+    from octoroach_model.diagnosis.executors import one_blas_thread
+
+    _workers_ignore_sigint = True
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=one_blas_thread,
+                               mp_context=multiprocessing.get_context('fork'))
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+        _workers_ignore_sigint = False
 
 
 def run(args: argparse.Namespace) -> int:
     """Diagnose and write the report; prints where it is."""
     from octoroach_model.diagnosis import DiagnosisSettings, diagnose, write_report
     from octoroach_model.recordings import load_measured
+    from octoroach_model.studies.execute import default_workers
 
     new_output(args.out, '--out', directory_ok=True)
-    if args.out.is_dir() and any(args.out.iterdir()):
-        from octoroach_model.errors import ParameterError
-        raise ParameterError(f'--out {args.out} is a directory that is not empty; '
-                             f'choose a new or empty one')
     measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s)
-    report = diagnose(measured, DiagnosisSettings(seed=args.seed, workers=args.workers),
-                      progress=progress_printer('diagnose'))
+    say_repeated_runs(measured)
+    workers = default_workers() if args.workers is None else args.workers
+    settings = DiagnosisSettings(seed=args.seed, workers=1)
+    with worker_pool(workers) as pool:
+        report = diagnose(measured, settings, progress=progress_printer('diagnose'),
+                          executor=pool)
     report = replace(report, sources=tuple(str(path) for path in args.bags))
     written = write_report(report, args.out, measured=measured, plots=not args.no_plots)
     named = ', '.join(cause.cause for cause in report.causes) or 'none'

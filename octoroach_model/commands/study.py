@@ -7,7 +7,7 @@ import sys
 import time
 from typing import Any, TextIO
 
-from octoroach_model.commands.common import finite_float, nonnegative_int, OneLineParser
+from octoroach_model.commands.common import add_workers_argument, finite_float, OneLineParser
 
 
 class ProgressBar:
@@ -50,14 +50,46 @@ class ProgressBar:
         self.stream.flush()
 
 
+class DaskTlsFile(argparse.Action):
+    """
+    A --tls-* option: an existing file, put into dask's configuration for this process.
+
+    Dask's `Security()` takes its certificates from `distributed.comm.tls` (what a lab's
+    ~/.config/dask/distributed.yaml may hold too), so every Client this program makes to a
+    `tls://` scheduler uses them, whichever command (study, plan) makes it.
+    """
+
+    KEYS = {'tls_ca_file': 'distributed.comm.tls.ca-file',
+            'tls_cert': 'distributed.comm.tls.client.cert',
+            'tls_key': 'distributed.comm.tls.client.key'}
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        import dask
+
+        path = Path(str(values))
+        if not path.is_file():
+            parser.error(f'{option_string} {path}: no such file')
+        setattr(namespace, self.dest, path)
+        dask.config.set({self.KEYS[self.dest]: str(path.resolve()),
+                         'distributed.comm.require-encryption': True})
+
+
 def add_where_arguments(parser: argparse.ArgumentParser) -> None:
     """Where the data sets are diagnosed: a Dask scheduler, local workers, or this process."""
     parser.add_argument('--scheduler', metavar='ADDRESS', default=None,
-                        help='address of a running Dask scheduler (e.g. tcp://host:8786) to '
-                        'send the data sets to; default: a local Dask cluster')
-    parser.add_argument('--workers', type=nonnegative_int, default=None,
-                        help='worker processes of the local cluster (one thread each); '
-                        'default one per core; 0 runs everything in this process, in order')
+                        help='address of a running Dask scheduler (tls://host:8786 with the '
+                        '--tls-* files; tcp:// only inside a trusted network) to send the '
+                        'data sets to; default: a private local Dask cluster (TLS among its '
+                        'own processes, no HTTP server)')
+    parser.add_argument('--tls-ca-file', action=DaskTlsFile, default=None, metavar='PEM',
+                        help="tls:// scheduler: the certificate authority of the cluster's "
+                        'certificates')
+    parser.add_argument('--tls-cert', action=DaskTlsFile, default=None, metavar='PEM',
+                        help="tls:// scheduler: this client's certificate")
+    parser.add_argument('--tls-key', action=DaskTlsFile, default=None, metavar='PEM',
+                        help="tls:// scheduler: this client's private key")
+    add_workers_argument(parser, 'the data sets (a local Dask cluster)')
     parser.add_argument('--connect-timeout-s', type=finite_float, default=10.0,
                         help='how long to wait for the scheduler to answer, s')
 

@@ -469,20 +469,25 @@ def write_report(report: DiagnosisReport, out_dir: Path | str, measured: Paths |
     """
     Write report.json, summary.md and (with `measured`) the PNG plots into out_dir.
 
-    The JSON and the summary are written first; a plot that cannot be drawn is said in the
-    returned `plot_errors` entry and in summary.md, never at the cost of the report.
+    All at once: they are written into a temporary folder beside out_dir that then takes its
+    name (`fileio.atomic_directory`), so an interrupted call leaves the whole report or
+    nothing; out_dir must be new or an empty directory. A plot that cannot be drawn is said
+    in summary.md, never at the cost of the report.
     """
+    from octoroach_model.fileio import atomic_directory, write_text_atomic
+
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    written: dict[str, Any] = {'report': out / 'report.json', 'summary': out / 'summary.md'}
-    written['report'].write_text(dumps(report, indent=2) + '\n')
-    summary = summary_text(report)
-    written['summary'].write_text(summary)
-    if plots and measured is not None:
-        from octoroach_model.diagnosis.plots import write_plots
-        drawn, errors = write_plots(report, measured, out)
-        written.update(drawn)
-        if errors:
-            written['summary'].write_text(summary + '\n## Plots not drawn\n\n' + ''.join(
-                f'- {name}: {reason}\n' for name, reason in errors.items()))
-    return written
+    with atomic_directory(out, what='report folder') as folder:
+        written: dict[str, Any] = {'report': folder / 'report.json',
+                                   'summary': folder / 'summary.md'}
+        write_text_atomic(written['report'], dumps(report, indent=2) + '\n')
+        summary = summary_text(report)
+        if plots and measured is not None:
+            from octoroach_model.diagnosis.plots import write_plots
+            drawn, errors = write_plots(report, measured, folder)
+            written.update(drawn)
+            if errors:
+                summary += '\n## Plots not drawn\n\n' + ''.join(
+                    f'- {name}: {reason}\n' for name, reason in errors.items())
+        write_text_atomic(written['summary'], summary)
+    return {name: out / Path(path).relative_to(folder) for name, path in written.items()}

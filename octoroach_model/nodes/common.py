@@ -19,7 +19,7 @@ import textwrap
 import threading
 from typing import Any, NoReturn, TYPE_CHECKING
 
-from octoroach_model.errors import OctoroachError, ParameterError
+from octoroach_model.errors import exit_code, EXIT_USAGE, OctoroachError, ParameterError
 
 if TYPE_CHECKING:
     from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -177,7 +177,25 @@ def declare_parameters(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]
     reason = check_values(specs, values)
     if reason:
         raise ParameterError(reason)
+    warn_unknown_overrides(node)
     return values
+
+
+def warn_unknown_overrides(node: Node) -> list[str]:
+    """
+    Warn about --ros-args or params-file values for parameters the node does not have.
+
+    A mistyped name (`epsilonn:=0.3`) would otherwise be taken in silence, with the default
+    in force. rclpy keeps the overrides given to a node in `Node._parameter_overrides` (no
+    public accessor in Jazzy); call after every parameter is declared. Returns the names.
+    """
+    overrides = getattr(node, '_parameter_overrides', None) or {}
+    unknown = sorted(name for name in overrides if not node.has_parameter(name))
+    if unknown:
+        node.get_logger().warning(
+            f'unknown parameter(s) {", ".join(unknown)}: {node.get_name()} has no such '
+            f'parameter (--help lists them); ignored')
+    return unknown
 
 
 def rejected_override(node: Node, name: str,
@@ -352,6 +370,20 @@ def split_ros_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
     return own, ros
 
 
+def start_exit_code(error: BaseException) -> int:
+    """
+    Exit code of a node that could not start or run (the table of `octoroach_model.errors`).
+
+    A bad flag or ROS parameter at start is a usage error (2); an output that exists or cannot
+    be written 3; an input that cannot be used 1.
+    """
+    from rclpy.exceptions import ParameterException
+
+    if isinstance(error, (UsageError, ParameterError, ParameterException)):
+        return EXIT_USAGE
+    return exit_code(error)
+
+
 def fail(message: str, code: int = 2) -> int:
     """Print the one-line reason a user gets, return the exit code."""
     sys.stderr.write('error: ' + ' '.join(str(message).split()) + '\n')
@@ -410,7 +442,7 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (OctoroachError, ParameterException) as error:
-        code = fail(str(error))
+        code = fail(str(error), start_exit_code(error))
     finally:
         stop_on_sigterm(interrupt=False)       # a second one must not cut the way out short
         stopping = shutdown_watchdog(prog, code)

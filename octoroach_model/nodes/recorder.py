@@ -16,12 +16,14 @@ from datetime import datetime
 import fnmatch
 import functools
 import importlib
+import os
 from pathlib import Path
 import sys
 import time
 from typing import Any
 
-from octoroach_model.errors import DataError, OctoroachError
+from octoroach_model.errors import DataError, exit_code, OctoroachError, OutputError
+from octoroach_model.fileio import check_writable
 from octoroach_model.nodes.common import (
     declare_parameters,
     fail,
@@ -30,6 +32,7 @@ from octoroach_model.nodes.common import (
     run_node,
     set_parameters_callback,
     split_ros_args,
+    start_exit_code,
     UsageError,
     vicon_qos,
     with_defaults,
@@ -73,7 +76,7 @@ def recorder_specs() -> list[ParamSpec]:
         ParamSpec('topics', [DEFAULT_POSE_TOPIC, DEFAULT_MARKER_TOPIC],
                   'topics to record (names or fnmatch patterns)', read_only=True),
         ParamSpec('dataset', '', 'data set file (.npz) written on exit and by ~/export; '
-                  'empty: none'),
+                  'empty: none; must not exist at start', read_only=True),
         ParamSpec('gap_s', float(DEFAULT_GAP_S), 'run split at longer pose gaps (no markers)',
                   's', 0.01, 60.0),
         ParamSpec('export_rate_hz', float(DEFAULT_RATE_HZ), 'sample rate of the data set',
@@ -111,6 +114,24 @@ def qos_profile_of(profile: Any) -> Any:
         avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions))
 
 
+FileIdentity = tuple[int, int, int, int, int]
+
+
+def _identity(path: str) -> FileIdentity | None:
+    """
+    Return what tells the file at `path` (a link is not followed) from any other, or None.
+
+    Device and inode, and size and change times: a file removed and made anew often gets
+    the inode number back.
+    """
+    try:
+        status = os.lstat(path)
+    except OSError:
+        return None
+    return (status.st_dev, status.st_ino, status.st_size, status.st_mtime_ns,
+            status.st_ctime_ns)
+
+
 def _message_class(msgtype: str) -> Any:
     """Python class of 'pkg/msg/Name', or None when not installed."""
     package, _, name = msgtype.split('/')
@@ -120,12 +141,13 @@ def _message_class(msgtype: str) -> Any:
         return None
 
 
-def export_dataset(bag: Path, dataset: str, gap_s: float, rate_hz: float) -> str:
+def export_dataset(bag: Path, dataset: str, gap_s: float, rate_hz: float,
+                   replace: bool = False) -> str:
     """Resample the runs of `bag` (read_runs) into data set `dataset`; say what was written."""
     from octoroach_model.recordings import read_runs, save_dataset
 
     paths = read_runs([bag], gap_s=gap_s).to_paths(rate_hz=rate_hz)
-    target = save_dataset(dataset, paths)
+    target = save_dataset(dataset, paths, replace=replace)
     return f'{paths.n_paths} run(s) of {paths.t[-1]:.2f} s at {rate_hz:g} Hz written to {target}'
 
 
@@ -158,6 +180,12 @@ class Recorder(Node):
         from octoroach_model.recordings.recording import Recording, REORDER_WINDOW_S
 
         output = Path(values['output'] or default_output())
+        self._own_dataset: FileIdentity | None = None   # the file this recorder wrote
+        if values['dataset']:
+            if os.path.lexists(values['dataset']):
+                raise OutputError(f'dataset {values["dataset"]} exists already; choose a new '
+                                  'path (the recorder never replaces a file it did not write)')
+            check_writable(values['dataset'], 'dataset')
         self._reorder_ns = int(REORDER_WINDOW_S * 1e9)
         self._bag = Recording(output, flush_period_s=float(values['flush_period_s']))
         self._recording: dict[str, _Recorded] = {}
@@ -295,12 +323,25 @@ class Recorder(Node):
                 self._log_timer.timer_period_ns = int(parameter.value * 1e9)
 
     def _export(self) -> str:
+        """
+        Write the data set; only the file this recorder wrote before is replaced.
+
+        `dataset` is read-only and did not exist at start, so no other process on the domain
+        can aim an export at a file of its choice; a file put there meanwhile is refused.
+        """
         dataset = str(self.get_parameter('dataset').value)
         if not dataset:
             raise DataError('parameter dataset is empty: no data set file to write')
-        return export_dataset(self._bag.path, dataset,
-                              float(self.get_parameter('gap_s').value),
-                              float(self.get_parameter('export_rate_hz').value))
+        own = self._own_dataset is not None and _identity(dataset) == self._own_dataset
+        if os.path.lexists(dataset) and not own:
+            raise OutputError(f'dataset {dataset} exists and was not written by this '
+                              'recorder; it is left as it is')
+        message = export_dataset(self._bag.path, dataset,
+                                 float(self.get_parameter('gap_s').value),
+                                 float(self.get_parameter('export_rate_hz').value),
+                                 replace=own)
+        self._own_dataset = _identity(dataset)
+        return message
 
     def _on_export(self, request: Any, response: Any) -> Any:
         """~/export: flush the bag, write the data set from it, say what was written."""
@@ -324,7 +365,7 @@ class Recorder(Node):
         try:
             self.get_logger().info(self._export())
         except OctoroachError as error:
-            return fail(f'cannot write the data set: {error}', 1)
+            return fail(f'cannot write the data set: {error}', exit_code(error))
         return 0
 
 
@@ -343,7 +384,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as stop:  # --help
         return int(stop.code or 0)
     except (UsageError, OctoroachError) as error:
-        return fail(str(error))
+        return fail(str(error), start_exit_code(error))
     defaults = {name: value for name, value in
                 (('output', args.output), ('dataset', args.dataset), ('topics', args.topics))
                 if value is not None}

@@ -32,6 +32,7 @@ from octoroach_model.nodes.common import (
     run_node,
     set_parameters_callback,
     split_ros_args,
+    start_exit_code,
     UsageError,
     with_defaults,
 )
@@ -265,10 +266,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(own)
         if args.bag is not None and not Path(args.bag).exists():
             raise BagError(f'{args.bag}: no such bag (directory or .mcap file)')
+        if args.bag is not None and Path(args.bag).suffix == '.npz':
+            raise BagError(f'{args.bag}: a multisample data set holds runs, not recorded '
+                           'messages; replay plays bags (directories or .mcap files)')
     except SystemExit as stop:  # --help
         return int(stop.code or 0)
     except (UsageError, OctoroachError) as error:
-        return fail(str(error))
+        return fail(str(error), start_exit_code(error))
     flags = {'bag': args.bag, 'rate': args.rate, 'loop': args.loop,
              'wait_subscribers': args.wait_subscribers, 'wait_timeout_s': args.wait_timeout,
              'reliability': args.reliability, 'durability': args.durability,

@@ -24,16 +24,19 @@ from dataclasses import dataclass
 from datetime import datetime
 import json
 import math
+from pathlib import Path
 import sys
 import threading
 import time
 from typing import Any
 
-from octoroach_model.errors import OctoroachError, ParameterError
+from octoroach_model.errors import OctoroachError, OutputError, ParameterError
+from octoroach_model.fileio import check_writable
 from octoroach_model.jsonio import dumps
 from octoroach_model.nodes.common import (
     current_values, declare_parameters, fail, node_parser, ParamSpec, ParamValue,
-    rejected_override, run_node, set_parameters_callback, split_ros_args, UsageError)
+    rejected_override, run_node, set_parameters_callback, split_ros_args, start_exit_code,
+    UsageError)
 from octoroach_model.nodes.messages import (
     diagnosis_fields, diagnosis_status, status_fields, validation_status, violation_array)
 from octoroach_model.validation_jobs import (
@@ -72,8 +75,14 @@ PROGRESS_PERIOD_S = 2.0     # progress is logged at most this often
 POLL_S = 0.05               # how often a waiting callback looks for shutdown
 SERVICES = {'validate': 'validation', 'diagnose': 'diagnosis'}  # service -> job kind
 DISCOVERY_TIMEOUT_S = 30.0  # --call: longest wait for the service to appear
+BUSY_RETRY_S = 10.0         # "call again in" before the first job of a kind has finished
 
-BAGS = ParamSpec('bags', [], 'bag directories, .mcap files or .npz data sets to validate on')
+BAGS = ParamSpec('bags', [], 'bag directories, .mcap files or .npz data sets to validate on; '
+                 'at run time only inside data_dirs')
+DATA_DIRS = ParamSpec('data_dirs', [], 'folders `bags` may name when set at run time; empty: '
+                      'the folders of the bags given at start', read_only=True)
+ARRAYS = (BAGS, DATA_DIRS)      # string arrays, declared apart (an empty list has no type)
+SERVICE_QUEUE_DEPTH = 1000  # requests kept while the threads are busy: every caller is answered
 
 
 def validator_specs() -> list[ParamSpec]:
@@ -115,8 +124,8 @@ def validator_specs() -> list[ParamSpec]:
                   'rad', -1.0, 1.5),
         ParamSpec('sigma2', -1.0, 'evaluate at this liftoff spread; negative: search', 'rad',
                   -1.0, 1.5),
-        ParamSpec('report_dir', '', '~/diagnose also writes report.json and plots here; '
-                  'empty: no files'),
+        ParamSpec('report_dir', '', '~/diagnose also writes each report (report.json, '
+                  'summary.md, plots) into a new folder here; empty: no files', read_only=True),
     ]
 
 
@@ -134,6 +143,40 @@ def _bags_reason(value: Any) -> str | None:
     if any(not v.strip() for v in value):
         return 'bags must not contain empty names'
     return None
+
+
+def allowed_roots(data_dirs: Sequence[str], bags: Sequence[str]) -> tuple[Path, ...]:
+    """
+    Folders `bags` may name at run time: `data_dirs`, else those of the bags given at start.
+
+    Resolved once at start (links followed then), so a later link cannot widen them.
+    """
+    if data_dirs:
+        return tuple(Path(folder).resolve() for folder in data_dirs)
+    return tuple(dict.fromkeys(
+        (Path(bag).resolve() if Path(bag).is_dir() else Path(bag).resolve().parent)
+        for bag in bags))
+
+
+def outside_roots(bags: Sequence[str], roots: Sequence[Path]) -> str | None:
+    """Why `bags` cannot be set at run time (a path outside every root), or None."""
+    for bag in bags:
+        resolved = Path(bag).resolve()
+        if not any(resolved.is_relative_to(root) for root in roots):
+            allowed = ', '.join(map(str, roots)) or 'none (set data_dirs at start)'
+            return (f'bags: {bag} is outside the folders allowed at run time ({allowed}); '
+                    'the operator sets data_dirs when the node starts')
+    return None
+
+
+def make_report_dir(folder: str) -> None:
+    """Create `report_dir` at start and check that reports can be written there."""
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise OutputError(f'report_dir {folder}: cannot create it '
+                          f'({error.strerror or error})') from None
+    check_writable(Path(folder) / 'report', 'report_dir')
 
 
 def _one_line(error: BaseException) -> str:
@@ -179,8 +222,11 @@ class Validator(Node):
         from std_srvs.srv import Trigger
 
         self._specs = validator_specs()
-        self._declare_bags()
+        self._declare_arrays()
+        self._roots = allowed_roots(self._array('data_dirs'), self.bags())
         values = declare_parameters(self, self._specs)
+        if values['report_dir']:
+            make_report_dir(values['report_dir'])
         job = Job.from_values({**values, 'bags': self.bags()})
         job.sigmas()  # at start-up both spreads come together: a half-set pair is a mistake
         check = set_parameters_callback(self, self._specs, _reject_reason)
@@ -194,46 +240,61 @@ class Validator(Node):
         self._lock = threading.Lock()
         self._running: _Running | None = None
         self._stop = threading.Event()
+        self._durations: dict[str, float] = {}   # kind -> seconds the last job took
         group = ReentrantCallbackGroup()
-        self.create_service(Trigger, '~/validate', self._on_validate, callback_group=group)
-        self.create_service(Trigger, '~/diagnose', self._on_diagnose, callback_group=group)
+        queue = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=SERVICE_QUEUE_DEPTH,
+                           reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.VOLATILE)
+        self.create_service(Trigger, '~/validate', self._on_validate, callback_group=group,
+                            qos_profile=queue)
+        self.create_service(Trigger, '~/diagnose', self._on_diagnose, callback_group=group,
+                            qos_profile=queue)
         self.get_logger().info(
             f'ready: {len(job.sources)} source(s) in bags; services ~/validate, ~/diagnose; '
             f'statistics on ~/violation')
 
     # parameters
 
-    def _declare_bags(self) -> None:
-        """Declare `bags` typed as a string array (an empty default cannot carry the type)."""
+    def _declare_arrays(self) -> None:
+        """Declare `bags` and `data_dirs` typed as string arrays (an empty default has none)."""
         from rclpy.exceptions import ParameterException
         from rclpy.parameter import Parameter
 
-        try:
-            self.declare_parameter('bags', Parameter.Type.STRING_ARRAY, BAGS.descriptor())
-        except ParameterException:
-            raise ParameterError(rejected_override(self, 'bags', _bags_reason)
-                                 or 'bags must be a string array, e.g. -p "bags:=[a.npz, '
-                                 'bags/]"') from None
-        reason = _bags_reason(self.bags())
-        if reason:
-            raise ParameterError(reason)
+        for spec in ARRAYS:
+            try:
+                self.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY,
+                                       spec.descriptor())
+            except ParameterException:
+                raise ParameterError(rejected_override(self, spec.name, _bags_reason)
+                                     or f'{spec.name} must be a string array, e.g. -p '
+                                     f'"{spec.name}:=[a.npz, bags/]"') from None
+            reason = _bags_reason(self._array(spec.name))
+            if reason:
+                raise ParameterError(reason.replace('bags', spec.name, 1))
 
-    def bags(self) -> list[str]:
-        """Return the `bags` parameter; [] while unset (a typed parameter without a value)."""
+    def _array(self, name: str) -> list[str]:
+        """Return a string-array parameter; [] while unset (typed, without a value)."""
         from rclpy.exceptions import ParameterUninitializedException
 
         try:
-            value = self.get_parameter('bags').value
+            value = self.get_parameter(name).value
         except ParameterUninitializedException:
             return []
         return [str(v) for v in value] if value is not None else []
+
+    def bags(self) -> list[str]:
+        """Return the `bags` parameter; [] while unset (a typed parameter without a value)."""
+        return self._array('bags')
 
     def _check_parameters(self, parameters: list[Any], check: Callable[[list[Any]], Any]) -> Any:
         from rcl_interfaces.msg import SetParametersResult
 
         for parameter in parameters:
+            if parameter.name == 'data_dirs':
+                return SetParametersResult(successful=False, reason='data_dirs is read-only')
             if parameter.name == 'bags':
-                reason = _bags_reason(parameter.value)
+                reason = _bags_reason(parameter.value) or outside_roots(
+                    [str(v) for v in parameter.value], self._roots)
                 if reason:
                     return SetParametersResult(successful=False, reason=reason)
         return check(parameters)
@@ -262,10 +323,12 @@ class Validator(Node):
             running = self._running
             if running is not None:
                 ago = time.monotonic() - running.started
+                wait = max(1.0, self._durations.get(running.kind, BUSY_RETRY_S) - ago)
                 response.success = False
-                response.message = error_json(
-                    f'busy: a {running.kind} started at {running.started_at} ({ago:.1f} s ago)'
-                    ' is running; call again when it is done')
+                response.message = dumps({
+                    'error': f'busy: a {running.kind} started at {running.started_at} '
+                             f'({ago:.1f} s ago) is running; call again in about '
+                             f'{wait:.0f} s', 'busy': True, 'retry_after_s': round(wait, 1)})
                 return response
             try:
                 job = self._job()
@@ -313,6 +376,7 @@ class Validator(Node):
         finally:
             with self._lock:
                 self._running = None
+                self._durations[running.kind] = time.monotonic() - running.started
             running.done.set()
 
     def _progress(self, kind: str) -> Progress:
@@ -350,14 +414,70 @@ class Validator(Node):
 
 # -- command line ---------------------------------------------------------------------------
 
+LONG_LIST = 20   # --call: number lists longer than this are summarized (--raw: all of them)
+
+
+def readable_json(message: str) -> str:
+    """
+    Return the answer of a call as a person reads it: indented, long grids summarized.
+
+    A validation's answer holds its whole search grid (17 x 17 estimates and more): printed
+    in full on one line it is 10 kB that no one reads. Text that is not JSON is returned as
+    it is.
+    """
+    try:
+        value = json.loads(message)
+    except ValueError:
+        return message
+    return json.dumps(_summarized(value), indent=2)
+
+
+def _summarized(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {key: _summarized(item) for key, item in value.items()}
+    if isinstance(value, list):
+        numbers = _numbers(value)
+        if numbers is not None and len(numbers) > LONG_LIST:
+            shape = ' x '.join(str(n) for n in _shape(value))
+            finite = [number for number in numbers if number is not None]
+            span = f' from {min(finite):.4g} to {max(finite):.4g}' if finite else ''
+            return f'<{shape} numbers{span}; --raw prints them all>'
+        return [_summarized(item) for item in value]
+    return value
+
+
+def _numbers(value: Any) -> list[float | None] | None:
+    """All numbers of a (nested) list of numbers or nulls; None if anything else is in it."""
+    if isinstance(value, list):
+        found: list[float | None] = []
+        for item in value:
+            inner = _numbers(item)
+            if inner is None:
+                return None
+            found.extend(inner)
+        return found
+    if value is None or (isinstance(value, (int, float)) and not isinstance(value, bool)):
+        return [value]
+    return None
+
+
+def _shape(value: Any) -> list[int]:
+    shape = []
+    while isinstance(value, list):
+        shape.append(len(value))
+        value = value[0] if value else None
+    return shape
+
+
 def call_service(service: str, node_name: str, timeout_s: float,
-                 ros_args: Sequence[str]) -> int:
+                 ros_args: Sequence[str], raw: bool = False) -> int:
     """
     Call `~/<service>` of the validator `node_name` and print its JSON answer; exit code.
 
     What `ros2 service call /validator/validate std_srvs/srv/Trigger` does on a full ROS
-    install, for machines with rclpy only: the answer goes to stdout, a failed call also
-    gives one `error:` line on stderr and exit code 1.
+    install, for machines with rclpy only: the answer goes to stdout (indented, long grids
+    summarized; with `raw` as received), a failed call also gives one `error:` line on stderr
+    and exit code 1.
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -389,7 +509,7 @@ def call_service(service: str, node_name: str, timeout_s: float,
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
-    sys.stdout.write(response.message + '\n')
+    sys.stdout.write((response.message if raw else readable_json(response.message)) + '\n')
     if response.success:
         return 0
     try:
@@ -404,28 +524,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)
-        parser = node_parser('validator', SUMMARY, [BAGS, *validator_specs()], TOPICS, NOTES,
+        parser = node_parser('validator', SUMMARY, [*ARRAYS, *validator_specs()], TOPICS, NOTES,
                              '[--call {validate,diagnose} [--node NAME] [--timeout S]]')
         parser.add_argument('--call', choices=tuple(SERVICES), metavar='SERVICE',
                             help='call ~/SERVICE (validate or diagnose) of a running validator '
                             'and print its JSON answer, instead of starting the node')
         parser.add_argument('--node', default='/validator',
                             help='--call: the validator node (default: /validator)')
+        parser.add_argument('--raw', action='store_true',
+                            help='--call: print the answer as received (one line, every '
+                            'number), not indented with long grids summarized')
         parser.add_argument('--timeout', type=float, default=3600.0, metavar='S',
                             help='--call: longest wait for the answer, seconds (for the service '
                             f'to appear: at most {DISCOVERY_TIMEOUT_S:g}; default: 3600)')
         args = parser.parse_args(own)
-        if args.call is None and (args.node != '/validator' or args.timeout != 3600.0):
-            raise UsageError('--node and --timeout go with --call')
+        if args.call is None and (args.node != '/validator' or args.timeout != 3600.0
+                                  or args.raw):
+            raise UsageError('--node, --timeout and --raw go with --call')
         if not (math.isfinite(args.timeout) and args.timeout > 0):
             raise UsageError(f'--timeout must be a positive number of seconds, got '
                              f'{args.timeout}')
     except SystemExit as stop:  # --help
         return int(stop.code or 0)
     except (UsageError, OctoroachError) as error:
-        return fail(str(error))
+        return fail(str(error), start_exit_code(error))
     if args.call is not None:
-        return call_service(args.call, args.node, args.timeout, ros)
+        return call_service(args.call, args.node, args.timeout, ros, raw=args.raw)
     return run_node(Validator, ros, prog='validator', executor_threads=EXECUTOR_THREADS)
 
 

@@ -25,7 +25,6 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-import struct
 import warnings
 
 import c3d
@@ -52,8 +51,10 @@ from octoroach_model.recordings.options import ReadOptions
 __all__ = ['iter_c3d_pose_chunks']
 
 MODEL_OUTPUT_PARAMETERS = ('ANGLES', 'FORCES', 'MOMENTS', 'POWERS', 'SCALARS', 'REACTIONS')
-_C3D_ERRORS = (ValueError, struct.error, AssertionError, IndexError, KeyError, TypeError,
-               UnicodeDecodeError, OverflowError, MemoryError, AttributeError, EOFError)
+# What the c3d package raises on a malformed file: besides the usual ValueError, struct.error
+# and EOFError, a broken header can reach its own bugs (an UnboundLocalError, a
+# ZeroDivisionError); any of them means "not a readable C3D file", never a traceback.
+_C3D_ERRORS = (Exception,)
 
 
 @contextmanager
@@ -186,8 +187,15 @@ def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
 
 
 def _reason(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
+    """
+    Name what went wrong by the kind of error only.
+
+    The c3d package's messages can quote names and values read from the file, and an error
+    must never show a file's content.
+    """
+    known: dict[type[BaseException], str] = {EOFError: 'the file ends early',
+                                             MemoryError: 'a size in it is too large'}
+    return known.get(type(exc), f'{type(exc).__name__} while parsing it')
 
 
 def _frame_blocks(reader: c3d.Reader, chosen: list[int], scale: float, block: int,
@@ -213,8 +221,9 @@ def _frame_blocks(reader: c3d.Reader, chosen: list[int], scale: float, block: in
             raise BagError(f'{where}: unreadable C3D frame data ({_reason(exc)})') from None
         if count == 0:
             return
-        markers = points[:count, :, :3].astype(np.float64) * scale
-        markers[points[:count, :, 3] < 0] = np.nan
+        with np.errstate(invalid='ignore', over='ignore'):   # garbage in a broken file: NaN
+            markers = points[:count, :, :3].astype(np.float64) * scale
+            markers[~(points[:count, :, 3] >= 0)] = np.nan
         yield numbers[:count], markers
         if count < block:
             return

@@ -22,9 +22,11 @@ import zipfile
 
 import numpy as np
 
-from octoroach_model.errors import DataError
+from octoroach_model.errors import DataError, OutputError
+from octoroach_model.fileio import atomic_file
 from octoroach_model.jsonio import jsonable
 from octoroach_model.paths import Paths
+from octoroach_model.recordings.npz_check import check_arrays
 
 FORMAT_NAME = 'octoroach_model.dataset'
 FORMAT_VERSION = 1
@@ -33,11 +35,13 @@ DATASET_SUFFIX = '.npz'
 PathLike = Union[str, 'os.PathLike[str]']
 
 
-def save_dataset(path: PathLike, paths: Paths) -> Path:
+def save_dataset(path: PathLike, paths: Paths, *, replace: bool = False) -> Path:
     """
     Write `paths` as a data set file (format in the module docstring); returns its path.
 
-    Written to a temporary file first and then renamed, so a crash never leaves half a file.
+    Written to a temporary file first and then renamed (`fileio.atomic_file`), so a crash
+    never leaves half a file; an existing file is replaced only with `replace` (else
+    OutputError), and no symbolic link is followed.
     """
     target = Path(path)
     info = jsonable(dict(paths.info))
@@ -49,16 +53,13 @@ def save_dataset(path: PathLike, paths: Paths) -> Path:
     })
     info.setdefault('sources', [])
     info.setdefault('notes', [])
-    partial = target.with_name(target.name + '.partial')
     try:
-        with partial.open('wb') as stream:
+        with atomic_file(target, replace=replace, what='data set') as stream:
             np.savez(stream, t=np.asarray(paths.t, dtype=float),
                      poses=np.asarray(paths.poses, dtype=float),
                      info_json=np.array(json.dumps(info, allow_nan=False)))
-        partial.replace(target)
     except OSError as exc:
-        partial.unlink(missing_ok=True)
-        raise DataError(f'{target}: cannot write the data set: {exc.strerror or exc}') from None
+        raise OutputError(f'{target}: cannot write the data set: {exc.strerror or exc}') from None
     return target
 
 
@@ -78,6 +79,7 @@ def load_dataset(path: PathLike) -> Paths:
     source = Path(path)
     if not source.is_file():
         raise DataError(f'{source}: no such data set file')
+    check_arrays(source, ('t', 'poses'), ('info_json',))   # sizes before allocating
     try:
         with np.load(source, allow_pickle=False) as archive:
             missing = sorted({'t', 'poses', 'info_json'} - set(archive.files))
@@ -88,7 +90,8 @@ def load_dataset(path: PathLike) -> Paths:
             poses = np.asarray(archive['poses'], dtype=float)
             info_text = str(archive['info_json'])
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
-        raise DataError(f'{source}: not a multisample data set (.npz): {exc}') from None
+        raise DataError(f'{source}: not a multisample data set (.npz): '
+                        f'{type(exc).__name__}') from None
     try:
         info = json.loads(info_text)
     except json.JSONDecodeError:

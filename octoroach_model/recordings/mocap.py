@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from octoroach_model.errors import BagError
+from octoroach_model.limits import MAX_BODY_MARKERS
 from octoroach_model.recordings.bags import PoseChunk
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.rigid import (
@@ -159,6 +160,9 @@ def select_body_markers(where: str, labels: Sequence[str], options: ReadOptions,
         raise BagError(f'{where}: {len(chosen)} marker(s) on the body ({on_body}); a rigid '
                        f'fit needs at least {MIN_MARKERS}: pass --subject NAME or --markers '
                        f'A,B,C naming 3 or more of {available}')
+    if len(chosen) > MAX_BODY_MARKERS:
+        raise BagError(f'{where}: {len(chosen)} markers on the body, more than the '
+                       f'{MAX_BODY_MARKERS} a rigid body may have here; pass --markers A,B,C')
     return chosen
 
 

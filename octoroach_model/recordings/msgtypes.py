@@ -92,8 +92,9 @@ class BagTypes:
             types = parse_definition(msgtype, encoding, text)
             self.store.register({name: fields for name, fields in types.items()
                                  if name not in self.store.fielddefs})
-        except (TypesysError, ValueError, KeyError, IndexError) as error:
-            self.unreadable[msgtype] = f'its definition is unreadable ({error})'
+        except (TypesysError, ValueError, KeyError, IndexError):
+            # rosbags' message quotes the definition: the text of the file, never shown
+            self.unreadable[msgtype] = 'its definition in the bag is not valid msg or IDL text'
             return False
         return self.knows(msgtype)
 

@@ -111,10 +111,9 @@ def load_profiles(value: str | Sequence[Mapping[str, Any]] | None) -> tuple[QosP
         return ()
     entries: Any = value  # YAML text parses to anything: checked below
     if isinstance(value, str):
-        try:
-            entries = yaml.safe_load(value)
-        except yaml.YAMLError:
-            raise BagError('offered_qos_profiles is not valid YAML') from None
+        from octoroach_model.recordings.safe_yaml import load_yaml_text
+
+        entries = load_yaml_text(value, 'offered_qos_profiles')
         if not entries:
             return ()
     if not isinstance(entries, Sequence):

@@ -17,6 +17,7 @@ Message types come from the bag's own definitions where Jazzy does not know them
 from __future__ import annotations
 
 from collections.abc import Collection, Iterator
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 import struct
@@ -28,6 +29,7 @@ from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Sch
 from mcap.stream_reader import breakup_chunk, StreamReader
 
 from octoroach_model.errors import BagError
+from octoroach_model.limits import MAX_CHUNK_BYTES, size_words
 from octoroach_model.recordings.msgtypes import BagTypes
 from octoroach_model.recordings.qos import load_profiles, QosProfile
 from octoroach_model.recordings.ros1 import Ros1Bag
@@ -41,7 +43,7 @@ MCAP_MAGIC = b'\x89MCAP0\r\n'
 TRUNCATION_KEY = 'octoroach_model.truncated'
 # What a damaged MCAP can raise while its records are parsed
 _PARSE_ERRORS = (McapError, EOFError, struct.error, UnicodeDecodeError, ValueError,
-                 IndexError, KeyError, OverflowError, MemoryError)
+                 IndexError, KeyError, OverflowError, MemoryError, RuntimeError, OSError)
 
 
 class TopicInfo(NamedTuple):
@@ -88,6 +90,7 @@ class FileDamage:
     unreadable_chunks: int = 0
     damage: str = ''
     complete: bool = False  # reached the data end (or footer) record
+    oversized: list[str] = field(default_factory=list)  # chunks refused by their size
 
     def note(self) -> str | None:
         """Say in plain words what a cut file lost; None for a whole file."""
@@ -105,8 +108,49 @@ def check_mcap_magic(path: Path) -> None:
     except OSError as exc:
         raise BagError(f'{path}: cannot read: {exc.strerror or exc}') from None
     if magic != MCAP_MAGIC:
-        what = 'an empty file' if not magic else f'it starts with {magic[:8]!r}'
-        raise BagError(f'{path}: not an MCAP file ({what})')
+        what = 'an empty file' if not magic else 'it does not start with the MCAP magic bytes'
+        hint = (' (a multisample data set: validate, diagnose and the validator read it; '
+                'replay and repair take bags only)' if path.suffix == '.npz' else '')
+        raise BagError(f'{path}: not an MCAP file ({what}){hint}')
+
+
+class ChunkTooLarge(Exception):
+    """An MCAP chunk that claims (or holds) more than `limits.MAX_CHUNK_BYTES` decompressed."""
+
+
+def _decompressed(chunk: Chunk) -> Chunk:
+    """
+    Return `chunk` decompressed, never past `limits.MAX_CHUNK_BYTES` (or past its own claim).
+
+    mcap's `breakup_chunk` allocates what the chunk claims (zstd) or whatever the data expand
+    to (lz4) before looking; a 32 KB file could claim 1 GiB. The claim is checked first, then
+    the data are decompressed by a bounded stream, and an uncompressed chunk goes on to
+    `breakup_chunk`, which checks its CRC.
+    """
+    claimed = int(chunk.uncompressed_size)
+    if not chunk.compression:
+        return chunk
+    if claimed > MAX_CHUNK_BYTES:
+        raise ChunkTooLarge(f'a chunk claims {size_words(claimed)} decompressed, above the '
+                            f'limit of {size_words(MAX_CHUNK_BYTES)}')
+    if chunk.compression == 'zstd':
+        import zstandard
+
+        try:
+            with zstandard.ZstdDecompressor().stream_reader(bytes(chunk.data)) as stream:
+                data = stream.read(claimed + 1)
+        except zstandard.ZstdError:
+            raise ValueError('the chunk does not decompress') from None
+    elif chunk.compression == 'lz4':
+        import lz4.frame
+
+        decompressor = lz4.frame.LZ4FrameDecompressor()
+        data = decompressor.decompress(bytes(chunk.data), max_length=claimed + 1)
+    else:
+        raise ValueError(f'unknown compression {chunk.compression!r}')
+    if len(data) != claimed:
+        raise ValueError('the chunk does not decompress to the size it claims')
+    return dataclasses.replace(chunk, compression='', data=data)
 
 
 def iter_mcap_records(path: Path, report: FileDamage) -> Iterator[Any]:
@@ -136,7 +180,11 @@ def iter_mcap_records(path: Path, report: FileDamage) -> Iterator[Any]:
                 return
             if isinstance(record, Chunk):
                 try:
-                    inner = breakup_chunk(record, validate_crc=True)
+                    inner = breakup_chunk(_decompressed(record), validate_crc=True)
+                except ChunkTooLarge as error:
+                    report.unreadable_chunks += 1
+                    report.oversized.append(f'byte {position}: {error}')
+                    continue
                 except _PARSE_ERRORS:
                     report.unreadable_chunks += 1
                     continue
@@ -292,6 +340,8 @@ class BagReader:
             self._report(report)
 
     def _report(self, report: FileDamage) -> None:
+        for refused in report.oversized:
+            self.notes.append(f'{report.path}: {refused}; skipped (docs/bags.md, "Limits")')
         if report.unreadable_chunks:
             self.notes.append(f'{report.path}: {report.unreadable_chunks} unreadable chunk(s) '
                               'skipped (bad checksum or garbled records); their messages are '
@@ -354,8 +404,8 @@ class BagReader:
             if connection.msgdef.data:
                 try:
                     types.update(get_types_from_msg(connection.msgdef.data, connection.msgtype))
-                except TypesysError as error:
-                    self.types.unreadable[connection.msgtype] = f'unreadable definition: {error}'
+                except TypesysError:         # its message quotes the file's definition text
+                    self.types.unreadable[connection.msgtype] = 'unreadable definition'
         noetic = get_typestore(Stores.ROS1_NOETIC)
         store = get_typestore(Stores.EMPTY)
         store.register({**{name: noetic.fielddefs[name] for name in noetic.fielddefs},

@@ -10,21 +10,27 @@ reindex`` would.
 
 Nothing is overwritten without being kept: in place, each damaged file is renamed to
 ``NAME.mcap.damaged`` (and an old metadata.yaml to ``metadata.yaml.damaged``) before the
-repaired one takes its name; with `out`, the input is not touched at all.
+repaired one takes its name; with `out`, the input is not touched at all and the new bag is
+written into a temporary folder that takes the name `out` when it is complete. A repair that
+is killed can be run again: in place, the ``NAME.mcap.partial`` files it left are removed
+(never followed) and a renamed original gets its name back first.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+import os
 from pathlib import Path
 from typing import NamedTuple
 
 from mcap.records import Channel, Message, Schema
-import yaml
 
-from octoroach_model.errors import BagError
+from octoroach_model.errors import BagError, OutputError
+from octoroach_model.fileio import atomic_directory, PARTIAL_SUFFIX
 from octoroach_model.recordings.qos import load_profiles
 from octoroach_model.recordings.reader import FileDamage, iter_mcap_records, TRUNCATION_KEY
-from octoroach_model.recordings.sources import bag_files, METADATA_FILE, PathLike, ROS1_SUFFIX
+from octoroach_model.recordings.safe_yaml import load_yaml_file
+from octoroach_model.recordings.sources import (
+    bag_files, BagFiles, METADATA_FILE, PathLike, ROS1_SUFFIX)
 from octoroach_model.recordings.writer import (
     FileRecord,
     McapFileWriter,
@@ -73,15 +79,51 @@ def repair_bag(source: PathLike, out: PathLike | None = None) -> RepairReport:
     path = Path(source)
     if path.is_file() and path.suffix == ROS1_SUFFIX:
         raise BagError(f'{path}: a ROS 1 bag; `rosbag reindex` repairs those')
+    undone: list[str] = []
+    if out is None and path.is_dir():
+        _undo_killed_repair(path, undone)   # a repair killed here: start from the bag as it was
     bag = bag_files(path)
     if bag.storage != 'mcap':
         raise BagError(f'{path}: a {bag.storage} bag; `ros2 bag reindex` repairs those')
-    notes = list(bag.notes)
+    notes = list(bag.notes) + undone
     in_place = out is None and bag.directory is not None
     target = Path(out) if out is not None else (
         bag.directory if bag.directory is not None else path.with_suffix(''))
-    if not in_place and target.exists():
-        raise BagError(f'{target}: exists already; choose a new output path')
+    if not in_place and os.path.lexists(target):
+        raise OutputError(f'{target}: exists already; choose a new output path')
+    if not in_place:
+        with atomic_directory(target, what='repaired bag') as folder:
+            report = _repair(bag, folder, target.name, in_place, notes)
+        return report._replace(bag=target)
+    return _repair(bag, target, target.name, in_place, notes)
+
+
+def _undo_killed_repair(directory: Path, notes: list[str]) -> bool:
+    """
+    Undo what a repair killed in place left: its NAME.mcap.partial files, a kept original.
+
+    A partial copy is removed (a link or anything but a plain file there is refused, never
+    followed); a damaged original already renamed to NAME.mcap.damaged while NAME.mcap is
+    missing gets its name back. Then the repair starts over. True when anything was undone.
+    """
+    undone = False
+    for partial in sorted(directory.glob('*.mcap' + PARTIAL_SUFFIX)):
+        if partial.is_symlink() or not partial.is_file():
+            raise OutputError(f'{partial}: not a file a repair left; move it away first')
+        partial.unlink()
+        original = partial.with_name(partial.name[:-len(PARTIAL_SUFFIX)])
+        kept = original.with_name(original.name + DAMAGED_SUFFIX)
+        if not os.path.lexists(original) and kept.is_file() and not kept.is_symlink():
+            kept.replace(original)
+        notes.append(f'{partial}: left by a repair that was stopped; removed, the repair '
+                     'started over')
+        undone = True
+    return undone
+
+
+def _repair(bag: BagFiles, target: Path, name_stem: str, in_place: bool,
+            notes: list[str]) -> RepairReport:
+    """Repair `bag`'s files into `target` (the bag itself in place); see `repair_bag`."""
     scans = [_scan(file) for file in bag.files]
     complete = all(scan[1].complete for scan in scans)
     if in_place and complete and (target / METADATA_FILE).is_file():
@@ -91,13 +133,11 @@ def repair_bag(source: PathLike, out: PathLike | None = None) -> RepairReport:
         return RepairReport(target, files, total, False, tuple(notes + [
             f'{target}: complete already (every file has its footer, metadata.yaml is there)']))
     custom_data = _custom_data(bag.directory)
-    if not in_place:
-        target.mkdir(parents=True)
     results: list[RepairedFile] = []
     file_records: list[FileRecord] = []
     topics: dict[str, TopicRecord] = {}
     for index, (file, (scan, report)) in enumerate(zip(bag.files, scans)):
-        name = file.name if in_place else f'{target.name}_{index}.mcap'
+        name = file.name if in_place else f'{name_stem}_{index}.mcap'
         damage = f'truncated MCAP, {report.damage}' if report.damage else ''
         if report.unreadable_chunks:
             damage = '; '.join(filter(None, [damage, f'{report.unreadable_chunks} unreadable '
@@ -224,8 +264,8 @@ def _custom_data(directory: Path | None) -> dict[str, str] | None:
     if directory is None or not (directory / METADATA_FILE).is_file():
         return None
     try:
-        info = yaml.safe_load((directory / METADATA_FILE).read_text())
+        info = load_yaml_file(directory / METADATA_FILE)
         data = info['rosbag2_bagfile_information'].get('custom_data')
-    except (yaml.YAMLError, KeyError, TypeError, AttributeError):
+    except (BagError, KeyError, TypeError, AttributeError):
         return None
     return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else None

@@ -173,6 +173,8 @@ def layout_from_frames(frames: np.ndarray) -> np.ndarray:
     frames = np.asarray(frames, dtype=float)
     reference = frames[0] - frames[0].mean(axis=0)
     fit = fit_rigid(reference, frames)
+    if not fit.valid.any():      # no frame spans a plane: no layout (the caller says why)
+        return np.full(frames.shape[1:], np.nan)
     in_body = np.einsum('kji,kmj->kmi', fit.rotation, frames - fit.translation[:, None])
     return in_body[fit.valid].mean(axis=0)
 

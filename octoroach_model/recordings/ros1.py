@@ -20,6 +20,7 @@ import re
 from typing import Any
 
 from octoroach_model.errors import BagError
+from octoroach_model.limits import MAX_ROS1_CHUNK_BYTES, size_words
 
 
 class Ros1Bag:
@@ -45,7 +46,7 @@ class Ros1Bag:
         try:
             magic = reader.bio.readline().decode(errors='replace')
             if not re.match(r'#ROSBAG V2\.0\n', magic):
-                what = 'an empty file' if not magic else f'it starts with {magic[:13]!r}'
+                what = 'an empty file' if not magic else 'no "#ROSBAG V2.0" line at its start'
                 raise BagError(f'{self.path}: not a ROS 1 bag of format 2.0 ({what})')
             header = Header.read(reader.bio, RecordType.BAGHEADER)
             index_pos = header.get_uint64('index_pos')
@@ -91,9 +92,13 @@ class Ros1Bag:
         try:
             for position in self._chunk_positions:
                 reader.bio.seek(position)
+                header = Header.read(reader.bio, RecordType.CHUNK)
+                reader.bio.seek(position)
                 chunk = reader.read_chunk()
                 reader.bio.seek(chunk.datapos)
-                data = chunk.decompressor(read_bytes(reader.bio, chunk.datasize))
+                data = _decompress(header.get_string('compression'),
+                                   read_bytes(reader.bio, chunk.datasize),
+                                   header.get_uint32('size'), self.path, position)
                 records = BytesIO(data)
                 while records.tell() < len(data):
                     header = Header.read(records)
@@ -107,5 +112,35 @@ class Ros1Bag:
                         continue
                     yield (by_id[connection_id], header.get_time('time'),
                            read_bytes(records, size))
-        except (ReaderError, ValueError, KeyError, OSError) as error:
+        except (ReaderError, ValueError, KeyError, OSError, EOFError, RuntimeError) as error:
             raise BagError(f'{self.path}: unreadable ROS 1 chunk ({error})') from None
+
+
+def _decompress(compression: str, data: bytes, claimed: int, path: Path,
+                position: int) -> bytes:
+    """
+    Decompress one chunk, never past `limits.MAX_ROS1_CHUNK_BYTES` or its own stated size.
+
+    rosbags' decompressors expand whatever the data hold; a small bz2 chunk can hold a
+    gigabyte of zeros. The chunk header's `size` is checked first, then the data are
+    decompressed by a bounded decompressor.
+    """
+    if claimed > MAX_ROS1_CHUNK_BYTES:
+        raise BagError(f'{path}: the chunk at byte {position} claims {size_words(claimed)} '
+                       f'decompressed, above the limit of {size_words(MAX_ROS1_CHUNK_BYTES)}')
+    if compression == 'none':
+        out = data
+    elif compression == 'bz2':
+        import bz2
+
+        out = bz2.BZ2Decompressor().decompress(data, max_length=claimed + 1)
+    elif compression == 'lz4':
+        import lz4.frame
+
+        out = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=claimed + 1)
+    else:
+        raise BagError(f'{path}: chunk compression {compression!r} is not supported')
+    if len(out) != claimed:
+        raise BagError(f'{path}: the chunk at byte {position} does not decompress to the '
+                       'size it states')
+    return out

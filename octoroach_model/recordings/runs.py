@@ -40,6 +40,7 @@ from octoroach_model.recordings.bags import (
     Sources,
 )
 from octoroach_model.recordings.dataset import is_dataset_file, load_dataset
+from octoroach_model.recordings.duplicates import repeated_runs_note
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.sources import MEASURED_SUFFIXES
 
@@ -382,5 +383,8 @@ def load_measured(sources: Sources, *, rate_hz: float = DEFAULT_RATE_HZ,
                       options=options)] if bags else []
     sets += [RunSet.from_paths(load_dataset(path), source=str(path)) for path in datasets]
     paths = RunSet.combine(sets).to_paths(rate_hz, min_duration_s)
+    repeated = repeated_runs_note(paths)    # the same recording under two names
+    if repeated:
+        paths.info.setdefault('notes', []).append(repeated)
     paths.info['inputs'] = [str(Path(path)) for path in found]
     return paths

@@ -13,9 +13,9 @@ import os
 from pathlib import Path
 from typing import NamedTuple, Union
 
-import yaml
-
 from octoroach_model.errors import BagError
+from octoroach_model.limits import MAX_FOLDER_DEPTH
+from octoroach_model.recordings.safe_yaml import load_yaml_file
 
 PathLike = Union[str, 'os.PathLike[str]']
 Sources = Union[PathLike, Iterable[PathLike]]
@@ -54,7 +54,10 @@ def expand_sources(sources: Sources, *,
     Bag directories and files named by `sources`; a folder expands to what it holds.
 
     Files and bag directories are taken as given (their content is checked when read); inside a
-    plain folder only bag directories and files ending in `suffixes` count.
+    plain folder only bag directories and files ending in `suffixes` count. A folder is never
+    entered twice (a symbolic link back up the tree), nor deeper than
+    `limits.MAX_FOLDER_DEPTH`. The same file or bag named twice (directly, or inside a folder
+    also named) is an error: its runs would count twice.
     """
     if isinstance(sources, (str, os.PathLike)):
         sources = [sources]
@@ -66,21 +69,64 @@ def expand_sources(sources: Sources, *,
         if path.is_file() or is_bag_directory(path):
             found.append(path)
             continue
-        inside = _search_folder(path, suffixes)
+        inside = _search_folder(path, suffixes, set(), 0)
         if not inside:
-            wanted = ', '.join(suffixes)
-            raise BagError(f'{path}: empty directory (no metadata.yaml, bag or {wanted} file)')
+            raise BagError(f'{path}: {_nothing_to_read(path, suffixes)}')
         found.extend(inside)
     if not found:
         raise BagError('no bag given')
+    _refuse_twice(found)
     return found
 
 
-def _search_folder(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
+def _nothing_to_read(folder: Path, suffixes: tuple[str, ...]) -> str:
+    """Say why a folder gave no input: empty, or which files it holds instead."""
+    wanted = ', '.join(suffixes)
+    try:
+        others = sorted({child.suffix or child.name for child in folder.iterdir()})
+    except OSError as error:
+        return f'cannot list it ({error.strerror or error})'
+    if not others:
+        return f'empty directory (no metadata.yaml, bag or {wanted} file)'
+    listed = ', '.join(others[:5]) + (', ...' if len(others) > 5 else '')
+    return (f'no input in this directory or below (no metadata.yaml, bag or {wanted} file; '
+            f'it holds {listed})')
+
+
+def _refuse_twice(found: list[Path]) -> None:
+    """Raise BagError when two entries are the same file or bag directory."""
+    seen: dict[tuple[int, int], Path] = {}
+    for path in found:
+        try:
+            status = path.stat()
+        except OSError:
+            continue  # the reader says what is wrong with it
+        key = (status.st_dev, status.st_ino)
+        if key in seen:
+            raise BagError(f'{path} is given twice (also as {seen[key]}); its runs would '
+                           'count twice: give each input once')
+        seen[key] = path
+
+
+def _search_folder(folder: Path, suffixes: tuple[str, ...], visited: set[tuple[int, int]],
+                   depth: int) -> list[Path]:
+    try:
+        status = folder.stat()
+    except OSError:
+        return []        # a dangling or looping link: nothing to read there
+    key = (status.st_dev, status.st_ino)
+    if key in visited or depth > MAX_FOLDER_DEPTH:
+        return []
+    visited.add(key)
     found: list[Path] = []
-    for child in sorted(folder.iterdir()):
+    try:
+        children = sorted(folder.iterdir())
+    except OSError:
+        return []
+    for child in children:
         if child.is_dir():
-            found.extend([child] if is_bag_directory(child) else _search_folder(child, suffixes))
+            found.extend([child] if is_bag_directory(child)
+                         else _search_folder(child, suffixes, visited, depth + 1))
         elif child.suffix in suffixes:
             found.append(child)
     return found
@@ -142,6 +188,16 @@ def bag_files(source: PathLike) -> BagFiles:
     return BagFiles(str(path), 'mcap', tuple(found), tuple(notes), path)
 
 
+def _inside(directory: Path, name: str) -> bool:
+    """Tell a relative_file_paths entry that stays inside `directory` (links resolved)."""
+    if not name or Path(name).is_absolute():
+        return False
+    try:
+        return (directory / name).resolve().is_relative_to(directory.resolve())
+    except (OSError, RuntimeError, ValueError):
+        return False
+
+
 def _files_in_metadata(path: Path, notes: list[str]
                        ) -> tuple[str, list[Path], dict[str, str] | None] | None:
     """(storage, files, custom data) of metadata.yaml, or None when missing or useless."""
@@ -149,18 +205,25 @@ def _files_in_metadata(path: Path, notes: list[str]
     if not metadata_path.is_file():
         return None
     try:
-        info = yaml.safe_load(metadata_path.read_text())['rosbag2_bagfile_information']
+        info = load_yaml_file(metadata_path)['rosbag2_bagfile_information']
         storage = str(info.get('storage_identifier') or 'mcap')
         relative = [str(name) for name in info.get('relative_file_paths') or []]
         custom = info.get('custom_data')
         custom = {str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) \
             else None
-    except (yaml.YAMLError, KeyError, TypeError, AttributeError, UnicodeDecodeError) as exc:
+    except BagError as exc:
+        notes.append(f'{exc}; read the .mcap files directly')
+        return None
+    except (KeyError, TypeError, AttributeError) as exc:
         notes.append(f'{metadata_path}: unreadable ({type(exc).__name__}); '
                      'read the .mcap files directly')
         return None
     if storage not in ('mcap', 'sqlite3'):
         raise BagError(f'{path}: storage {storage!r} is not supported, only mcap and sqlite3')
+    outside = [name for name in relative if not _inside(path, name)]
+    if outside:
+        raise BagError(f'{metadata_path}: relative_file_paths names a file outside the bag '
+                       f'directory ({outside[0]!r}); only files inside it are read')
     files = [path / name for name in relative]
     present = [p for p in files if p.is_file()]
     if len(present) < len(files):

@@ -34,11 +34,12 @@ import itertools
 import math
 from pathlib import Path
 import re
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from octoroach_model.errors import BagError
+from octoroach_model.limits import MAX_CSV_LINE
 from octoroach_model.recordings.bags import PoseChunk
 from octoroach_model.recordings.mocap import (
     ANGLE_UNITS,
@@ -107,6 +108,20 @@ def _cells(line: str, delimiter: str) -> list[str]:
     return [cell.strip() for cell in next(csv.reader([line], delimiter=delimiter), [])]
 
 
+def _lines(stream: Any, where: str) -> Iterator[str]:
+    """Yield the lines of `stream`, refusing one longer than `limits.MAX_CSV_LINE`."""
+    number = 0
+    while True:
+        line = stream.readline(MAX_CSV_LINE + 1)
+        if not line:
+            return
+        number += 1
+        if len(line) > MAX_CSV_LINE:
+            raise BagError(f'{where}: line {number} is longer than '
+                           f'{MAX_CSV_LINE} characters; not a Vicon CSV export')
+        yield line
+
+
 def _is_blank(line: str) -> bool:
     """Tell an empty line, or one of delimiters only (a section break)."""
     text = line.strip()
@@ -118,11 +133,6 @@ def _is_blank(line: str) -> bool:
 def _delimiter(line: str) -> str:
     """Return the delimiter of a column-names line: the commonest of , ; and tab."""
     return max(_DELIMITERS, key=line.count)
-
-
-def _snippet(line: str) -> str:
-    text = line.strip()
-    return repr(text[:60] + ('...' if len(text) > 60 else ''))
 
 
 def read_csv_sections(path: Path) -> tuple[str, list[CsvSection], int]:
@@ -140,7 +150,7 @@ def read_csv_sections(path: Path) -> tuple[str, list[CsvSection], int]:
     number, line = 0, ''
     try:
         with path.open(encoding='utf-8-sig', errors='replace', newline='') as stream:
-            lines = enumerate(stream, 1)
+            lines = enumerate(_lines(stream, where), 1)
             for number, line in lines:
                 if in_data:
                     in_data = not _is_blank(line)
@@ -155,6 +165,10 @@ def read_csv_sections(path: Path) -> tuple[str, list[CsvSection], int]:
                 number, line = header[-1]
     except OSError as exc:
         raise BagError(f'{where}: cannot read: {exc.strerror or exc}') from None
+    except csv.Error:
+        raise BagError(f'{where}: line {number + 1}: not a Vicon CSV export header (a cell '
+                       f'longer than {csv.field_size_limit()} characters, or a broken '
+                       'quote)') from None
     if not sections:
         raise BagError(f'{where}: empty file; a Vicon CSV export starts with the '
                        f'{HEADER_WORDS}')
@@ -167,8 +181,8 @@ def _section(where: str, header: list[tuple[int, str]], delimiter: str) -> CsvSe
     first_number, first_line = header[0]
 
     def refuse(number: int, line: str, what: str) -> BagError:
-        return BagError(f'{where}: line {number}: not a Vicon CSV export header ({what}; '
-                        f'found {_snippet(line)}); expected the {HEADER_WORDS}')
+        return BagError(f'{where}: line {number}: not a Vicon CSV export header ({what}); '
+                        f'expected the {HEADER_WORDS}')
 
     title_cells = _cells(first_line, delimiter)
     title = title_cells[0] if title_cells else ''
@@ -452,24 +466,35 @@ class _RowReader:
         self._first_value = 2 if has_sub_frame else 1
         width = max(wanted) + 1
         with self.path.open(encoding='utf-8-sig', errors='replace', newline='') as stream:
-            rows = csv.reader(itertools.islice(stream, section.data_line - 1, None),
+            rows = csv.reader(itertools.islice(_lines(stream, str(self.path)),
+                                               section.data_line - 1, None),
                               delimiter=self.delimiter)
-            texts: list[list[str]] = []
-            for row in rows:
-                if not any(cell.strip() for cell in row):
-                    break
-                line = section.data_line + rows.line_num - 1
-                if line == self.cut_line:
-                    self.truncated = True
-                    break
-                if len(row) < width:
-                    row = row + [''] * (width - len(row))
-                texts.append([row[index] for index in wanted])
-                if len(texts) == block:
-                    yield self._parse(texts)
-                    texts = []
-            if texts:
+            try:
+                yield from self._rows(rows, section, wanted, width, block)
+            except csv.Error:
+                raise BagError(f'{self.path}: line {section.data_line + rows.line_num - 1}: '
+                               f'a cell longer than {csv.field_size_limit()} characters, or '
+                               'a broken quote') from None
+
+    def _rows(self, rows: Any, section: CsvSection, wanted: list[int], width: int,
+              block: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """Blocks of the parsed rows of one section (see `blocks`)."""
+        texts: list[list[str]] = []
+        for row in rows:
+            if not any(cell.strip() for cell in row):
+                break
+            line = section.data_line + rows.line_num - 1
+            if line == self.cut_line:
+                self.truncated = True
+                break
+            if len(row) < width:
+                row = row + [''] * (width - len(row))
+            texts.append([row[index] for index in wanted])
+            if len(texts) == block:
                 yield self._parse(texts)
+                texts = []
+        if texts:
+            yield self._parse(texts)
 
     def _parse(self, texts: list[list[str]]) -> tuple[np.ndarray, np.ndarray]:
         cells = np.char.strip(np.array(texts, dtype=str))

@@ -30,7 +30,8 @@ from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 import yaml
 
-from octoroach_model.errors import BagError, DataError
+from octoroach_model.errors import BagError, DataError, OutputError
+from octoroach_model.fileio import write_text_atomic
 from octoroach_model.recordings.msgtypes import standard_definition, TypeDefinition
 from octoroach_model.recordings.qos import dump_profiles, load_profiles, QosProfile
 from octoroach_model.recordings.sources import METADATA_FILE, PathLike
@@ -102,16 +103,14 @@ def metadata_document(files: Sequence[FileRecord], topics: Sequence[TopicRecord]
 
 
 def write_metadata_yaml(directory: Path, document: Mapping[str, Any]) -> Path:
-    """Write ``metadata.yaml`` atomically (temporary file, then rename)."""
+    """Write ``metadata.yaml`` atomically (`fileio.write_text_atomic`; a link is replaced)."""
     target = directory / METADATA_FILE
-    partial = directory / (METADATA_FILE + '.partial')
     try:
-        partial.write_text(yaml.safe_dump({'rosbag2_bagfile_information': dict(document)},
-                                          sort_keys=False, default_flow_style=False))
-        partial.replace(target)
+        write_text_atomic(target, yaml.safe_dump({'rosbag2_bagfile_information': dict(document)},
+                                                 sort_keys=False, default_flow_style=False),
+                          replace=True, what='bag metadata')
     except OSError as exc:
-        partial.unlink(missing_ok=True)
-        raise BagError(f'{target}: cannot write: {exc.strerror or exc}') from None
+        raise OutputError(f'{target}: cannot write: {exc.strerror or exc}') from None
     return target
 
 
@@ -134,9 +133,9 @@ class McapFileWriter:
         try:
             self._stream: IO[bytes] = path.open('xb')
         except FileExistsError:
-            raise BagError(f'{path}: exists already; choose a new path') from None
+            raise OutputError(f'{path}: exists already; choose a new path') from None
         except OSError as exc:
-            raise BagError(f'{path}: cannot write: {exc.strerror or exc}') from None
+            raise OutputError(f'{path}: cannot write: {exc.strerror or exc}') from None
         self._mcap = McapWriter(self._stream, chunk_size=chunk_size,
                                 compression=CompressionType.NONE, enable_crcs=True)
         self._mcap.start(profile=MCAP_PROFILE, library=LIBRARY)
@@ -265,13 +264,14 @@ class BagWriter:
 
     def create(self) -> BagWriter:
         """Create the directory and the MCAP file; BagError if the bag exists already."""
-        if self.path.exists():
-            raise BagError(f'{self.path}: cannot write the bag: it exists already; '
-                           'choose a new path')
+        if os.path.lexists(self.path):
+            raise OutputError(f'{self.path}: cannot write the bag: it exists already; '
+                              'choose a new path')
         try:
             self.path.mkdir(parents=True)
         except OSError as exc:
-            raise BagError(f'{self.path}: cannot write the bag: {exc.strerror or exc}') from None
+            raise OutputError(f'{self.path}: cannot write the bag: '
+                              f'{exc.strerror or exc}') from None
         self._file = McapFileWriter(self.file_path, chunk_size=self.chunk_size)
         self._file.add_metadata('rosbag2', {'serialized_metadata': self._serialized()})
         return self

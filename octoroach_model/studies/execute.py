@@ -7,12 +7,20 @@ future of its replicate's null task, which Dask resolves before running it. A ta
 dies is rescheduled by Dask on another worker (up to `distributed.scheduler.allowed-failures`
 times), so a lost worker costs a recomputation, not a row. Rows come back as they finish and
 go to `on_row` at once.
+
+Security (docs/studies.md, "Security"). A Dask scheduler runs whatever its clients submit on
+its workers, and a client unpickles what the scheduler and workers send back: whoever reaches
+the scheduler's port can run code as the workers' user, and a scheduler can run code in the
+client. So the local cluster speaks TLS with a throw-away certificate authority made for it
+(`Security.temporary()`: no other process, of this user or another, can connect) and serves
+no HTTP at all (no dashboard, no /health or /metrics: `private_cluster`); a remote scheduler
+is reached over `tls://` with the certificates named by `--tls-ca-file`, `--tls-cert`,
+`--tls-key` (dask's `distributed.comm.tls` configuration).
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
 import contextlib
-import logging
 import os
 from typing import Any
 import uuid
@@ -33,21 +41,40 @@ def default_workers() -> int:
                else os.cpu_count() or 1)
 
 
+def scheduler_security(scheduler: str) -> Any:
+    """
+    Return the Security for a remote scheduler: dask's configuration (what --tls-* set).
+
+    A `tls://` address without a CA file and a client certificate is refused before
+    connecting, with the options that give them.
+    """
+    from distributed import Security
+
+    security = Security()
+    files = (getattr(security, 'tls_ca_file', None), getattr(security, 'tls_client_cert', None))
+    if scheduler.startswith('tls://') and not all(files):
+        raise ParameterError(f'the scheduler {scheduler} speaks TLS: give --tls-ca-file, '
+                             '--tls-cert and --tls-key (docs/studies.md, "Security")')
+    return security
+
+
 @contextlib.contextmanager
 def dask_client(scheduler: str | None = None, workers: int | None = None,
                 connect_timeout_s: float = CONNECT_TIMEOUT_S) -> Iterator[Any]:
     """
-    Yield a distributed Client to `scheduler`, or to a new LocalCluster.
+    Yield a distributed Client to `scheduler`, or to a new private local cluster.
 
-    The LocalCluster has `workers` processes with one thread each and is closed again on
-    exit. An address that does not answer within `connect_timeout_s` is a ParameterError.
+    The local cluster (`private_cluster.private_local_cluster`) has `workers` processes with
+    one thread each and is closed again on exit. An address that does not answer within
+    `connect_timeout_s` is a ParameterError.
     """
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     if scheduler:
+        security = scheduler_security(scheduler)
         try:
-            client = Client(scheduler, timeout=f'{connect_timeout_s}s')
-        except (OSError, TimeoutError, ValueError) as error:
+            client = Client(scheduler, timeout=f'{connect_timeout_s}s', security=security)
+        except (OSError, TimeoutError, ValueError, TypeError) as error:
             raise ParameterError(f'cannot reach the Dask scheduler at {scheduler}: '
                                  f'{type(error).__name__}: {error}') from None
         try:
@@ -58,13 +85,14 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
         return
     count = workers or default_workers()
     try:
-        cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
-    except (OSError, RuntimeError) as error:
+        from octoroach_model.studies.private_cluster import private_local_cluster
+
+        cluster = private_local_cluster(count)
+    except (OSError, RuntimeError, ImportError) as error:
         raise OctoroachError(f'cannot start a local Dask cluster of {count} workers: '
                              f'{error}') from None
     try:
-        with Client(cluster) as client:
+        with Client(cluster, security=cluster.security) as client:
             yield client
     finally:
         cluster.close()

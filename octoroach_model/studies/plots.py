@@ -21,8 +21,10 @@ from octoroach_model.studies.terms import main_parameter
 
 
 def write_plots(summary: Mapping[str, Any], out: Path) -> list[Path]:
-    """Every plot the summary has data for, as PNG files in `out`; their paths."""
+    """Every plot the summary has data for, as PNG files in `out` (atomic); their paths."""
     import matplotlib
+
+    from octoroach_model.fileio import atomic_file
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -35,7 +37,8 @@ def write_plots(summary: Mapping[str, Any], out: Path) -> list[Path]:
         if figure is None:
             continue
         figure.tight_layout()
-        figure.savefig(out / name, dpi=110)
+        with atomic_file(out / name, replace=True, what='plot') as stream:
+            figure.savefig(stream, format='png', dpi=110)
         plt.close(figure)
         written.append(out / name)
     return written

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from octoroach_model.errors import DataError
+from octoroach_model.fileio import atomic_file, write_text_atomic
 from octoroach_model.studies.terms import column, TERMS
 
 TABLE_NAME = 'table.csv'
@@ -115,29 +116,25 @@ def header_line() -> str:
 
 
 def start_table(path: Path) -> None:
-    """Start a new table with its header only."""
-    with open(path, 'w', encoding='utf-8') as stream:
-        stream.write(header_line())
+    """Start a new table with its header only (a name that exists is an OutputError)."""
+    write_text_atomic(path, header_line(), what='study table')
 
 
 def append_row(path: Path, row: Mapping[str, Any]) -> None:
-    """Add one row at the end, on disk before returning (flush and fsync)."""
-    with open(path, 'a', encoding='utf-8') as stream:
+    """Add one row at the end, on disk before returning (flush and fsync); no link followed."""
+    descriptor = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_NOFOLLOW | os.O_CLOEXEC)
+    with os.fdopen(descriptor, 'a', encoding='utf-8') as stream:
         stream.write(row_line(row))
         stream.flush()
         os.fsync(stream.fileno())
 
 
 def write_table(path: Path, rows: Iterable[Mapping[str, Any]]) -> None:
-    """Write the whole table at once, replacing the file atomically."""
-    partial = path.with_suffix('.csv.partial')
-    with open(partial, 'w', encoding='utf-8') as stream:
-        stream.write(header_line())
+    """Write the whole table at once, replacing the study's own file atomically."""
+    with atomic_file(path, replace=True, what='study table') as stream:
+        stream.write(header_line().encode('utf-8'))
         for row in rows:
-            stream.write(row_line(row))
-        stream.flush()
-        os.fsync(stream.fileno())
-    os.replace(partial, path)
+            stream.write(row_line(row).encode('utf-8'))
 
 
 def read_table(path: Path) -> tuple[list[dict[str, Any]], int]:
@@ -170,7 +167,8 @@ def write_manifest(directory: Path, spec_json: Mapping[str, Any], spec_hash: str
 
     manifest = {'format': MANIFEST_FORMAT, 'spec_hash': spec_hash, 'tasks': tasks,
                 'package_version': __version__, 'spec': spec_json}
-    (directory / MANIFEST_NAME).write_text(dumps(manifest, indent=2) + '\n')
+    write_text_atomic(directory / MANIFEST_NAME, dumps(manifest, indent=2) + '\n',
+                      what='study manifest')
 
 
 def read_manifest(directory: Path) -> dict[str, Any]:
