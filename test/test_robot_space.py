@@ -7,8 +7,9 @@ reason naming the limit its data miss.
 Hypothesis draws robots (strides 0.5-6 Hz, 30-500 Hz sampling, 3-40 cycles, touchdown angles
 within 10 deg of Table II, leg 1.5-3 cm), data sets (40-3000 runs; here capped for time, see
 PROFILE), runs cut short (70-95 % of their duration) and dropped frames (interpolated, as the
-bag reader fills them). `fit_nominal`, `validate`, `diagnose` and `write_report` (with plots)
-must each return, or raise DataError; a plot that cannot be drawn must not cost the report.
+bag reader fills them). `fit_nominal`, `validate`, `diagnose` (with or without the detection
+limits, drawn too) and `write_report` (with plots) must each return, or raise DataError; a plot
+that cannot be drawn must not cost the report.
 
 Profiles: the suite's (OCTOROACH_ROBOT_SPACE=quick, the default: few examples, small data) and
 the thorough one (OCTOROACH_ROBOT_SPACE=thorough, from benchmarks/bench_robot_space.py: many
@@ -40,7 +41,7 @@ SMALL_VALIDATION = ValidationSettings(epsilon=0.4, delta=0.4, k=3, grid_points=3
 
 
 @st.composite
-def data_sets(draw) -> tuple[om.Paths, str]:
+def data_sets(draw) -> tuple[om.Paths, str, bool]:
     nominal = om.ModelParameters.nominal()
     offsets = [draw(st.floats(-10, 10)) for _ in range(4)]
     frequency = draw(st.floats(0.5, 6.0))
@@ -61,10 +62,11 @@ def data_sets(draw) -> tuple[om.Paths, str]:
     lengths = np.full(runs, len(paths.t))
     cut = rng.random(runs) < draw(st.floats(0.0, 0.3))
     lengths[cut] = np.maximum(2, (rng.uniform(0.7, 0.95, cut.sum()) * len(paths.t)).astype(int))
+    limits = draw(st.booleans())
     case = (f'{runs} runs, {cycles} cycles at {frequency:.2f} Hz, {rate:.0f} Hz, leg '
             f'{robot.leg_length * 100:.2f} cm, angles {np.round(offsets, 1).tolist()} deg off, '
-            f'spread x{spread:.2f}, {int(cut.sum())} cut short')
-    return paths.cut_to(lengths), case
+            f'spread x{spread:.2f}, {int(cut.sum())} cut short, limits {limits}')
+    return paths.cut_to(lengths), case, limits
 
 
 def drop_frames(paths: om.Paths, share: float, rng: np.random.Generator) -> om.Paths:
@@ -93,7 +95,7 @@ def test_the_drop_helper_interpolates_only_the_dropped_frames() -> None:
                                  HealthCheck.function_scoped_fixture])
 @given(data_sets())
 def test_every_robot_gets_a_result_or_a_one_line_reason(tmp_path_factory, case) -> None:
-    measured, description = case
+    measured, description, limits = case
     try:
         fit = fit_nominal(measured)
         assert np.isfinite(fit.rms_error_m), description
@@ -103,7 +105,7 @@ def test_every_robot_gets_a_result_or_a_one_line_reason(tmp_path_factory, case) 
     except om.DataError as error:
         assert '\n' not in str(error) and str(error), description
     try:
-        report = diagnose(measured, TINY)
+        report = diagnose(measured, replace(TINY, detection_limits=limits))
     except om.DataError as error:
         message = str(error)
         assert '\n' not in message and ('at least' in message or 'no stride' in message), \
