@@ -27,7 +27,8 @@ import time
 REPO = Path(__file__).resolve().parents[1]
 SPECS = REPO / 'studies'
 OUT = REPO / 'out' / 'studies'
-README_STUDIES = ('false_positives', 'power', 'limits', 'two_causes', 'wide_robots')
+README_STUDIES = ('false_positives', 'power', 'limits', 'two_causes', 'wide_robots', 'open_world',
+                  'adequacy')
 CLUSTER_CORES = 64
 
 
@@ -140,7 +141,7 @@ def table_summary(name: str) -> tuple[dict, str | None]:
     from octoroach_model.studies.table import read_table
 
     spec = load_spec(SPECS / f'{name}.yaml')
-    rows, _ = read_table(OUT / name / 'table.csv')
+    rows, _ = read_table(OUT / name / 'table.csv', earlier=True)
     earlier = OUT / name / 'summary.json'
     wall_time_s = (json.loads(earlier.read_text())['timing'].get('wall_time_s')
                    if earlier.exists() else None)
@@ -178,6 +179,7 @@ def print_tables(names: list[str]) -> None:
             if inadequate and inadequate['data_sets']:
                 print(f'adequacy check false alarms (null data sets called inadequate): '
                       f'{_rate(inadequate)}\n')
+                print_by_runs(fp, inadequate)
         if summary['power']:
             errors = {(e['arm'], e['runs']): e for e in summary['estimation']}
             print('| cause | size | data sets | named (95 % interval) | median abs. rel. error |'
@@ -194,19 +196,21 @@ def print_tables(names: list[str]) -> None:
             print()
         if summary['power_at_limit_multiples']:
             limits = {(e['cause'], e['runs']): e for e in summary['detection_limits']}
-            print('| cause | median reported limit | named at 1x the limit | at 2x |')
-            print('| --- | --- | --- | --- |')
+            print('| cause | median reported limit | named at 1x the limit | at 2x | baseline '
+                  'inadequate at 2x |')
+            print('| --- | --- | --- | --- | --- |')
             entries = summary['power_at_limit_multiples']
             for cause in dict.fromkeys(e['cause'] for e in entries):
                 mine = {e['limit_multiple']: e for e in entries if e['cause'] == cause}
                 limit = limits.get((cause, mine[min(mine)]['runs']), {})
                 median = limit.get('median_limit')
                 shown = f'{limit["parameter"]} = {median:.3g}' if median is not None else '-'
+                twice = mine.get(2.0, {}).get('baseline_inadequate') or {}
                 print(f'| {cause} | {shown} | {_rate(mine.get(1.0, {}))} | '
-                      f'{_rate(mine.get(2.0, {}))} |')
+                      f'{_rate(mine.get(2.0, {}))} | {_rate(twice)} |')
             pooled = [_rate(pooled_rate([e for e in entries if e['limit_multiple'] == multiple]))
                       for multiple in (1.0, 2.0)]
-            print(f'| all causes | | {pooled[0]} | {pooled[1]} |')
+            print(f'| all causes | | {pooled[0]} | {pooled[1]} | |')
             print()
             for multiple in (1.0, 2.0):
                 chosen = [e for e in entries if e['limit_multiple'] == multiple]
@@ -228,7 +232,62 @@ def print_tables(names: list[str]) -> None:
                 print(f'| {entry["arm"]} | {entry["data_sets"]} | {_rate(entry)} | {each} | '
                       f'{other} |')
             print()
+        print_estimation_at_limits(summary)
+        print_confusion(summary)
         print_coverage(summary)
+
+
+def print_by_runs(named: dict, inadequate: dict) -> None:
+    """Print the null data sets' rates per run count, where a study has several."""
+    cells = {entry['runs']: entry for entry in named.get('by_runs', [])}
+    alarms = {entry['runs']: entry for entry in inadequate.get('by_runs', [])}
+    if len(cells) < 2:
+        return
+    print('| runs | null data sets | a cause or extension named | called inadequate |')
+    print('| --- | --- | --- | --- |')
+    for runs, entry in cells.items():
+        print(f'| {runs} | {entry["data_sets"]} | {_rate(entry)} | '
+              f'{_rate(alarms.get(runs, {}))} |')
+    print()
+    if inadequate.get('unexplained'):
+        which = ', '.join(f'{name} {count}' for name, count in sorted(
+            inadequate['unexplained'].items(), key=lambda item: -item[1]))
+        print(f'statistics left unexplained on the null data sets: {which}\n')
+
+
+def print_estimation_at_limits(summary: dict) -> None:
+    """Print, per cause and limit multiple, the size error and interval coverage where named."""
+    entries = [e for e in summary['estimation'] if '@' in e['arm'] and e['named']]
+    if not entries:
+        return
+    print('| cause | multiple | named | median abs. rel. error | median rel. error | '
+          'intervals that held the truth |')
+    print('| --- | --- | --- | --- | --- | --- |')
+    for entry in entries:
+        multiple = entry['arm'].split('@', 1)[1].lstrip('+-')
+        print(f'| {entry["cause"]} | {multiple} | {entry["named"]} | '
+              f'{_error(entry["median_abs_relative_error"])} | '
+              f'{_error(entry["median_relative_error"])} | '
+              f'{_rate(entry["interval_coverage"])} |')
+    print()
+
+
+def print_confusion(summary: dict) -> None:
+    """Print which cause or family was named for which (data sets with one true term)."""
+    confusion = summary.get('confusion') or {}
+    table = confusion.get('named') or {}
+    if len(table) < 2:
+        return
+    columns = sorted({label for counts in table.values() for label in counts},
+                     key=lambda label: (label == 'nothing', label))
+    print('| true \\ named | data sets | ' + ' | '.join(columns) + ' |')
+    print('| --- ' * (len(columns) + 2) + '|')
+    for true in sorted(table, key=lambda label: (label != 'none', label)):
+        counts = table[true]
+        cells = ' | '.join(str(counts.get(label, 0)) if counts.get(label) else '.'
+                           for label in columns)
+        print(f'| {true} | {confusion["data_sets"][true]} | {cells} |')
+    print()
 
 
 def print_coverage(summary: dict) -> None:

@@ -39,8 +39,8 @@ from octoroach_model.diagnosis.executors import executor_for, single_threaded
 from octoroach_model.diagnosis.features import heading_amplitudes, INDEX
 from octoroach_model.diagnosis.limits import detection_limit, Limit, limit_base
 from octoroach_model.diagnosis.modelfit import (
-    at_size, CausesFit, CHANGE_POINT_BOOTSTRAP, change_point_step, fit_causes, fit_mixture,
-    fit_moment, fit_spread, fit_trend,
+    at_size, CausesFit, CHANGE_POINT_BOOTSTRAP, change_point_step, fit_causes, fit_geometry,
+    fit_mixture, fit_moment, fit_spread, fit_trend,
     FitSettings, FittedModel, GeometryUncertainty, RunData, Simulator, SizeEstimate,
     spread_statistic)
 from octoroach_model.diagnosis.report import (
@@ -133,7 +133,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         say(0.02, 'preparing the runs (features, gait clock)')
         halves = _prepare(resolved, settings)
         say(0.08, 'fitting the baseline (geometry on the mean path, spread scale)')
-        baseline_fit = _baseline(halves, settings)
+        baseline_fit = _baseline(halves, settings, pool)
         baseline = baseline_fit.model
         halves = _with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
         simulator = Simulator(halves.test, settings.seed)
@@ -369,12 +369,18 @@ def _excess(data: np.ndarray, model: np.ndarray) -> np.ndarray:
     return (data.mean(axis=0) - model.mean(axis=0)) / np.maximum(error, 1e-300)
 
 
-def _baseline(halves: _Halves, settings: DiagnosisSettings) -> CausesFit:
+def _baseline(halves: _Halves, settings: DiagnosisSettings,
+              pool: Executor | None = None) -> CausesFit:
     """
     Fit the paper's model on the calibration half.
 
-    A quick deterministic fit (eq. 9) as the start,
-    then geometry on the mean path and the spread scale, refit together.
+    A quick deterministic fit (eq. 9) as the start, then geometry on the mean path and the
+    sway, and the spread scale, refit together. The mean path hardly tells a pair's rear
+    touchdown angle from its front one: the geometry is fitted from the quick fit's angles and
+    from the same with each pair's two swapped (`swapped_pairs`), and the fit of the lowest
+    cost goes on. From the quick fit alone a fast robot (5.5 Hz, 2000 runs) kept the swapped
+    asymmetry at 6 times the cost of its own, and its heading to travel angle and sideways
+    sway were 14 standard errors off the model's on exact data.
     """
     train = halves.train
     start_pose = mean_start_pose(train.paths)
@@ -384,8 +390,30 @@ def _baseline(halves: _Halves, settings: DiagnosisSettings) -> CausesFit:
     quick = fit_nominal(train.paths, initial, heading_weight_m=settings.heading_weight_m,
                         align_gait=True, start_pose=start_pose, target=aligned,
                         tolerance=1e-6)
-    start = FittedModel(quick.parameters, start_pose, 1.0, {})
-    return fit_causes(train, start, (), settings.fit())
+    starts = [FittedModel(parameters, start_pose, 1.0, {})
+              for parameters in swapped_pairs(quick.parameters)]
+    fit = settings.fit()
+    if pool is not None:
+        fits = [future.result() for future in [pool.submit(fit_geometry, train, start, (), fit)
+                                               for start in starts]]
+    else:
+        fits = [fit_geometry(train, start, (), fit) for start in starts]
+    best = min(fits, key=lambda found: found[2].cost)[0]
+    return fit_causes(train, best, (), fit)
+
+
+def swapped_pairs(parameters: ModelParameters) -> list[ModelParameters]:
+    """
+    Return the geometry and the same with each stance pair's two touchdown angles swapped.
+
+    (phi1, phi2) is the right pair, (phi3, phi4) the left: four starts, or fewer where a
+    pair's two angles are equal.
+    """
+    phi1, phi2, phi3, phi4 = parameters.touchdown_angles
+    variants = dict.fromkeys([(phi1, phi2, phi3, phi4), (phi2, phi1, phi3, phi4),
+                              (phi1, phi2, phi4, phi3), (phi2, phi1, phi4, phi3)])
+    return [replace(parameters, touchdown_angles=angles).with_paper_liftoff()
+            for angles in variants]
 
 
 @dataclass(frozen=True)

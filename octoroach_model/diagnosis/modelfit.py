@@ -420,8 +420,8 @@ def restarted_geometry(simulator: Simulator, model: FittedModel,
         for cause in new:
             values = path_start(simulator, start, BY_NAME[cause], settings)
             start = start.with_effect(cause, {**start.effects[cause], **values})
-        fits.append(fit_geometry(simulator.data, same_strides(start, model, duration),
-                                 path_causes, settings))
+        fits.append(fit_geometry(simulator.data, same_strides(
+            start, model, duration, simulator.data.stride_frequency), path_causes, settings))
         if 'change_point' in new and start is not symmetric:
             rescaled = before_change(simulator.data, start)
             if rescaled is not None:
@@ -457,22 +457,26 @@ def before_change(data: RunData, model: FittedModel) -> FittedModel | None:
         leg_length=float(np.clip(leg, 0.004, 0.075))).with_paper_liftoff())
 
 
-def same_strides(model: FittedModel, before: FittedModel, duration_s: float | None = None
-                 ) -> FittedModel:
+def same_strides(model: FittedModel, before: FittedModel, duration_s: float | None = None,
+                 seen_hz: float | None = None) -> FittedModel:
     """
-    Return `model` with its stride frequency set to keep `before`'s strides per run.
+    Return `model` with its stride frequency set to keep the strides per run.
 
     A speed decay slows the gait clock (on average by fraction / 2), a change point speeds it
     up or slows it from its time on: entering either at the old stride frequency would add or
     take strides from every run, and the geometry fit would then bend the legs to make up for
-    them (a local optimum it does not leave).
+    them (a local optimum it does not leave). With `seen_hz` (the runs' own spectral stride
+    frequency) the model's clock is set to show it; else `before`'s strides are kept (a
+    baseline that mimicked the decay with other legs may stride at another rate than the runs:
+    1.84 Hz for runs striding at 1.63 Hz, and the decay then entered at 2.18 Hz, not 2).
     """
-    ratio = (mean_gait_rate(before.effects, duration_s)
-             / mean_gait_rate(model.effects, duration_s))
+    rate = mean_gait_rate(model.effects, duration_s)
+    ratio = mean_gait_rate(before.effects, duration_s) / rate
     if ratio == 1.0:
         return model
-    return replace(model, parameters=replace(
-        model.parameters, stride_frequency=model.parameters.stride_frequency * ratio))
+    frequency = (seen_hz / rate if seen_hz is not None
+                 else model.parameters.stride_frequency * ratio)
+    return replace(model, parameters=replace(model.parameters, stride_frequency=frequency))
 
 
 def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...],

@@ -158,6 +158,7 @@ def outcome_columns(report: Mapping[str, Any], effects: Mapping[str, Mapping[str
         'named': named, 'false_causes': [cause for cause in named if cause not in true],
         'all_true_named': all(cause in named for cause in true) if true else None,
         'adequate': report.get('adequate'),
+        'baseline_adequate': _baseline_adequate(report),
         'unexplained': [item.get('statistic', '?') if isinstance(item, Mapping) else str(item)
                         for item in report.get('unexplained') or []],
     }
@@ -178,6 +179,15 @@ def outcome_columns(report: Mapping[str, Any], effects: Mapping[str, Mapping[str
         columns[f'rel_error_{key}'] = (estimate - truth) / distance \
             if truth is not None and distance and math.isfinite(estimate) else math.nan
     return columns
+
+
+def _baseline_adequate(report: Mapping[str, Any]) -> bool | None:
+    """Return whether the paper's model explained every statistic (as adequacy judges)."""
+    bound = report.get('adequacy_bound_z')
+    rows = report.get('discrepancies')
+    if bound is None or rows is None:
+        return None
+    return not any(abs(row.get('z', 0.0)) > bound and row.get('material') for row in rows)
 
 
 def _truth_columns(effects: Mapping[str, Mapping[str, float]], task: Task) -> dict[str, Any]:

@@ -74,7 +74,7 @@ def summarize(spec: StudySpec, rows: Sequence[Mapping[str, Any]],
         'study': spec.name, 'spec_hash': spec.spec_hash, 'seed': spec.seed,
         'status': _status(rows),
         'false_positive': _false_positive(spec, ok),
-        'inadequate_on_nulls': _inadequate_on_nulls(ok),
+        'inadequate_on_nulls': _inadequate_on_nulls(spec, ok),
         'false_causes_with_effects': wilson(
             sum(bool(row['false_causes']) for row in ok if row['true_causes']),
             sum(1 for row in ok if row['true_causes'])).to_json(),
@@ -114,10 +114,24 @@ def _false_positive(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> dict[st
             'by_runs': by_cell, 'causes_named': named_counts}
 
 
-def _inadequate_on_nulls(ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    """Return the adequacy check's false alarms: nulls called inadequate (the model is exact)."""
+def _inadequate_on_nulls(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """
+    Return the adequacy check's false alarms: nulls called inadequate (the model is exact).
+
+    Overall and per run count (`by_runs`), with which statistics were left unexplained.
+    """
     judged = [row for row in ok if row['kind'] == 'null' and row['adequate'] is not None]
-    return wilson(sum(row['adequate'] is False for row in judged), len(judged)).to_json()
+    by_cell = []
+    for cell_of in sorted({_cell(spec, row) for row in judged}, key=str):
+        members = [row for row in judged if _cell(spec, row) == cell_of]
+        by_cell.append({'runs': cell_of, **wilson(sum(row['adequate'] is False for row in members),
+                                                  len(members)).to_json()})
+    statistics: dict[str, int] = {}
+    for row in judged:
+        for name in causes_of(row['unexplained']):
+            statistics[name] = statistics.get(name, 0) + 1
+    return {**wilson(sum(row['adequate'] is False for row in judged), len(judged)).to_json(),
+            'by_runs': by_cell, 'unexplained': statistics}
 
 
 def _power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
@@ -147,7 +161,10 @@ def _relative_power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[di
                      'median_size': _median(abs(cell(row, 'true', arm.cause) - null)
                                             for row in group),
                      **rate.to_json(), 'missed': len(missed),
-                     'missed_not_adequate': sum(row['adequate'] is False for row in missed)}
+                     'missed_not_adequate': sum(row['adequate'] is False for row in missed),
+                     'baseline_inadequate': wilson(
+                         sum(row['baseline_adequate'] is False for row in group),
+                         sum(row['baseline_adequate'] is not None for row in group)).to_json()}
             if arm.limit_multiple == 1 and rate.rate is not None:
                 entry['target'] = f'{AT_LIMIT_RANGE[0]:.0%}-{AT_LIMIT_RANGE[1]:.0%}'
                 entry['meets_target'] = AT_LIMIT_RANGE[0] <= rate.rate <= AT_LIMIT_RANGE[1]

@@ -39,7 +39,7 @@ _FIXED: tuple[tuple[str, type], ...] = (
     ('sample_rate_hz', float), ('spread_scale', float), ('sigma1_rad', float),
     ('sigma2_rad', float), ('duration_s', float), ('runs_cut', int), ('frames_dropped', int),
     ('true_causes', str), ('named', str), ('false_causes', str), ('all_true_named', bool),
-    ('adequate', bool), ('unexplained', str),
+    ('adequate', bool), ('unexplained', str), ('baseline_adequate', bool),
 )
 _PER_CAUSE: tuple[tuple[str, type], ...] = (
     ('true', float), ('named', bool), ('estimate', float), ('low', float), ('high', float),
@@ -137,14 +137,22 @@ def write_table(path: Path, rows: Iterable[Mapping[str, Any]]) -> None:
             stream.write(row_line(row).encode('utf-8'))
 
 
-def read_table(path: Path) -> tuple[list[dict[str, Any]], int]:
-    """Read a table: its rows and how many cut-off lines were dropped (interrupted writes)."""
+def read_table(path: Path, earlier: bool = False) -> tuple[list[dict[str, Any]], int]:
+    """
+    Read a table: its rows and how many cut-off lines were dropped (interrupted writes).
+
+    With `earlier`, a table an earlier version wrote (some of today's columns, none unknown)
+    is read too, the columns it lacks empty: to summarize it, never to add rows to it.
+    """
     try:
         text = path.read_text(encoding='utf-8')
     except OSError as error:
         raise DataError(f'cannot read {path}: {error.strerror or error}') from None
     lines = text.splitlines(keepends=True)
-    if not lines or lines[0] != header_line():
+    names = next(csv.reader(lines[:1]), []) if lines else []
+    kinds = dict(COLUMNS)
+    if not lines or (lines[0] != header_line() and not (
+            earlier and names and all(name in kinds for name in names))):
         raise DataError(f'{path} does not start with the columns this version writes; '
                         f'start a new study directory')
     dropped = 0
@@ -152,10 +160,11 @@ def read_table(path: Path) -> tuple[list[dict[str, Any]], int]:
         lines, dropped = lines[:-1], 1
     rows = []
     for cells in csv.reader(lines[1:]):
-        if len(cells) != len(COLUMNS):
+        if len(cells) != len(names):
             dropped += 1
             continue
-        rows.append({name: parse_cell(cell, kind) for (name, kind), cell in zip(COLUMNS, cells)})
+        given = dict(zip(names, cells))
+        rows.append({name: parse_cell(given.get(name, ''), kind) for name, kind in COLUMNS})
     return rows, dropped
 
 
