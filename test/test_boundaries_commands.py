@@ -20,7 +20,7 @@ import time
 import pytest
 
 import octoroach_model as om
-from octoroach_model.errors import EXIT_CODES
+from octoroach_model.errors import EXIT_CODES, EXIT_INTERRUPTED
 from octoroach_model.recordings import save_dataset
 
 REPO = Path(__file__).resolve().parents[1]
@@ -140,3 +140,28 @@ def test_the_exit_code_table_is_the_same_in_readme_and_in_every_program():
     usage = subprocess.run([sys.executable, '-m', 'octoroach_model', '--help'], cwd=REPO,
                            capture_output=True, text=True).stdout
     assert '3 output cannot be written' in usage
+
+
+@pytest.mark.parametrize('command', ['simulate', 'convert'])
+def test_a_bag_written_by_simulate_or_convert_is_whole_or_absent(tmp_path, monkeypatch, command):
+    from octoroach_model.recordings import pose_writer
+
+    source = tmp_path / 'source'
+    om.write_paths_bag(source, om.simulate(3, seed=1, cycles=3))
+    out = tmp_path / 'out'
+    written = []
+
+    def fail_after_the_first_run(self, stamps, poses, **more):
+        if written:
+            raise KeyboardInterrupt
+        written.append(len(stamps))
+        return original(self, stamps, poses, **more)
+
+    original = pose_writer.PoseBagWriter.write_poses
+    monkeypatch.setattr(pose_writer.PoseBagWriter, 'write_poses', fail_after_the_first_run)
+    from octoroach_model.commands import run_command
+    args = (['--paths', '3', '--out', str(out), '--cycles', '3'] if command == 'simulate'
+            else [str(source), '--out', str(out)])
+    assert run_command(command, args) == EXIT_INTERRUPTED
+    assert written and not out.exists()
+    assert sorted(path.name for path in tmp_path.iterdir()) == ['source']   # nothing left

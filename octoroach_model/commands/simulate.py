@@ -117,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from octoroach_model.model import ModelParameters, simulate
+    from octoroach_model.fileio import atomic_directory
     from octoroach_model.recordings import save_dataset, write_paths_bag
 
     new_output(args.out, '--out')
@@ -130,7 +131,10 @@ def run(args: argparse.Namespace) -> int:
     paths = simulate(args.paths, seed=args.seed, sigma1=args.sigma1, sigma2=args.sigma2,
                      cycles=args.cycles, parameters=parameters, draws=args.draws,
                      effects=effects, extensions=extensions)
-    bag = write_paths_bag(args.out, paths)
+    # written under a temporary name beside it and renamed when complete: whole or absent
+    with atomic_directory(args.out, what='--out') as folder:
+        write_paths_bag(folder, paths, bag_name=args.out.name)
+    bag = args.out
     if args.dataset:
         save_dataset(args.dataset, paths)
     print(json.dumps({'bag': str(bag), 'paths': paths.n_paths, 'samples_per_run': len(paths.t),

@@ -15,12 +15,12 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
-import shutil
 from typing import NamedTuple
 
 import numpy as np
 
-from octoroach_model.errors import BagError, DataError
+from octoroach_model.errors import BagError, DataError, OutputError
+from octoroach_model.fileio import atomic_directory
 from octoroach_model.recordings.bags import DEFAULT_CHUNK_SIZE, iter_source_pose_chunks, PoseChunk
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.pose_writer import PoseBagWriter
@@ -75,20 +75,19 @@ def convert_to_bag(inputs: Sequence[PathLike] | PathLike, out: PathLike, *,
     if not (np.isfinite(gap_s) and gap_s > 0):
         raise DataError(f'gap_s must be a positive number of seconds, got {gap_s}')
     target = Path(out)
-    if target.exists():
-        raise BagError(f'{target}: exists already; choose a new path')
+    if os.path.lexists(target):
+        raise OutputError(f'{target}: exists already; choose a new path')
     paths = expand_sources([inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs))
     notes: list[str] = []
-    try:
-        return _convert(paths, target, options, subject, int(round(gap_s * 1e9)), notes,
-                        max(1, int(chunk_size)))
-    except BaseException:
-        shutil.rmtree(target, ignore_errors=True)
-        raise
+    # written under a temporary name beside it and renamed when complete: whole or absent
+    with atomic_directory(target, what='the bag') as folder:
+        report = _convert(paths, folder, options, subject, int(round(gap_s * 1e9)), notes,
+                          max(1, int(chunk_size)), target)
+    return report
 
 
-def _convert(paths: list[Path], target: Path, options: ReadOptions, subject: str | None,
-             gap_ns: int, notes: list[str], chunk_size: int) -> ConvertReport:
+def _convert(paths: list[Path], folder: Path, options: ReadOptions, subject: str | None,
+             gap_ns: int, notes: list[str], chunk_size: int, target: Path) -> ConvertReport:
     chunks = (chunk for path in paths
               for chunk in iter_source_pose_chunks(path, options, notes, chunk_size))
     first = next(chunks, None)
@@ -99,9 +98,9 @@ def _convert(paths: list[Path], target: Path, options: ReadOptions, subject: str
     counts = {'samples': 0, 'markers': 0, 'dropped': 0}
     streams: dict[str, _StreamState] = {}
     custom = {'octoroach_model.converted_from': ', '.join(map(str, paths))}
-    with PoseBagWriter(target, topic=pose_topic(name), world_frame=DEFAULT_WORLD_FRAME,
+    with PoseBagWriter(folder, topic=pose_topic(name), world_frame=DEFAULT_WORLD_FRAME,
                        child_frame=child_frame(name), marker_topic=marker_topic(name),
-                       custom_data=custom) as writer:
+                       custom_data=custom, bag_name=target.name) as writer:
         for chunk in _with_first(first, chunks):
             state = streams.get(chunk.source)
             if state is None:

@@ -51,14 +51,15 @@ class PoseBagWriter:
                  marker_topic: str | None = DEFAULT_MARKER_TOPIC,
                  message_type: str = TRANSFORM_STAMPED,
                  offered_qos: tuple[QosProfile, ...] = (RECORDED_VICON_QOS,),
-                 custom_data: Mapping[str, str] | None = None) -> None:
+                 custom_data: Mapping[str, str] | None = None,
+                 bag_name: str | None = None) -> None:
         if message_type not in POSE_TYPES:
             raise BagError(f'{out_path}: cannot write {message_type}, only {POSE_TYPES}')
         self.topic = topic
         self.marker_topic = marker_topic or None
         self.message_type = message_type
         self.offered_qos = offered_qos
-        self._bag = BagWriter(out_path, custom_data=custom_data)
+        self._bag = BagWriter(out_path, custom_data=custom_data, name=bag_name)
         self.path = self._bag.path
         self._store = jazzy_types()
         self._pose_channel: int | None = None
@@ -151,13 +152,15 @@ def write_paths_bag(out_path: PathLike, paths: Paths, *, topic: str = DEFAULT_PO
                     child_frame: str = DEFAULT_CHILD_FRAME,
                     marker_topic: str | None = DEFAULT_MARKER_TOPIC, gap_s: float = 1.0,
                     start_time_ns: int = DEFAULT_START_TIME_NS,
-                    message_type: str = TRANSFORM_STAMPED) -> PathLike:
+                    message_type: str = TRANSFORM_STAMPED,
+                    bag_name: str | None = None) -> PathLike:
     """
     Write each run of `paths` at its sample times, one run after another.
 
     Runs are separated by `gap_s` (>= 1 s) of silence so that any reader can split them; one
     marker per run (data = run index) precedes its first pose unless `marker_topic` is None.
-    Returns the bag directory.
+    Returns the bag directory. `bag_name`: `out_path` is a new empty folder that becomes the
+    bag of that name when complete (BagWriter).
     """
     if not gap_s >= 1.0:
         raise DataError(f'{out_path}: gap between runs must be at least 1 s, got {gap_s}')
@@ -169,7 +172,8 @@ def write_paths_bag(out_path: PathLike, paths: Paths, *, topic: str = DEFAULT_PO
         raise DataError(f'{out_path}: sample times must increase strictly')
     period_ns = int(offsets_ns[-1]) + int(round(gap_s * 1e9))
     with PoseBagWriter(out_path, topic=topic, world_frame=world_frame, child_frame=child_frame,
-                       marker_topic=marker_topic, message_type=message_type) as writer:
+                       marker_topic=marker_topic, message_type=message_type,
+                       bag_name=bag_name) as writer:
         for run_index in range(paths.n_paths):
             stamps = int(start_time_ns) + run_index * period_ns + offsets_ns
             if marker_topic:

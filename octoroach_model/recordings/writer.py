@@ -31,7 +31,7 @@ from mcap.writer import Writer as McapWriter
 import yaml
 
 from octoroach_model.errors import BagError, DataError, OutputError
-from octoroach_model.fileio import write_text_atomic
+from octoroach_model.fileio import is_empty_directory, write_text_atomic
 from octoroach_model.recordings.msgtypes import standard_definition, TypeDefinition
 from octoroach_model.recordings.qos import dump_profiles, load_profiles, QosProfile
 from octoroach_model.recordings.sources import METADATA_FILE, PathLike
@@ -245,8 +245,12 @@ class BagWriter:
 
     def __init__(self, path: PathLike, *, flush_period_s: float | None = None,
                  chunk_size: int = DEFAULT_CHUNK_SIZE,
-                 custom_data: Mapping[str, str] | None = None) -> None:
+                 custom_data: Mapping[str, str] | None = None,
+                 name: str | None = None) -> None:
         self.path = Path(path)
+        # `name`: the bag's name when `path` is a new empty folder that becomes the bag under
+        # that name once complete (fileio.atomic_directory); its files are named after it
+        self.name = name
         self.custom_data = dict(custom_data or {})
         self.chunk_size = int(chunk_size)
         if flush_period_s is not None and not flush_period_s > 0:
@@ -260,15 +264,18 @@ class BagWriter:
     @property
     def file_path(self) -> Path:
         """Return the MCAP file inside the bag directory, named as rosbag2 names it."""
-        return self.path / f'{self.path.name}_0.mcap'
+        return self.path / f'{self.name or self.path.name}_0.mcap'
 
     def create(self) -> BagWriter:
         """Create the directory and the MCAP file; BagError if the bag exists already."""
-        if os.path.lexists(self.path):
+        if self.name is not None and is_empty_directory(self.path):
+            pass                        # the caller's new folder, renamed to the bag later
+        elif os.path.lexists(self.path):
             raise OutputError(f'{self.path}: cannot write the bag: it exists already; '
                               'choose a new path')
         try:
-            self.path.mkdir(parents=True)
+            if self.name is None:
+                self.path.mkdir(parents=True)
         except OSError as exc:
             raise OutputError(f'{self.path}: cannot write the bag: '
                               f'{exc.strerror or exc}') from None
