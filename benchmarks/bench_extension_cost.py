@@ -27,11 +27,15 @@ BASELINE = '3d46d39'     # the last release whose diagnosis raced the six causes
 
 
 def timed_diagnosis(source: Path, out: Path) -> float:
-    """Run `diagnose bags/` with the package at `source`; return its wall time in seconds."""
+    """
+    Run `diagnose bags/` with the package at `source`; return its wall time in seconds.
+
+    Run from `source` itself: `python -m` puts the working folder first on the path.
+    """
     env = {**os.environ, 'PYTHONPATH': str(source)}
     started = time.perf_counter()
     subprocess.run([sys.executable, '-m', 'octoroach_model', 'diagnose', str(REPO / 'bags'),
-                    '--out', str(out), '--seed', '1'], env=env, check=True,
+                    '--out', str(out), '--seed', '1'], env=env, check=True, cwd=source,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     return time.perf_counter() - started
 
