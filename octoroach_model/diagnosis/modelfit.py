@@ -19,7 +19,7 @@ the intervals and the detection limits follow (decide.py).
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 import math
 from typing import Any
@@ -735,6 +735,37 @@ def _read_line(points: dict[float, float], target: float) -> float:
     return float(u0 + (target - s0) * (u1 - u0) / (s1 - s0))
 
 
+@dataclass(frozen=True)
+class _LineStart:
+    """
+    What a size read off a line starts from.
+
+    The cause's statistic on the data (with its bootstrap error) and on runs of the model
+    without the cause; `rng` goes on to draw the line's other bootstraps.
+    """
+
+    statistic: Callable[[np.ndarray], float]
+    rng: np.random.Generator
+    data_value: float
+    data_se: float
+    without: dict
+    zero: np.ndarray
+
+    @classmethod
+    def of(cls, simulator: Simulator, model: FittedModel, cause: Cause,
+           settings: FitSettings, stream: int, n_boot: int) -> _LineStart:
+        statistic = cause.statistic
+        assert statistic is not None, f'{cause.name} has no statistic to read a line from'
+        rng = np.random.default_rng([settings.seed, stream])
+        features = simulator.data.features
+        data_value = statistic(features)
+        data_se = _bootstrap_se(statistic, features, rng, n_boot)
+        without = {name: values for name, values in model.effects.items()
+                   if name != cause.name}
+        zero = simulator.features(model, settings.moment_runs, MOMENTS, without)
+        return cls(statistic, rng, data_value, data_se, without, zero)
+
+
 def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
                settings: FitSettings, n_boot: int = 100) -> SizeEstimate:
     """
@@ -743,14 +774,10 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
     u = size^2 on the line S(u) = S(0) + slope u through the model
     without the cause and with it at the reference size (or nearer the estimate).
     """
-    statistic = cause.statistic
-    assert statistic is not None, f'{cause.name} is not a moments cause'
-    data = simulator.data
-    rng = np.random.default_rng([settings.seed, 23])
-    data_value = statistic(data.features)
-    data_se = _bootstrap_se(statistic, data.features, rng, n_boot)
-    without = {name: values for name, values in model.effects.items() if name != cause.name}
-    zero_features = simulator.features(model, settings.moment_runs, MOMENTS, without)
+    line = _LineStart.of(simulator, model, cause, settings, 23, n_boot)
+    statistic, data, rng = line.statistic, simulator.data, line.rng
+    data_value, data_se, without = line.data_value, line.data_se, line.without
+    zero_features = line.zero
     intercept = statistic(zero_features)
     intercept_se = _bootstrap_se(statistic, zero_features, rng, n_boot)
     reference = cause.reference
@@ -800,14 +827,9 @@ def fit_trend(simulator: Simulator, model: FittedModel, cause: Cause,
     then the intercept is taken as 0, not simulated (a simulated slope of 300 runs is off by
     0.4 deg/s per session for a yaw rate, noise the estimate need not carry).
     """
-    statistic = cause.statistic
-    assert statistic is not None, f'{cause.name} has no statistic'
-    data = simulator.data
-    rng = np.random.default_rng([settings.seed, 29])
-    data_value = statistic(data.features)
-    data_se = _bootstrap_se(statistic, data.features, rng, n_boot)
-    without = {name: values for name, values in model.effects.items() if name != cause.name}
-    zero = simulator.features(model, settings.moment_runs, MOMENTS, without)
+    line = _LineStart.of(simulator, model, cause, settings, 29, n_boot)
+    statistic, data, rng = line.statistic, simulator.data, line.rng
+    data_value, data_se, without, zero = line.data_value, line.data_se, line.without, line.zero
     reference = simulator.features(model, settings.moment_runs, MOMENTS, {
         **without, cause.name: at_size(cause, cause.reference, None, data)})
     exchangeable = not replace(model, effects=without).order_dependent
