@@ -312,9 +312,17 @@ def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path
                      f'{[e.family for e in report.extensions]}')
     assert not report.adequate, message
     assert report.unexplained and all(row.material for row in report.unexplained), message
+    misfit = report.misfit        # where to look: which runs, which part of a run
+    assert misfit is not None and len(misfit.worst_runs) == 5, message
+    assert all(0 <= entry.run < 300 for entry in misfit.worst_runs), message
+    assert all(entry.log_score <= misfit.median_log_score for entry in misfit.worst_runs)
+    assert misfit.part is not None and abs(misfit.part.z) > 3, message
     written = write_report(report, tmp_path, plots=False)
     summary = written['summary'].read_text()
     assert 'not adequate' in summary and report.unexplained[0].statistic in summary, message
+    assert 'Where to look' in summary and misfit.part.quantity in summary, message
+    assert json.loads(written['report'].read_text())['misfit']['part']['quantity'] == \
+        misfit.part.quantity
 
 
 def test_the_report_says_each_extension_in_words_with_its_evidence(tmp_path):

@@ -473,3 +473,13 @@ def test_the_adapter_reads_extensions_and_the_confusion_table_counts_them():
     assert table['named'] == {'change_point': {'change_point': 1, 'speed_decay': 1},
                               'run_order_drift': {'nothing': 1}, 'none': {'run_mixture': 1}}
     assert table['data_sets'] == {'change_point': 2, 'run_order_drift': 1, 'none': 1}
+
+
+def test_plan_takes_an_extension_term_as_its_cause():
+    from octoroach_model.commands.plan import parser
+    from octoroach_model.studies.plan import _base_spec
+
+    args = parser().parse_args(['--cause', 'run_order_drift:yaw_rate', '--size', '4'])
+    spec = _base_spec(args.cause, args.size, None, None, 2, 0, None, 40, 400, 0.8)
+    assert [arm.label for arm in spec.arms] == ['run_order_drift:yaw_rate=4']
+    assert spec.arms[0].effect_dict() == {'run_order_drift:yaw_rate': {'change': 4.0}}

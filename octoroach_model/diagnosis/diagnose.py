@@ -38,6 +38,7 @@ from octoroach_model.diagnosis.discrepancies import (
 from octoroach_model.diagnosis.executors import executor_for, single_threaded
 from octoroach_model.diagnosis.features import heading_amplitudes, INDEX
 from octoroach_model.diagnosis.limits import detection_limit, Limit, limit_base
+from octoroach_model.diagnosis.misfit import locate
 from octoroach_model.diagnosis.modelfit import (
     at_size, CausesFit, CHANGE_POINT_BOOTSTRAP, change_point_step, fit_causes, fit_geometry,
     fit_mixture, fit_moment, fit_spread, fit_trend,
@@ -191,12 +192,16 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             halves.every.features, everything.features(baseline, n_model, DISCREPANCY_PURPOSE),
             rng, settings.bootstrap, fit_errors(everything, baseline, baseline_fit.geometry,
                                                 n_model, halves.train.n / halves.every.n))
+        final_paths, final_places = everything.runs(final, n_model, DISCREPANCY_PURPOSE)
+        final_features = halves.every.features_of(final_paths, final_places)
         final_rows = discrepancies(
-            halves.every.features, everything.features(final, n_model, DISCREPANCY_PURPOSE),
-            rng, settings.bootstrap, fit_errors(everything, final, final_fit.geometry,
-                                                n_model))
+            halves.every.features, final_features, rng, settings.bootstrap,
+            fit_errors(everything, final, final_fit.geometry, n_model))
         bound = critical_z(settings.adequacy_alpha, len(STATISTICS))
         unexplained = [row for row in final_rows if abs(row.z) > bound and row.material]
+        misfit = locate(halves.every.paths, halves.every.features, _places(halves),
+                        final_paths, final_features, halves.scales, final.order_dependent,
+                        rng) if unexplained else None
         validation_results = {name: future.result() for name, future in validations.items()}
         limits = {cause: future.result() for cause, future in limit_futures.items()}
     named, named_extensions = _named(steps, final, final_estimates, halves, settings)
@@ -217,7 +222,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         steps=tuple(steps),
         gain=_gain_summary(baseline_scores, current_scores, halves),
         extended_discrepancies=tuple(final_rows), adequate=not unexplained,
-        unexplained=tuple(unexplained),
+        unexplained=tuple(unexplained), misfit=misfit,
         adequacy_bound_z=bound, settings=settings,
         notes=tuple(measured.info.get('notes', ())) + (
             (resolution_note,) if resolution_note else ()),
@@ -227,6 +232,13 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         + ('' if report.adequate else '; the extended model still misses '
            + ', '.join(row.statistic for row in unexplained)))
     return report
+
+
+def _places(halves: _Halves) -> np.ndarray:
+    """Return every run's place in the recording (RunData always sets them)."""
+    places = halves.every.positions
+    assert places is not None, 'RunData sets its places'
+    return places
 
 
 def _with_limit(candidate: CandidateResult, limits: dict[str, Limit]) -> CandidateResult:

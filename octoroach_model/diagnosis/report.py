@@ -15,7 +15,7 @@ from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
-from octoroach_model.diagnosis.causes import BY_NAME
+from octoroach_model.diagnosis.causes import BY_NAME, MIXTURE_FRACTION
 from octoroach_model.diagnosis.discrepancies import Discrepancy
 from octoroach_model.diagnosis.limits import Limit, METHOD as LIMIT_METHOD
 from octoroach_model.jsonio import dumps, fields_jsonable, jsonable
@@ -25,6 +25,7 @@ from octoroach_model.paths import Paths
 if TYPE_CHECKING:
     from octoroach_model.diagnosis.decide import SizeVerdict
     from octoroach_model.diagnosis.diagnose import DiagnosisSettings, Evaluation
+    from octoroach_model.diagnosis.misfit import Misfit
     from octoroach_model.diagnosis.modelfit import FittedModel
     from octoroach_model.diagnosis.scoring import Scores
 
@@ -82,11 +83,15 @@ class CandidateResult:
         values = dict(evaluation.model.effects[evaluation.cause])
         if cause.is_extension:
             values = family_form(evaluation.cause, values)[1]
+        limit = verdict.limit
+        if cause.kind == 'mixture' and limit is not None:
+            # a limit of the spread it adds, stated as the yaw rate of MIXTURE_FRACTION's runs
+            limit /= math.sqrt(MIXTURE_FRACTION * (1 - MIXTURE_FRACTION))
         return cls(evaluation.cause, values, evaluation.gain.mean, evaluation.gain.standard_error,
                    evaluation.gain.p_value, relative, evaluation.gain_cm,
                    {cause.parameter: list(verdict.interval)},
                    verdict.standard_error, verdict.lower_bound, verdict.floor,
-                   {cause.parameter: verdict.limit}, 'size bound only (before the limit '
+                   {cause.parameter: limit}, 'size bound only (before the limit '
                    'of the whole decision is computed)', {}, verdict.clears_floor,
                    significant, named_here, step, cause.statistic_name, cause.family,
                    evaluation.screened)
@@ -231,6 +236,7 @@ class DiagnosisReport:
     settings: DiagnosisSettings = field(metadata={'json': False})
     baseline_model: FittedModel = field(metadata={'json': False})
     extended_model: FittedModel = field(metadata={'json': False})
+    misfit: Misfit | None = None    # where the extended model misses (None when adequate)
     notes: tuple[str, ...] = ()
     elapsed_s: float = 0.0
     sources: tuple[str, ...] = ()
@@ -259,6 +265,7 @@ class DiagnosisReport:
         ordered['gain'] = plain.pop('gain')
         ordered['adequate'] = plain.pop('adequate')
         ordered['unexplained'] = plain.pop('unexplained')
+        ordered['misfit'] = plain.pop('misfit')
         ordered['decision'] = jsonable(decision_rules(self.settings, self.adequacy_bound_z))
         ordered.update(plain)
         return ordered
@@ -406,6 +413,8 @@ def summary_text(report: DiagnosisReport) -> str:
         for row in report.unexplained:
             lines.append(f'- {row.statistic}: data {_number(row.data, 4)}{_unit(row.unit)}, '
                          f'model {_number(row.model, 4)}{_unit(row.unit)} (z = {row.z:+.1f})')
+        if report.misfit is not None:
+            lines += ['', 'Where to look:'] + report.misfit.words()
     for name, model in (('baseline', report.baseline), ('extended', report.extended)):
         if 'violation' in model:
             lines.append('')
@@ -451,9 +460,8 @@ def _unseen_line(candidate: CandidateResult, paths: int) -> str:
     cause = BY_NAME[candidate.cause]
     parameter = cause.parameter
     limit = candidate.detectable[parameter]
-    unit = cause.unit
-    distance = ' from 1' if cause.null != 0 else ''
-    text = (f'below {_number(limit)} {unit}{distance}'.rstrip() if limit is not None
+    words = [_number(limit), cause.unit, 'from 1' if cause.null != 0 else '']
+    text = ('below ' + ' '.join(word for word in words if word) if limit is not None
             else 'of any size on the grid')
     label = cause.label + (f' ({cause.name.split(":", 1)[1]})' if ':' in cause.name else '')
     name = label.replace('_', ' ')
