@@ -182,7 +182,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
                                             last_seen[cause], settings,
                                             None if cause in model.effects else shared)
                          for cause in last_seen} if settings.detection_limits else {}
-        final_fit = final_future.result()
+        final_fit, dropped = _pruned(final_future.result(), halves, settings)
         final, final_estimates = final_fit.model, final_fit.estimates
         say(0.85, 'discrepancies and adequacy')
         rng = np.random.default_rng([settings.seed, 41])
@@ -225,7 +225,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         unexplained=tuple(unexplained), misfit=misfit,
         adequacy_bound_z=bound, settings=settings,
         notes=tuple(measured.info.get('notes', ())) + (
-            (resolution_note,) if resolution_note else ()),
+            (resolution_note,) if resolution_note else ()) + dropped,
         elapsed_s=round(time.monotonic() - started, 2))
     say(1.0, 'causes: ' + (', '.join(c.cause for c in named) or 'none')
         + '; extensions: ' + (', '.join(e.family for e in named_extensions) or 'none')
@@ -655,12 +655,44 @@ def _final_fit(halves: _Halves, model: FittedModel, settings: DiagnosisSettings
     return fit_causes(halves.every, model, model.causes, settings.fit(1))
 
 
+def _pruned(fit: CausesFit, halves: _Halves, settings: DiagnosisSettings
+            ) -> tuple[CausesFit, tuple[str, ...]]:
+    """
+    Drop the terms the refit on all runs no longer supports, weakest first, refitting each time.
+
+    A term enters on the calibration half with the terms before it; a later one can explain
+    the same effect better (a heading random walk entered first, the periodic heading after
+    it, and the refit with both put the walk's step at zero). A term whose interval on all
+    runs, beside every other term, no longer clears its floor even as a single test is not
+    named: naming it would report an effect the final model does not carry. Returns the fit
+    and a note for each term dropped.
+    """
+    notes: list[str] = []
+    z_single = decision_z(settings.decision_alpha, 1)
+    while True:
+        verdicts = {name: judge(fit.estimates[name], BY_NAME[name].floor(halves.run_scale),
+                                z_single)
+                    for name in fit.model.causes if name in fit.estimates}
+        weak = [verdict for verdict in verdicts.values() if not verdict.clears_floor]
+        if not weak:
+            return fit, tuple(notes)
+        weakest = min(weak, key=lambda verdict: verdict.lower_bound / max(verdict.floor, 1e-12))
+        notes.append(f'{weakest.cause} entered the race but was dropped: refitted on all runs '
+                     f'beside the later terms its size is {weakest.estimate:.4g} (95 % '
+                     f'{weakest.interval[0]:.4g} to {weakest.interval[1]:.4g}), which no '
+                     f'longer clears its floor of {weakest.floor:.4g}')
+        start = replace(fit.model, effects={name: values for name, values
+                                            in fit.model.effects.items()
+                                            if name != weakest.cause})
+        fit = fit_causes(halves.every, start, start.causes, settings.fit(1))
+
+
 def _named(steps, final: FittedModel, estimates: dict, halves: _Halves,
            settings: DiagnosisSettings) -> tuple[list[NamedCause], list[NamedExtension]]:
     """Return the named causes of the table and the named extensions, refit on all runs."""
     causes, extensions = [], []
     for step in steps:
-        if step.chosen is None:
+        if step.chosen is None or step.chosen not in final.effects:
             continue
         entry = next(c for c in step.candidates if c.cause == step.chosen)
         cause = BY_NAME[step.chosen]
