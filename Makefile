@@ -36,9 +36,11 @@ demo: venv
 bench: venv
 	$(PY) benchmarks/run_all.py
 
-# the build and the outputs; the venv stays (distclean removes it too)
+# the build and the demo's own output; the venv and everything else in out/ (studies and
+# diagnoses that took hours) stay; distclean removes the venv too
 clean:
-	rm -rf build install log out
+	rm -rf build install log
+	if [ -f $(DEMO)/$(DEMO_MARK) ] && [ ! -L $(DEMO) ]; then rm -rf $(DEMO); fi
 
 distclean: clean
 	rm -rf $(VENV)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -103,6 +104,26 @@ def test_make_clean_keeps_the_venv_and_distclean_removes_it():
     distclean = make('-n', 'distclean').stdout
     assert '.venv' not in clean and 'rm -rf' in clean
     assert 'rm -rf .venv' in distclean
+
+
+def test_make_clean_removes_the_demo_but_keeps_studies_and_a_users_folder(tmp_path):
+    """`make clean` used to remove all of out/, hours of studies with it."""
+    shutil.copy(REPO / 'Makefile', tmp_path / 'Makefile')
+    study = tmp_path / 'out' / 'studies' / 'limits'
+    study.mkdir(parents=True)
+    (study / 'table.csv').write_text('key\n')
+    demo = tmp_path / 'out' / 'demo'
+    demo.mkdir()
+    (demo / '.written-by-make-demo').touch()
+    users = tmp_path / 'mine'
+    users.mkdir()
+    done = subprocess.run(['make', '-C', str(tmp_path), 'clean', f'DEMO={users}'],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and users.is_dir()           # not marked: a user's folder
+    done = subprocess.run(['make', '-C', str(tmp_path), 'clean'], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 0
+    assert not demo.exists() and (study / 'table.csv').read_text() == 'key\n'
 
 
 LINK = re.compile(r'\[[^\]]*\]\(([^)\s]+)\)')
