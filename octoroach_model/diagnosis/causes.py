@@ -64,6 +64,19 @@ POSITION_RESOLUTION_M = 1e-4     # what motion capture resolves; no size below i
 # the share of turning runs at which run_mixture's detection limit is stated (a yaw rate),
 # and which a study or a limit uses where none is given or fitted
 MIXTURE_FRACTION = 0.3
+# the periods per run at which periodic_heading's detection limit is stated (a heading's
+# noise depends on its frequency: a limit at the frequency a null data set happens to peak at
+# says nothing of an oscillation elsewhere), and where a study puts one when none is given
+PERIODIC_LIMIT_PERIODS = 3.0
+
+
+def periodic_limit_hz(duration_s: float, stride_hz: float) -> float:
+    """
+    Return where periodic_heading's limit is stated: PERIODIC_LIMIT_PERIODS per run.
+
+    Below the stride's own sway: at most half the stride frequency (runs under six strides).
+    """
+    return min(PERIODIC_LIMIT_PERIODS / max(duration_s, 1e-9), 0.5 * stride_hz)
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,8 @@ import numpy as np
 from scipy import stats
 
 from octoroach_model.diagnosis.causes import (
-    BY_NAME, CANDIDATES, Cause, CAUSES, FAMILIES, MIXTURE_FRACTION, RunScale)
+    BY_NAME, CANDIDATES, Cause, CAUSES, FAMILIES, MIXTURE_FRACTION, periodic_limit_hz,
+    RunScale)
 from octoroach_model.diagnosis.decide import decision_z, judge
 from octoroach_model.diagnosis.descriptions import describe
 from octoroach_model.diagnosis.discrepancies import (
@@ -623,20 +624,33 @@ def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
     Compute a cause's detection limit against `model` without it (a pool task).
 
     run_mixture's limit is sought at MIXTURE_FRACTION of the runs turning and stated as their
-    yaw rate.
+    yaw rate. periodic_heading's is sought at periodic_limit_hz, the runs measured there and
+    its amplitude estimated there (the wobble frequency the data chose may be where chance
+    peaked, and a heading's noise depends on the frequency).
     """
     cause = BY_NAME[evaluation.cause]
     without = replace(model, effects={name: values for name, values in model.effects.items()
                                       if name != cause.name})
     everyone = len(CANDIDATES)
+    floor, z_bound = cause.floor(halves.run_scale), decision_z(settings.decision_alpha, everyone)
+    estimate = evaluation.estimates[cause.name]
+    start = seen.detectable[cause.parameter]
     fitted = dict(evaluation.model.effects.get(cause.name) or {})
     if cause.kind == 'mixture':
         fitted['fraction'] = MIXTURE_FRACTION
+    if cause.name == 'periodic_heading':
+        duration = float(np.median(halves.train.lengths - 1)) * float(
+            halves.train.paths.t[1] - halves.train.paths.t[0])
+        reference = periodic_limit_hz(duration, halves.train.stride_frequency)
+        halves = _with_wobble(halves, (reference, (reference, reference)))
+        quick = quick_fit(halves.train, without, cause, settings)
+        estimate = quick.estimates[cause.name]
+        fitted = dict(quick.model.effects[cause.name])
+        start, base = judge(estimate, floor, z_bound).limit, None
     limit = detection_limit(
-        Simulator(halves.test, settings.seed), without, evaluation.estimates[cause.name],
-        cause.floor(halves.run_scale), decision_z(settings.decision_alpha, everyone),
+        Simulator(halves.test, settings.seed), without, estimate, floor, z_bound,
         float(stats.norm.isf(settings.alpha / everyone)), halves.scales, halves.test.n,
-        settings.score_runs, seen.detectable[cause.parameter], fitted, base)
+        settings.score_runs, start, fitted, base)
     if cause.kind == 'mixture' and limit.size is not None:
         share = MIXTURE_FRACTION * (1 - MIXTURE_FRACTION)
         limit = replace(limit, size=limit.size / math.sqrt(share))

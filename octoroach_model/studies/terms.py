@@ -12,7 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from octoroach_model.diagnosis.causes import BY_NAME, CANDIDATES, MIXTURE_FRACTION
+from octoroach_model.diagnosis.causes import (
+    BY_NAME, CANDIDATES, MIXTURE_FRACTION, PERIODIC_LIMIT_PERIODS)
 from octoroach_model.errors import ParameterError
 from octoroach_model.model import EFFECT_PARAMETERS, PARAMETER_RANGES
 from octoroach_model.model.extensions import (
@@ -92,14 +93,14 @@ def term_values(term: str, size: float, others: Mapping[str, float],
 
     `size` is signed; for change_point it is the speed factor's distance from 1 (its sign
     says faster or slower); change_point's time defaults to half the run, periodic_heading's
-    frequency to three periods per run, run_mixture's fraction to MIXTURE_FRACTION (where its
-    limits are stated).
+    frequency to PERIODIC_LIMIT_PERIODS per run, run_mixture's fraction to MIXTURE_FRACTION
+    (where their limits are stated).
     """
     values = dict(others)
     if term == 'change_point':
         values.setdefault('time_s', 0.5 * duration_s)
     if term == 'periodic_heading':
-        values.setdefault('frequency_hz', 3.0 / duration_s)
+        values.setdefault('frequency_hz', PERIODIC_LIMIT_PERIODS / duration_s)
     if term == 'run_mixture':
         values.setdefault('fraction', MIXTURE_FRACTION)
     values[main_parameter(term)] = null_value(term) + size
