@@ -437,3 +437,36 @@ def read_launch_file(path: Path, share: Path, package: str = 'octoroach_model',
             element.attrib['exec'], name,
             ('--ros-args', '-r', f'__node:={name}', *extra, *files, *rules)))
     return launched
+
+
+class InProcessValidator:
+    """A Validator spun as `main` spins it (MultiThreadedExecutor), in a context of its own."""
+
+    def __init__(self, values: dict[str, Any]) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import MultiThreadedExecutor
+        from rclpy.parameter import Parameter
+
+        from octoroach_model.nodes import validator
+
+        self.context = Context()
+        rclpy.init(args=[], context=self.context)
+        self.node = validator.Validator(
+            context=self.context,
+            parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
+        self.executor = MultiThreadedExecutor(num_threads=validator.EXECUTOR_THREADS,
+                                              context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        import rclpy
+
+        self.node.stop_jobs()
+        self.executor.shutdown(timeout_sec=10)
+        self._thread.join(timeout=10)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self.context.destroy()

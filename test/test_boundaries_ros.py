@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-import threading
 import time
 from typing import Any
 
@@ -22,51 +21,25 @@ import pytest
 
 rclpy = pytest.importorskip('rclpy')
 
-from rclpy.context import Context  # noqa: E402
-from rclpy.executors import MultiThreadedExecutor  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile  # noqa: E402
 
 import octoroach_model as om  # noqa: E402
 from octoroach_model import validation_jobs  # noqa: E402
 from octoroach_model.nodes import validator  # noqa: E402
 from octoroach_model.recordings import save_dataset  # noqa: E402
-from ros_helpers import call_trigger, Client, NodeSet, ros_env, wait_until  # noqa: E402
+from ros_helpers import (  # noqa: E402
+    call_trigger, Client, InProcessValidator, NodeSet, ros_env, wait_until)
 
 SMALL = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 5}
 FLOOD = 300
 
 
-class Spun:
-    """A Validator spun on a MultiThreadedExecutor of its own context."""
-
-    def __init__(self, values: dict[str, Any]) -> None:
-        self.context = Context()
-        rclpy.init(args=[], context=self.context)
-        self.node = validator.Validator(
-            context=self.context,
-            parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
-        self.executor = MultiThreadedExecutor(num_threads=validator.EXECUTOR_THREADS,
-                                              context=self.context)
-        self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self._thread.start()
-
-    def close(self) -> None:
-        self.node.stop_jobs()
-        self.executor.shutdown(timeout_sec=10)
-        self._thread.join(timeout=10)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-        self.context.destroy()
-
-
 @pytest.fixture
 def spun():
-    started: list[Spun] = []
+    started: list[InProcessValidator] = []
 
-    def start(**values: Any) -> Spun:
-        started.append(Spun(values))
+    def start(**values: Any) -> InProcessValidator:
+        started.append(InProcessValidator(values))
         return started[-1]
 
     yield start

@@ -16,7 +16,6 @@ from pathlib import Path
 import signal
 import subprocess
 import sys
-import threading
 import time
 from typing import Any
 
@@ -24,9 +23,6 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-import rclpy  # noqa: E402
-from rclpy.context import Context  # noqa: E402
-from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 import octoroach_model as om  # noqa: E402
@@ -34,7 +30,8 @@ from octoroach_model import validation_jobs  # noqa: E402
 from octoroach_model.nodes import validator  # noqa: E402
 from octoroach_model.recordings import save_dataset  # noqa: E402
 
-from ros_helpers import Client, NodeSet, REPO, ros_env, wait_until  # noqa: E402
+from ros_helpers import (  # noqa: E402
+    Client, InProcessValidator, NodeSet, REPO, ros_env, wait_until)
 
 SMALL = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 5}     # n = 11, 44 runs
 LONG = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'grid_points': 101, 'nominal': 'table2'}
@@ -84,36 +81,12 @@ def client_on() -> Iterator[Any]:
         client.close()
 
 
-class InProcess:
-    """A Validator spun as `main` spins it, in a context of its own."""
-
-    def __init__(self, values: dict[str, Any]) -> None:
-        self.context = Context()
-        rclpy.init(args=[], context=self.context)
-        self.node = validator.Validator(
-            context=self.context,
-            parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
-        self.executor = MultiThreadedExecutor(num_threads=validator.EXECUTOR_THREADS,
-                                              context=self.context)
-        self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self._thread.start()
-
-    def close(self) -> None:
-        self.node.stop_jobs()
-        self.executor.shutdown(timeout_sec=10)
-        self._thread.join(timeout=10)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-        self.context.destroy()
-
-
 @pytest.fixture
 def start_node() -> Iterator[Any]:
-    started: list[InProcess] = []
+    started: list[InProcessValidator] = []
 
-    def start(**values: Any) -> InProcess:
-        started.append(InProcess(values))
+    def start(**values: Any) -> InProcessValidator:
+        started.append(InProcessValidator(values))
         return started[-1]
 
     yield start
