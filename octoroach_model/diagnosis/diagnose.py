@@ -346,7 +346,7 @@ def choose_wobble_hz(train: RunData, baseline: FittedModel, settings: DiagnosisS
     held-out runs never take part in the choice.
     """
     t = train.paths.t
-    duration = float(np.median(train.lengths - 1)) * float(t[1] - t[0])
+    duration = train.median_duration_s
     stride = train.stride_frequency
     low = 1.5 / max(duration, 1e-6)
     bands = [np.geomspace(low, 0.75 * stride, WOBBLE_POINTS) if low < 0.75 * stride
@@ -639,9 +639,8 @@ def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
     if cause.kind == 'mixture':
         fitted['fraction'] = MIXTURE_FRACTION
     if cause.name == 'periodic_heading':
-        duration = float(np.median(halves.train.lengths - 1)) * float(
-            halves.train.paths.t[1] - halves.train.paths.t[0])
-        reference = periodic_limit_hz(duration, halves.train.stride_frequency)
+        reference = periodic_limit_hz(halves.train.median_duration_s,
+                                      halves.train.stride_frequency)
         halves = _with_wobble(halves, (reference, (reference, reference)))
         quick = quick_fit(halves.train, without, cause, settings)
         estimate = quick.estimates[cause.name]

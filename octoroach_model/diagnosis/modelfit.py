@@ -163,6 +163,11 @@ class RunData:
     def lengths(self) -> np.ndarray:
         return self.paths.lengths
 
+    @property
+    def median_duration_s(self) -> float:
+        """Return the median run's duration: what 'per run' means for frequencies."""
+        return float(np.median(self.lengths - 1)) * float(self.paths.t[1] - self.paths.t[0])
+
 
 @dataclass(frozen=True)
 class SizeEstimate:
