@@ -23,6 +23,7 @@ import numpy as np
 from octoroach_model.errors import ParameterError
 from octoroach_model.model.extensions import (
     positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext)
+from octoroach_model.model.trig import cos_sin
 
 # Canonical order of application; also the order of their random streams.
 EFFECT_PARAMETERS: dict[str, tuple[str, ...]] = {
@@ -197,7 +198,7 @@ def rotate_about_start(poses: np.ndarray, dheading: np.ndarray) -> np.ndarray:
     """Rotate each run by its own angle about its first position."""
     start = poses[:, :1, :2]
     rel = poses[..., :2] - start
-    cos_d, sin_d = np.cos(dheading)[:, None], np.sin(dheading)[:, None]
+    cos_d, sin_d = (value[:, None] for value in cos_sin(dheading))
     out = poses.copy()
     out[..., 0] = start[..., 0] + cos_d * rel[..., 0] - sin_d * rel[..., 1]
     out[..., 1] = start[..., 1] + sin_d * rel[..., 0] + cos_d * rel[..., 1]
@@ -213,7 +214,7 @@ def turn_persistently(poses: np.ndarray, t: np.ndarray, yaw_rate: np.ndarray) ->
     """
     steps = np.diff(poses[..., :2], axis=1)
     mid_angle = yaw_rate[:, None] * 0.5 * (t[1:] + t[:-1])[None, :]
-    cos_a, sin_a = np.cos(mid_angle), np.sin(mid_angle)
+    cos_a, sin_a = cos_sin(mid_angle)
     turned = np.stack([cos_a * steps[..., 0] - sin_a * steps[..., 1],
                        sin_a * steps[..., 0] + cos_a * steps[..., 1]], axis=-1)
     out = poses.copy()
@@ -231,7 +232,7 @@ def perturb_heading(poses: np.ndarray, perturbation: np.ndarray) -> np.ndarray:
     """
     steps = np.diff(poses[..., :2], axis=1)
     mid_angle = 0.5 * (perturbation[:, 1:] + perturbation[:, :-1])
-    cos_a, sin_a = np.cos(mid_angle), np.sin(mid_angle)
+    cos_a, sin_a = cos_sin(mid_angle)
     turned = np.stack([cos_a * steps[..., 0] - sin_a * steps[..., 1],
                        sin_a * steps[..., 0] + cos_a * steps[..., 1]], axis=-1)
     out = poses.copy()
@@ -249,7 +250,8 @@ def slip_sideways(poses: np.ndarray, t: np.ndarray, velocity: float | np.ndarray
     one per run, shaped (n, 1, 1).
     """
     heading = poses[..., 2]
-    right = np.stack([np.sin(heading), -np.cos(heading)], axis=-1)
+    cos_h, sin_h = cos_sin(heading)
+    right = np.stack([sin_h, -cos_h], axis=-1)
     dt = np.diff(t)[None, :, None]
     drift = np.cumsum(0.5 * (right[:, 1:] + right[:, :-1]) * dt, axis=1) * velocity
     out = poses.copy()

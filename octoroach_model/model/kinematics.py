@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from octoroach_model.model.trig import cos_sin
+
 
 def feet_in_body(rear_angle, front_angle, mirror, leg_length, hip_distance):
     """Rear and front foot positions (x, y) in the body frame; arrays broadcast."""
@@ -198,19 +200,6 @@ def integrate_stances(angles, phase, start_pose, leg_length, hip_distance):
 _BLOCK = 1 << 13
 
 
-def _cos_sin(angle, scale=1.0):
-    """
-    Give scale * cos and scale * sin by the half-angle tangent: one SIMD tan, no sin/cos.
-
-    Accurate to a few units in the last place, like np.cos and np.sin (numpy's float64 tan
-    is vectorised on x86-64, its sin and cos are several times slower).
-    """
-    t = np.tan(0.5 * angle)
-    t2 = t * t
-    inverse = scale / (1.0 + t2)
-    return (1.0 - t2) * inverse, (t + t) * inverse
-
-
 class _Geometry:
     """The closure and the pose of G for given leg and hip geometry, on arrays of samples."""
 
@@ -232,7 +221,7 @@ class _Geometry:
         Returns rear_x, rear_y, segment_x, segment_y (segment = front foot - rear foot).
         """
         l, d = self.leg_length, self.hip_distance
-        l_cos_r, l_sin_r = _cos_sin(rear_angle, l)
+        l_cos_r, l_sin_r = cos_sin(rear_angle, l)
         # P = B - rear foot in the pair's frame is (l cos r, d - l sin r)
         p_y = d - l_sin_r
         inv_p = 1.0 / np.sqrt(self.reach_sq - (2.0 * d) * l_sin_r)
@@ -299,8 +288,8 @@ def _stances(angles, start, geometry: _Geometry):
         field[1::2] = by_stance[left, 1::2]
     mirror = np.where(np.arange(n_stances) % 2 == 0, 1.0, -1.0)[:, None]
 
-    cos_r, sin_r = _cos_sin(rear_td)
-    cos_f, sin_f = _cos_sin(front_td)
+    cos_r, sin_r = cos_sin(rear_td)
+    cos_f, sin_f = cos_sin(front_td)
     rear0_x, rear0_y = -mirror * l * cos_r, l * sin_r - 0.5 * d
     seg0_x = mirror * l * (cos_f + cos_r)
     seg0_y = d + l * (sin_f - sin_r)
@@ -327,7 +316,7 @@ def _stances(angles, start, geometry: _Geometry):
 
     # Chain the stances in the world.
     heading0 = _starts(start[:, 2], end_dheading)
-    cos_0, sin_0 = _cos_sin(heading0)
+    cos_0, sin_0 = cos_sin(heading0)
     step_x, step_y = sin_0 * end_dx + cos_0 * end_dy, -cos_0 * end_dx + sin_0 * end_dy
     start_x, start_y = _starts(start[:, 0], step_x), _starts(start[:, 1], step_y)
     # The rear foot in the world, and the world direction of the foot-to-foot segment

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from octoroach_model.model.trig import cos_sin
 from octoroach_model.paths import Paths
 
 BAND = (0.6, 1.4)         # the stride frequency is sought within this factor of the guess
@@ -53,8 +54,9 @@ def band_spectrum(signal: np.ndarray, t: np.ndarray, frequencies: np.ndarray) ->
     A DFT on a few frequencies in a band costs n T K, far less than a finely zero-padded FFT
     of every run, and its frequency grid is the same whatever the sample rate.
     """
-    phase = np.exp(-2j * np.pi * np.outer(t, frequencies))
-    return np.abs(signal @ phase)
+    cosine, sine = cos_sin(2 * np.pi * np.outer(t, frequencies))
+    # two real products: a real signal times a complex matrix is four
+    return np.hypot(signal @ cosine, signal @ sine)
 
 
 def windowed_sway(heading: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -109,7 +111,7 @@ def lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
     residual = detrended(across, t) * window
     norm = np.maximum(window.sum(axis=1), 1e-12)
     angle = 2 * np.pi * frequency[:, None] * t[None, :]
-    cos, sin = np.cos(angle), np.sin(angle)         # real arithmetic: a complex exp costs 3x
+    cos, sin = cos_sin(angle)      # real arithmetic: a complex exp costs 3x
 
     def amplitude(cosine: np.ndarray, sine: np.ndarray) -> np.ndarray:
         projections = (np.einsum('ij,ij->i', residual, cosine),
