@@ -56,11 +56,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from octoroach_model.diagnosis.features import INDEX, MEDIAN_CHI2_1
+from octoroach_model.diagnosis.features import (
+    INDEX, noise_variance_m2, POSITION_RESOLUTION_M)
 from octoroach_model.model import EFFECT_NAMES, EFFECT_PARAMETERS
 from octoroach_model.model.extensions import drift_term, TERM_BY_NAME, TERM_NAMES
 
-POSITION_RESOLUTION_M = 1e-4     # what motion capture resolves; no size below it is claimed
 # the share of turning runs at which run_mixture's detection limit is stated (a yaw rate),
 # and which a study or a limit uses where none is given or fitted
 MIXTURE_FRACTION = 0.3
@@ -152,7 +152,7 @@ def _mean_of(column: str) -> Callable[[np.ndarray], float]:
 
 def _noise_variance(features: np.ndarray) -> float:
     """Position noise variance (m^2) read from the median 4th differences (module features)."""
-    return float(np.mean(np.exp(features[:, INDEX['log_noise']])) / (70.0 * MEDIAN_CHI2_1))
+    return float(np.mean(noise_variance_m2(features[:, INDEX['log_noise']])))
 
 
 def _slip_floor(scale: RunScale) -> float:

@@ -23,7 +23,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from octoroach_model.diagnosis.features import INDEX, noise_std_m
+from octoroach_model.diagnosis.features import INDEX, noise_variance_m2
 
 DEG = 180.0 / math.pi
 
@@ -63,7 +63,8 @@ def _start_position_spread_cm(f: np.ndarray) -> float:
 
 
 def _noise_cm(f: np.ndarray) -> float:
-    return float(noise_std_m(np.log(np.mean(np.exp(f[:, INDEX['log_noise']])))) * 100)
+    return float(np.sqrt(max(float(np.mean(noise_variance_m2(f[:, INDEX['log_noise']]))), 0.0))
+                 * 100)
 
 
 def _trend(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:

@@ -32,7 +32,8 @@ DEG = 180.0 / math.pi
 DECIDING = {
     'initial_pose_error': ('start_heading', DEG, 'start heading [deg]'),
     'measurement_noise': ('log_noise', 1.0,
-                          'log median squared 4th difference of x, y [log m^2]'),
+                          'log median squared 4th difference of x, y, resolution included '
+                          '[log m^2]'),
     'gait_frequency_variation': ('stride_frequency', 1.0, 'stride frequency [Hz]'),
     'speed_decay': ('progress_ratio', 1.0,
                     'log(distance in 2nd half / distance in 1st half) [-]'),
