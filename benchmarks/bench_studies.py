@@ -196,9 +196,9 @@ def print_tables(names: list[str]) -> None:
             print()
         if summary['power_at_limit_multiples']:
             limits = {(e['cause'], e['runs']): e for e in summary['detection_limits']}
-            print('| cause | median reported limit | named at 1x the limit | at 2x | baseline '
-                  'inadequate at 2x |')
-            print('| --- | --- | --- | --- | --- |')
+            print('| cause | median reported limit | named at 1x the limit | at 2x | named or '
+                  'undecided at 1x | baseline inadequate at 2x |')
+            print('| --- | --- | --- | --- | --- | --- |')
             entries = summary['power_at_limit_multiples']
             for cause in dict.fromkeys(e['cause'] for e in entries):
                 mine = {e['limit_multiple']: e for e in entries if e['cause'] == cause}
@@ -206,11 +206,15 @@ def print_tables(names: list[str]) -> None:
                 median = limit.get('median_limit')
                 shown = f'{limit["parameter"]} = {median:.3g}' if median is not None else '-'
                 twice = mine.get(2.0, {}).get('baseline_inadequate') or {}
+                either = mine.get(1.0, {}).get('named_or_undecided') or {}
                 print(f'| {cause} | {shown} | {_rate(mine.get(1.0, {}))} | '
-                      f'{_rate(mine.get(2.0, {}))} | {_rate(twice)} |')
+                      f'{_rate(mine.get(2.0, {}))} | {_rate(either)} | {_rate(twice)} |')
             pooled = [_rate(pooled_rate([e for e in entries if e['limit_multiple'] == multiple]))
                       for multiple in (1.0, 2.0)]
-            print(f'| all causes | | {pooled[0]} | {pooled[1]} | |')
+            either = _rate(pooled_rate([e['named_or_undecided'] for e in entries
+                                        if e['limit_multiple'] == 1.0
+                                        and 'named_or_undecided' in e]))
+            print(f'| all causes | | {pooled[0]} | {pooled[1]} | {either} | |')
             print()
             for multiple in (1.0, 2.0):
                 chosen = [e for e in entries if e['limit_multiple'] == multiple]
@@ -278,16 +282,24 @@ def print_confusion(summary: dict) -> None:
     table = confusion.get('named') or {}
     if len(table) < 2:
         return
-    columns = sorted({label for counts in table.values() for label in counts},
-                     key=lambda label: (label == 'nothing', label))
+    columns = sorted({label for counts in (*table.values(),
+                                           *(confusion.get('undecided') or {}).values())
+                      for label in counts}, key=lambda label: (label == 'nothing', label))
     print('| true \\ named | data sets | ' + ' | '.join(columns) + ' |')
     print('| --- ' * (len(columns) + 2) + '|')
     for true in sorted(table, key=lambda label: (label != 'none', label)):
         counts = table[true]
-        cells = ' | '.join(str(counts.get(label, 0)) if counts.get(label) else '.'
+        beside = (confusion.get('undecided') or {}).get(true, {})
+        cells = ' | '.join(_confusion_cell(counts.get(label, 0), beside.get(label, 0))
                            for label in columns)
         print(f'| {true} | {confusion["data_sets"][true]} | {cells} |')
-    print()
+    print('(+k: in k more data sets reported beside the named term as what the runs cannot '
+          'tell it from)\n')
+
+
+def _confusion_cell(named: int, undecided: int) -> str:
+    text = str(named) if named else '.'
+    return f'{text} (+{undecided})' if undecided else text
 
 
 def print_coverage(summary: dict) -> None:

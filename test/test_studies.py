@@ -475,6 +475,34 @@ def test_the_adapter_reads_extensions_and_the_confusion_table_counts_them():
     assert table['data_sets'] == {'change_point': 2, 'run_order_drift': 1, 'none': 1}
 
 
+def test_a_term_the_runs_cannot_tell_from_the_named_one_is_counted_apart():
+    """A change point reported beside a named speed decay is undecided, not named."""
+    from octoroach_model.studies.summary import confusion
+
+    rival = {'cause': 'change_point', 'family': 'change_point', 'gain': 1.9,
+             'parameters': {'time_s': 2.5, 'speed_factor': 1.03}, 'p_difference': 0.4}
+    plain = {'causes': [{'cause': 'speed_decay', 'parameters': {'fraction': -0.04}}],
+             'candidates': [], 'extensions': [], 'adequate': True, 'unexplained': [],
+             'steps': [{'step': 1, 'chosen': 'speed_decay', 'rival': rival},
+                       {'step': 2, 'chosen': None, 'rival': None}]}
+    columns = outcome_columns(plain, {'change_point': {'time_s': 2.5, 'speed_factor': 1.03}})
+    assert columns['named'] == ['speed_decay'] and columns['undecided'] == ['change_point']
+    spec = spec_of('runs: [50]\ncauses: [none, {extension: change_point, '
+                   'limit_multiples: [1]}]')
+    arm = spec.arms[1].label
+    rows = [a_row(key=f'c{replicate}', replicate=replicate, arm=arm, kind='relative',
+                  true_causes=['change_point'], true_change_point=1.03,
+                  named=['change_point'] if replicate < 5 else ['speed_decay'],
+                  named_change_point=replicate < 5,
+                  undecided=['change_point'] if replicate in (5, 6) else [])
+            for replicate in range(10)]
+    entry = summarize(spec, rows)['power_at_limit_multiples'][0]
+    assert (entry['count'], entry['named_or_undecided']['count']) == (5, 7)
+    table = confusion(rows)
+    assert table['named']['change_point'] == {'change_point': 5, 'speed_decay': 5}
+    assert table['undecided']['change_point'] == {'change_point': 2}
+
+
 def test_plan_takes_an_extension_term_as_its_cause():
     from octoroach_model.commands.plan import parser
     from octoroach_model.studies.plan import _base_spec

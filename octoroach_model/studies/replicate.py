@@ -169,7 +169,8 @@ def outcome_columns(report: Mapping[str, Any], effects: Mapping[str, Mapping[str
         entry['term'] for entry in report.get('extensions') or []]
     true = list(effects)
     columns: dict[str, Any] = {
-        'named': named, 'false_causes': [cause for cause in named if cause not in true],
+        'named': named, 'undecided': undecided_terms(report, named),
+        'false_causes': [cause for cause in named if cause not in true],
         'all_true_named': all(cause in named for cause in true) if true else None,
         'adequate': report.get('adequate'),
         'baseline_adequate': _baseline_adequate(report),
@@ -193,6 +194,18 @@ def outcome_columns(report: Mapping[str, Any], effects: Mapping[str, Mapping[str
         columns[f'rel_error_{key}'] = (estimate - truth) / distance \
             if truth is not None and distance and math.isfinite(estimate) else math.nan
     return columns
+
+
+def undecided_terms(report: Mapping[str, Any], named: list[str]) -> list[str]:
+    """
+    Return the terms reported beside a named one as what the runs cannot tell it from.
+
+    A cause of the table and an extension family that both qualify at a step, their held-out
+    scores not told apart, are both reported (the chosen one named, the other as its rival):
+    the data cannot say which, and the report does not guess.
+    """
+    return [step['rival']['cause'] for step in report.get('steps') or []
+            if step.get('rival') and step.get('chosen') in named]
 
 
 def _baseline_adequate(report: Mapping[str, Any]) -> bool | None:
@@ -223,7 +236,7 @@ def _empty_row(task: Task, spec: StudySpec, draw: RobotDraw, runs: int) -> dict[
         'stride_frequency_hz': draw.stride_frequency_hz, 'cycles': draw.cycles,
         'sample_rate_hz': draw.sample_rate_hz, 'spread_scale': draw.spread_scale,
         'sigma1_rad': sigma1, 'sigma2_rad': sigma2, 'runs_cut': 0, 'frames_dropped': 0,
-        'true_causes': [], 'named': [], 'false_causes': [], 'unexplained': [],
+        'true_causes': [], 'named': [], 'undecided': [], 'false_causes': [], 'unexplained': [],
         'note': '', 'status': ERROR,
     })
     for number, angle in enumerate(draw.touchdown_angles_deg, 1):

@@ -156,11 +156,15 @@ def _relative_power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[di
         for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
             group = [row for row in members if _cell(spec, row) == cell_of]
             rate = wilson(sum(bool(cell(row, 'named', arm.cause)) for row in group), len(group))
+            found = wilson(sum(bool(cell(row, 'named', arm.cause))
+                               or arm.cause in causes_of(row.get('undecided') or '')
+                               for row in group), len(group))
             missed = [row for row in group if not cell(row, 'named', arm.cause)]
             entry = {'cause': arm.cause, 'limit_multiple': arm.limit_multiple, 'runs': cell_of,
                      'median_size': _median(abs(cell(row, 'true', arm.cause) - null)
                                             for row in group),
-                     **rate.to_json(), 'missed': len(missed),
+                     **rate.to_json(), 'named_or_undecided': found.to_json(),
+                     'missed': len(missed),
                      'missed_not_adequate': sum(row['adequate'] is False for row in missed),
                      'baseline_inadequate': wilson(
                          sum(row['baseline_adequate'] is False for row in group),
@@ -246,6 +250,7 @@ def confusion(ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     'none'.
     """
     table: dict[str, dict[str, int]] = {}
+    undecided: dict[str, dict[str, int]] = {}
     totals: dict[str, int] = {}
     for row in ok:
         truth = causes_of(row['true_causes'])
@@ -257,9 +262,14 @@ def confusion(ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         totals[true_label] = totals.get(true_label, 0) + 1
         for label in named or {NOTHING}:
             counts[label] = counts.get(label, 0) + 1
+        for term in causes_of(row.get('undecided') or ''):
+            if term in BY_NAME:
+                beside = undecided.setdefault(true_label, {})
+                beside[BY_NAME[term].label] = beside.get(BY_NAME[term].label, 0) + 1
     return {'definition': 'data sets with one true cause or extension family (or none): how '
-                          'many named each cause or family',
-            'data_sets': totals, 'named': table}
+                          'many named each cause or family; `undecided`: how many reported '
+                          'each beside the named one as what the runs cannot tell it from',
+            'data_sets': totals, 'named': table, 'undecided': undecided}
 
 
 def _timing(rows: Sequence[Mapping[str, Any]], wall_time_s: float | None) -> dict[str, Any]:

@@ -39,7 +39,7 @@ _FIXED: tuple[tuple[str, type], ...] = (
     ('sample_rate_hz', float), ('spread_scale', float), ('sigma1_rad', float),
     ('sigma2_rad', float), ('duration_s', float), ('runs_cut', int), ('frames_dropped', int),
     ('true_causes', str), ('named', str), ('false_causes', str), ('all_true_named', bool),
-    ('adequate', bool), ('unexplained', str), ('baseline_adequate', bool),
+    ('adequate', bool), ('unexplained', str), ('baseline_adequate', bool), ('undecided', str),
 )
 _PER_CAUSE: tuple[tuple[str, type], ...] = (
     ('true', float), ('named', bool), ('estimate', float), ('low', float), ('high', float),
