@@ -421,3 +421,26 @@ def test_runs_that_end_early_keep_the_sizes_of_the_full_duration(effects):
     assert set(found) == {cause}, message
     assert abs(found[cause] - truth) <= 0.15 * truth, message
     assert report.runs.ended_early == len(early)
+
+
+def test_the_evidence_of_two_groups_counts_in_a_mixtures_limit():
+    """P3: two groups of heading rates are seen where they stand apart, not in one normal."""
+    from octoroach_model.diagnosis.features import FEATURES, INDEX
+    from octoroach_model.diagnosis.limits import two_groups_power
+
+    rng = np.random.default_rng(SEED)
+    column = INDEX['heading_rate']
+    without = np.zeros((1000, len(FEATURES)))
+    without[:, column] = rng.normal(0.0, 0.02, 1000)
+
+    def runs(separation: float) -> np.ndarray:
+        features = np.zeros((1000, len(FEATURES)))
+        turning = rng.random(1000) < 0.3
+        features[:, column] = rng.normal(0.0, 0.02, 1000) + separation * turning
+        return features
+
+    apart, together, wider = runs(0.12), runs(0.0), runs(0.0)
+    wider[:, column] *= 2.0            # one normal, only wider: persistent turning
+    assert two_groups_power(without, apart, 250) == 1.0, replay('six spreads apart')
+    assert two_groups_power(without, together, 250) <= 0.1, replay('one group')
+    assert two_groups_power(without, wider, 250) <= 0.1, replay('one wider group')

@@ -43,8 +43,8 @@ from octoroach_model.diagnosis.misfit import locate
 from octoroach_model.diagnosis.modelfit import (
     at_size, CausesFit, CHANGE_POINT_BOOTSTRAP, change_point_step, fit_causes, fit_geometry,
     fit_mixture, fit_moment, fit_spread, fit_trend,
-    FitSettings, FittedModel, GeometryUncertainty, RunData, Simulator, SizeEstimate,
-    spread_statistic)
+    FitSettings, FittedModel, GeometryUncertainty, MIXTURE_EVIDENCE_NATS, RunData, Simulator,
+    SizeEstimate, spread_statistic)
 from octoroach_model.diagnosis.report import (
     CandidateResult, DiagnosisReport, NamedCause, NamedExtension, Rival, RunLengths,
     ScoreSummary, StepResult)
@@ -443,9 +443,6 @@ class Evaluation:
 
 
 SCREEN_ALLOWANCE = 2.0
-# two groups of runs must fit the heading rates this much better than one normal of free
-# spread (a log-likelihood ratio; 2 x 3 nats is chi-square(1) at p = 0.014) to be weighed
-MIXTURE_EVIDENCE_NATS = 3.0
 
 
 def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Scores,

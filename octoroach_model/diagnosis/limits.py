@@ -20,22 +20,34 @@ product of the two probabilities:
   two sizes underestimates it in between, which made the limits of persistent_turning lean
   conservative (studies/limits.yaml).
 
-The limit solves P1(s) P2(s) = POWER, at the levels of the first step (all six causes in the
-race: the strictest). Whether limits computed this way hold is measured by
-studies/limits.yaml (README: "What the diagnosis can find").
+One thing the runs with the cause must show before the race weighs it is simulated as well:
+**two groups** (run_mixture). A mixture enters the race only where two groups of runs fit the
+heading rates better than one normal of free spread, by MIXTURE_EVIDENCE_NATS on the
+calibration half; the probability P3(s) of that evidence is taken from subsets of the
+simulated runs as large as the calibration half. (Without it the mixture's limit was its
+spread's, and no mixture at that limit was named: 0 of 8.)
+
+The limit solves P1(s) P2(s) P3(s) = POWER (P3 = 1 but for run_mixture), at the levels of the
+first step (every candidate in the race: the strictest). Whether limits computed this way hold
+is measured by studies/limits.yaml and studies/open_world.yaml (README: "What the diagnosis can
+find").
 """
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
 import math
+from typing import NamedTuple
 
 import numpy as np
 from scipy import stats
 
 from octoroach_model.diagnosis.causes import BY_NAME, Cause
 from octoroach_model.diagnosis.decide import POWER, se_u_if_true
-from octoroach_model.diagnosis.modelfit import at_size, FittedModel, Simulator, SizeEstimate
+from octoroach_model.diagnosis.features import INDEX
+from octoroach_model.diagnosis.modelfit import (
+    at_size, FittedModel, MIXTURE_EVIDENCE_NATS, Simulator, SizeEstimate, two_groups,
+    two_groups_evidence)
 from octoroach_model.diagnosis.scoring import feature_log_score
 
 PSEUDO_RUNS = 1000
@@ -45,6 +57,7 @@ CLOSE = 0.02               # a limit within 2 % (in size) of a computed size nee
 T_CAP = 1e6                # an expected t beyond this is certain detection (a spread of 0)
 PSEUDO_PURPOSE = 51
 MODEL_PURPOSE = 52
+EVIDENCE_SUBSETS = 40      # calibration halves drawn from the simulated runs for P3
 
 METHOD = ('smallest size named with 80 % power: P(size bound clears the floor) x P(held-out '
           "test significant), the first from the measured runs' own standard error, the "
@@ -53,12 +66,20 @@ METHOD = ('smallest size named with 80 % power: P(size bound clears the floor) x
 
 @dataclass(frozen=True)
 class Limit:
-    """A cause's detection limit and the two powers it balances (at the limit)."""
+    """A cause's detection limit and the powers it balances (at the limit)."""
 
     cause: str
     size: float | None
     size_bound_power: float
     test_power: float
+    two_groups_power: float | None = None    # run_mixture only: P3 (module docstring)
+
+
+class TestPoint(NamedTuple):
+    """What runs simulated with a cause of one size show: the test's expected t, and P3."""
+
+    t: float
+    identified: float = 1.0     # P(the runs show it as what it is: P3), 1 but for a mixture
 
 
 def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float) -> float:
@@ -91,9 +112,9 @@ def limit_base(simulator: Simulator, without: FittedModel, scales: np.ndarray,
 
 def expected_t(simulator: Simulator, without: FittedModel, without_features: np.ndarray,
                cause: Cause, size: float, scales: np.ndarray, held_out: int,
-               score_runs: int, fitted_values: dict | None = None) -> float:
+               score_runs: int, fitted_values: dict | None = None) -> TestPoint:
     """
-    Return the expected t statistic of the held-out test for a cause of `size`.
+    Return the expected t statistic of the held-out test for a cause of `size`, and P3.
 
     See the module docstring; `without_features` are the scored runs of the model without
     the cause; `fitted_values` the cause's other parameters as fitted (modelfit.at_size).
@@ -104,15 +125,40 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: np.
             'position_std_cm', 0.0))
     extended = without.with_effect(cause.name, values)
     # as many pseudo-data runs as the models are scored with, at most PSEUDO_RUNS
-    pseudo = _features(simulator, extended, min(PSEUDO_RUNS, score_runs), PSEUDO_PURPOSE,
-                       scales)
+    runs = simulator.features(extended, min(PSEUDO_RUNS, score_runs), PSEUDO_PURPOSE)
+    pseudo = runs / scales
     gain = (feature_log_score(_features(simulator, extended, score_runs, MODEL_PURPOSE,
                                         scales), pseudo, extended.order_dependent)
             - feature_log_score(without_features, pseudo, without.order_dependent))
+    identified = two_groups_power(without_features * scales, runs, held_out) \
+        if cause.kind == 'mixture' else 1.0
     spread = float(np.std(gain, ddof=1))
     if spread <= 0:
-        return math.inf if gain.mean() > 0 else 0.0
-    return float(gain.mean() / spread * math.sqrt(held_out))
+        return TestPoint(math.inf if gain.mean() > 0 else 0.0, identified)
+    return TestPoint(float(gain.mean() / spread * math.sqrt(held_out)), identified)
+
+
+def two_groups_power(without_runs: np.ndarray, runs: np.ndarray, half: int) -> float:
+    """
+    Return P3: how often calibration halves of `runs` show two groups of heading rates.
+
+    The evidence the race asks of run_mixture (MIXTURE_EVIDENCE_NATS, on heading rates
+    centred and spread as the model without it has them), on EVIDENCE_SUBSETS subsets of
+    `half` runs drawn without replacement from the simulated runs.
+    """
+    column = INDEX['heading_rate']
+    base = without_runs[:, column]
+    centre, spread = float(np.mean(base)), max(float(np.std(base, ddof=1)), 1e-6)
+    rates = runs[:, column]
+    size = min(half, len(rates))
+    rng = np.random.default_rng(len(rates))
+    shown = 0
+    for _ in range(EVIDENCE_SUBSETS):
+        subset = rates[rng.permutation(len(rates))[:size]]
+        shift, separation, fraction = two_groups(subset, centre, spread)
+        evidence = two_groups_evidence(subset - centre, shift, separation, fraction, spread)
+        shown += evidence >= MIXTURE_EVIDENCE_NATS
+    return shown / EVIDENCE_SUBSETS
 
 
 def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEstimate,
@@ -131,34 +177,41 @@ def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEs
     if base is None:
         base = limit_base(simulator, without, scales, score_runs)
 
-    def t_computed(size: float) -> float:
-        return min(max(expected_t(simulator, without, base, cause, size, scales, held_out,
-                                  score_runs, fitted_values), 1e-9), T_CAP)
+    def t_computed(size: float) -> TestPoint:
+        point = expected_t(simulator, without, base, cause, size, scales, held_out,
+                           score_runs, fitted_values)
+        return TestPoint(min(max(point.t, 1e-9), T_CAP), point.identified)
 
     return limit_from(t_computed, first, estimate, floor, z_bound, z_test)
 
 
-def limit_from(t_computed: Callable[[float], float], first: float, estimate: SizeEstimate,
-               floor: float, z_bound: float, z_test: float) -> Limit:
+def limit_from(t_computed: Callable[[float], TestPoint | float], first: float,
+               estimate: SizeEstimate, floor: float, z_bound: float, z_test: float) -> Limit:
     """
     Solve for the limit with T computed at `first`, 3 `first` and, if needed, the limit.
 
-    The limit found is where T is computed next while the test decides it (module docstring).
+    The limit found is where T is computed next while the simulated part (the test, and P3)
+    decides it (module docstring). `t_computed` gives a TestPoint, or T alone.
     """
-    points = {size: t_computed(size) for size in (first, 3 * first)}
+    def computed(size: float) -> TestPoint:
+        point = t_computed(size)
+        return point if isinstance(point, TestPoint) else TestPoint(float(point))
+
+    points = {size: computed(size) for size in (first, 3 * first)}
     limit = _solve(points, estimate, floor, z_bound, z_test)
     for _ in range(REFINEMENTS):
-        if limit is None or limit.size is None or limit.test_power >= TEST_DECIDES:
+        if limit is None or limit.size is None or limit.test_power * (
+                limit.two_groups_power or 1.0) >= TEST_DECIDES:
             break
         found = limit.size
         if min(abs(math.log(found / size)) for size in points) < CLOSE:
             break
-        points[found] = t_computed(found)
+        points[found] = computed(found)
         limit = _solve(points, estimate, floor, z_bound, z_test)
     return Limit(estimate.cause, None, 0.0, 0.0) if limit is None else limit
 
 
-def t_interpolated(points: dict[float, float], size: float) -> float:
+def t_interpolated(points: dict[float, float] | dict[float, TestPoint], size: float) -> float:
     """
     Return T at `size`, piecewise linear in log-log through the computed points.
 
@@ -166,21 +219,44 @@ def t_interpolated(points: dict[float, float], size: float) -> float:
     """
     sizes = sorted(points)
     log_s = np.log(sizes)
-    log_t = np.log([points[size] for size in sizes])
+    log_t = np.log([_t_of(points[size]) for size in sizes])
     x = math.log(size)
     index = int(np.clip(np.searchsorted(log_s, x) - 1, 0, len(sizes) - 2))
     slope = max((log_t[index + 1] - log_t[index]) / (log_s[index + 1] - log_s[index]), 0.1)
     return float(math.exp(log_t[index] + slope * (x - log_s[index])))
 
 
-def _solve(points: dict[float, float], estimate: SizeEstimate, floor: float, z_bound: float,
-           z_test: float) -> Limit | None:
-    """Return the smallest size where P(bound) x P(test) reaches POWER, T interpolated."""
+def _t_of(point: float | TestPoint) -> float:
+    return point.t if isinstance(point, TestPoint) else float(point)
+
+
+def _identified_of(point: float | TestPoint) -> float:
+    return point.identified if isinstance(point, TestPoint) else 1.0
+
+
+def identified_interpolated(points: dict[float, float] | dict[float, TestPoint],
+                            size: float) -> float:
+    """
+    Return P3 at `size`: linear in log size between the computed points, made monotone.
+
+    Held at the nearest end beyond them (no guess where no runs were simulated).
+    """
+    sizes = sorted(points)
+    values = np.maximum.accumulate([_identified_of(points[size]) for size in sizes])
+    return float(np.interp(math.log(size), np.log(sizes), values))
+
+
+def _solve(points: dict[float, float] | dict[float, TestPoint], estimate: SizeEstimate,
+           floor: float, z_bound: float, z_test: float) -> Limit | None:
+    """Return the smallest size where P(bound) x P(test) x P3 reaches POWER, T interpolated."""
+    mixture = BY_NAME[estimate.cause].kind == 'mixture'
+
     def test_power(size: float) -> float:
         return float(stats.norm.cdf(t_interpolated(points, size) - z_test))
 
     def power(size: float) -> float:
-        return bound_power(estimate, size, floor, z_bound) * test_power(size)
+        return bound_power(estimate, size, floor, z_bound) * test_power(size) * (
+            identified_interpolated(points, size) if mixture else 1.0)
 
     low, high = max(floor, 1e-9), min(points)
     for _ in range(60):
@@ -193,4 +269,4 @@ def _solve(points: dict[float, float], estimate: SizeEstimate, floor: float, z_b
         middle = math.sqrt(low * high) if low > 0 else 0.5 * high
         low, high = (middle, high) if power(middle) < POWER else (low, middle)
     return Limit(estimate.cause, high, bound_power(estimate, high, floor, z_bound),
-                 test_power(high))
+                 test_power(high), identified_interpolated(points, high) if mixture else None)

@@ -857,6 +857,9 @@ def fit_trend(simulator: Simulator, model: FittedModel, cause: Cause,
 
 
 MIXTURE_STARTS = (0.1, 0.3, 0.5)
+# two groups of runs must fit the heading rates this much better than one normal of free
+# spread (a log-likelihood ratio; 2 x 3 nats is chi-square(1) at p = 0.014) to be weighed
+MIXTURE_EVIDENCE_NATS = 3.0
 EM_STEPS = 200
 
 

@@ -101,7 +101,9 @@ class CandidateResult:
         return replace(self, detectable={BY_NAME[self.cause].parameter: limit.size},
                        detectable_method=LIMIT_METHOD,
                        detectable_power={'size_bound': limit.size_bound_power,
-                                         'held_out_test': limit.test_power})
+                                         'held_out_test': limit.test_power,
+                                         **({} if limit.two_groups_power is None else
+                                            {'two_groups': limit.two_groups_power})})
 
 
 @dataclass(frozen=True)
