@@ -1,8 +1,9 @@
 """
 Qualisys QTM TSV exports: 3D marker trajectories and 6DOF rigid bodies, streamed row by row.
 
-QTM's TSV export (docs.qualisys.com, "Motion data (.tsv)" and "6DOF data (_6d.tsv)") is a
-tab-separated text file: a header of ``NAME<tab>value...`` lines, then one row per frame.
+QTM's TSV export (docs.qualisys.com, "Motion data (.tsv)"; the 6DOF columns as a QTM 6DOF
+export writes them) is a tab-separated text file: a header of ``NAME<tab>value...`` lines,
+then one row per frame.
 
 - Header (when the export's "Include TSV header" is on, which this reader needs):
   FILE_VERSION (2.0.0, absent before), NO_OF_FRAMES, NO_OF_CAMERAS, NO_OF_MARKERS or
