@@ -20,11 +20,11 @@ import octoroach_model as om
 from octoroach_model.errors import BagError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import read_runs, write_paths_bag
+from octoroach_model.recordings.axes import headings_from_rotations
 from octoroach_model.recordings.c3d_file import iter_c3d_pose_chunks
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.rigid import (
     fit_rigid,
-    forward_heading,
     layout_from_frames,
     layout_spans_a_plane,
 )
@@ -285,7 +285,7 @@ def test_heading_is_the_yaw_of_the_forward_axis(heading, roll, pitch, axis):
     options = ReadOptions(forward_axis=axis)
     rotation = body_rotations(np.array([heading]), np.array([roll]), np.array([pitch]),
                               options.heading_offset_rad)
-    found = forward_heading(rotation.as_matrix(), options.heading_offset_rad)[0]
+    found = headings_from_rotations(rotation.as_matrix(), 'z', axis)[0]
     assert abs(np.angle(np.exp(1j * (found - heading)))) < 1e-9
 
 
