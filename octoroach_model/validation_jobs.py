@@ -30,8 +30,8 @@ __all__ = ['Cancelled', 'Job', 'Progress', 'Workbench', 'diagnosis_settings',
 
 Progress = Callable[[float, str], None]
 # Files whose change means the measured runs must be read again: bag data and metadata,
-# multisample data sets.
-WATCHED_SUFFIXES = ('.mcap', '.yaml', '.npz')
+# multisample data sets, motion-capture files and trajectory tables.
+WATCHED_SUFFIXES = ('.mcap', '.db3', '.yaml', '.npz', '.bag', '.csv', '.c3d', '.tsv', '.txt')
 FileStamp = tuple[str, int, int]  # path, modification time [ns], size [bytes]
 
 
@@ -45,6 +45,8 @@ class Job:
 
     sources: tuple[str, ...]
     topic: str | None
+    forward_axis: str
+    up_axis: str
     gap_s: float
     min_duration_s: float
     nominal: str
@@ -57,12 +59,16 @@ class Job:
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> Job:
         """Make a job from parameter values; ParameterError where they do not fit together."""
+        from octoroach_model.recordings.options import ReadOptions
+
         settings = ValidationSettings(
             rho=values['rho'], epsilon=values['epsilon'], delta=values['delta'],
             k=values['k'], gamma=values['gamma'], seed=values['seed'],
             sigma1_max=values['sigma1_max'], sigma2_max=values['sigma2_max'],
             grid_points=values['grid_points'], resolution_m=values['resolution_m'])
+        ReadOptions(forward_axis=values['forward_axis'], up_axis=values['up_axis'])  # checked
         return cls(sources=tuple(values.get('bags', ())), topic=values['topic'] or None,
+                   forward_axis=str(values['forward_axis']), up_axis=str(values['up_axis']),
                    gap_s=float(values['gap_s']),
                    min_duration_s=float(values['min_duration_s']),
                    nominal=values['nominal'], draws=values['draws'],
@@ -122,17 +128,26 @@ class Workbench:
         self._key: tuple[Any, ...] | None = None
         self._measured: Paths | None = None
 
-    def measured(self, job: Job) -> Paths:
-        """Return the runs of `job.sources`, read again when a name, setting or file changed."""
-        from octoroach_model.recordings import load_measured
+    def measured(self, job: Job, progress: Progress | None = None) -> Paths:
+        """
+        Return the runs of `job.sources`, read again when a name, setting or file changed.
+
+        They are read as every program reads them (`recordings.load_measured`); `progress`
+        hears how far the reading has got.
+        """
+        from octoroach_model.recordings import load_measured, ReadOptions
 
         job.require_sources()
-        key = (job.sources, job.topic, job.gap_s, job.min_duration_s,
-               source_stamps(job.sources))
+        key = (job.sources, job.topic, job.forward_axis, job.up_axis, job.gap_s,
+               job.min_duration_s, source_stamps(job.sources))
         if key != self._key or self._measured is None:
+            options = ReadOptions(topic=job.topic, forward_axis=job.forward_axis,
+                                  up_axis=job.up_axis)
             self._measured = load_measured(
-                list(job.sources), gap_s=job.gap_s, topic=job.topic,
-                min_duration_s=job.min_duration_s or None)
+                list(job.sources), gap_s=job.gap_s, options=options,
+                min_duration_s=job.min_duration_s or None,
+                progress=(lambda fraction, message: progress(0.0, message))
+                if progress is not None else None)
             self._key = key
         return self._measured
 
@@ -142,7 +157,7 @@ def run_validation(job: Job, bench: Workbench, progress: Progress) -> dict[str, 
     from octoroach_model.validation import validate_measured
 
     progress(0.0, 'loading the measured runs')
-    measured = bench.measured(job)
+    measured = bench.measured(job, progress)
     progress(0.0, f'{measured.n_paths} runs loaded; nominal model: {job.nominal}')
     result = validate_measured(measured, job.settings, nominal=job.nominal, draws=job.draws,
                                sigmas=job.sigmas(), sources=list(job.sources),
@@ -157,7 +172,7 @@ def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict[str, A
     from octoroach_model.diagnosis import diagnose
 
     progress(0.0, 'loading the measured runs')
-    measured = bench.measured(job)
+    measured = bench.measured(job, progress)
     report = diagnose(measured, diagnosis_settings(job), progress=progress)
     report = replace(report, sources=tuple(job.sources))
     files: dict[str, str] = {}

@@ -155,12 +155,15 @@ def markers_on_body(poses: np.ndarray, layout_m: dict[str, Sequence[float]],
 
 def write_c3d(path: Path, rate_hz: float, markers: dict[str, np.ndarray], *,
               units: str = 'mm', first_frame: int = 1, subjects: Sequence[str] = (),
-              model_outputs: dict[str, np.ndarray] | None = None) -> Path:
+              model_outputs: dict[str, np.ndarray] | None = None,
+              modelled: Sequence[str] = (), uses_prefixes: bool = True) -> Path:
     """
     Write a C3D file with ezc3d: markers (F, 3) in metres, NaN where not seen.
 
     Not-seen points are written with residual -1 (how C3D marks them); `model_outputs`
-    are extra points listed in POINT:ANGLES, as Nexus stores joint angles.
+    are extra points listed in POINT:ANGLES, as Nexus stores joint angles; `modelled` names
+    points (among `markers`) listed in POINT:MODELED_MARKERS, as Nexus lists the virtual
+    points its model computes (joint centres, segment origins).
     """
     scale = {'mm': 1e3, 'm': 1.0}[units]
     points = dict(markers)
@@ -185,8 +188,11 @@ def write_c3d(path: Path, rate_hz: float, markers: dict[str, np.ndarray], *,
     c3d['data']['meta_points']['camera_masks'] = np.zeros((7, len(names), n_frames), bool)
     if model_outputs:
         c3d.add_parameter('POINT', 'ANGLES', list(model_outputs))
+    if modelled:
+        c3d.add_parameter('POINT', 'MODELED_MARKERS', list(modelled))
+        c3d.add_parameter('POINT', 'MODELED_MARKER_UNITS', [units])
     if subjects:
         c3d.add_parameter('SUBJECTS', 'NAMES', list(subjects))
-        c3d.add_parameter('SUBJECTS', 'USES_PREFIXES', [1])
+        c3d.add_parameter('SUBJECTS', 'USES_PREFIXES', [1 if uses_prefixes else 0])
     c3d.write(str(path))
     return path

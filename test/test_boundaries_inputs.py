@@ -6,7 +6,9 @@ Each hostile file reproduces a problem of issue 24 (a 32 KB MCAP whose zstd chun
 folder of self-referencing links, a CSV header cell over 131072 characters, `../` in
 relative_file_paths, a file whose first bytes an error used to quote). The fuzz test runs
 `validate` on every hostile file and on seeded mutations of a valid bag (MCAP, uncompressed
-and zstd), metadata.yaml, Vicon CSV, C3D and .npz file, in one child process, and checks that
+and zstd, and one of a driver's arrays of named bodies), metadata.yaml, Vicon CSV, C3D,
+Qualisys TSV (3D and 6DOF), TUM, EuRoC and headed CSV table and .npz file, in one child
+process, and checks that
 each ends in exit 0 or one `error:` line with exit 1, without a traceback, and that the child's
 peak memory stays below MEMORY_BOUND_MB.
 
@@ -33,12 +35,21 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from driver_bags import named_pose_bag
 from mocap_helpers import body_rotations, write_c3d, write_vicon_csv
 import octoroach_model as om
 from octoroach_model.errors import BagError
 from octoroach_model.recordings import BagReader, save_dataset, write_paths_bag
 from octoroach_model.recordings.repair import repair_bag
 from octoroach_model.recordings.sources import bag_files, expand_sources
+from trajectory_writers import (
+    planar_pose,
+    write_euroc,
+    write_pose_csv,
+    write_qtm_3d,
+    write_qtm_6d,
+    write_tum,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 SEED = int(os.environ.get('OCTOROACH_TEST_SEED', '0'))
@@ -187,9 +198,22 @@ def valid_seeds(directory: Path) -> dict[str, Path]:
     markers = {name: rotation.apply(np.asarray(offset)) + positions
                for name, offset in layout.items()}
     c3d_path = write_c3d(directory / 'trial.c3d', 50.0, markers)
+    stamps = 10**18 + np.round(paths.t * 1e9).astype(np.int64)
+    where, rotations = planar_pose(poses)
+    tracked = np.ones(len(poses), bool)
+    named = named_pose_bag(directory / 'named', om.simulate(2, seed=3, cycles=2))
     return {'bag': bag, 'mcap': next(bag.glob('*.mcap')), 'zstd': zstd_mcap(directory, bag),
             'metadata': bag / 'metadata.yaml', 'csv': csv_path, 'c3d': c3d_path,
-            'npz': save_dataset(directory / 'runs.npz', paths)}
+            'npz': save_dataset(directory / 'runs.npz', paths),
+            'tsv6d': write_qtm_6d(directory / 'trial_6d.tsv', 50.0,
+                                  {'robot': (where, rotations, tracked)}),
+            'tsv3d': write_qtm_3d(directory / 'trial.tsv', 50.0, markers),
+            'tum': write_tum(directory / 'groundtruth.txt', stamps, where, rotations),
+            'euroc': write_euroc(directory / 'data.csv', stamps, where, rotations),
+            'table': write_pose_csv(directory / 'poses.csv', ['t', 'x', 'y', 'yaw'], [
+                [f'{t:.3f}', f'{x:.6f}', f'{y:.6f}', f'{h:.6f}']
+                for t, (x, y, h) in zip(paths.t, poses)]),
+            'named': next(named.glob('*.mcap'))}
 
 
 def mutate(data: bytes, rng: random.Random) -> bytes:
@@ -268,12 +292,18 @@ def read_in_child(paths: list[Path]) -> list[dict]:
 
 
 def check_one_line(case: dict) -> str:
-    """Check that the case ended in exit 0, or in one `error:` line and exit 1, untraced."""
+    """
+    Check that the case ended in exit 0, or in one `error:` line and exit 1, untraced.
+
+    `note:` lines (what a user must see of the data, e.g. an up axis that looks wrong) and
+    progress lines may come before the error; the error itself is one line.
+    """
     where = f'{case["path"]}: exit {case["code"]}\n{case["stderr"]}'
     assert 'Traceback' not in case['stderr'], where
     if case['code'] == 0:
         return ''
-    lines = [line for line in case['stderr'].splitlines() if line.strip()]
+    lines = [line for line in case['stderr'].splitlines()
+             if line.strip() and not line.startswith(('note: ', '['))]
     assert case['code'] == 1 and len(lines) == 1 and lines[0].startswith('error: '), where
     return lines[0]
 

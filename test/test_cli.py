@@ -237,7 +237,7 @@ def test_validate_with_the_papers_constants_on_60_runs_says_495_are_needed(valid
 BAD_INPUT = {
     'missing_path': (['validate', '{tmp}/no_such_bag'], 'no such file'),
     'random_bytes': (['validate', '{tmp}/random.mcap'], 'not an MCAP file'),
-    'text_file': (['validate', '{tmp}/notes.txt'], 'not an MCAP file'),
+    'text_file': (['validate', '{tmp}/notes.txt'], 'not a file this package reads'),
     'rho_above_one': (['validate', '{bag}', '--rho', '2'], 'rho'),
     'paths_not_a_number': (['simulate', '--paths', 'abc', '--out', '{tmp}/out_a'], '--paths'),
     'unknown_effect': (['simulate', '--paths', '3', '--out', '{tmp}/out_b', '--effect',
@@ -249,7 +249,8 @@ BAD_INPUT = {
 
 # The same path in-process (cheaper): octoroach_model.cli.dispatch is what __main__ calls.
 MORE_BAD_INPUT = {
-    'random_bytes_without_suffix': (['validate', '{tmp}/random'], 'not an MCAP file'),
+    'random_bytes_without_suffix': (['validate', '{tmp}/random'],
+                                    'not a file this package reads'),
     'empty_directory': (['validate', '{tmp}/empty'], 'empty directory'),
     'paths_zero': (['simulate', '--paths', '0', '--out', '{tmp}/out_d'], '--paths'),
     'epsilon_zero': (['validate', '{bag}', '--epsilon', '0'], 'epsilon'),

@@ -20,11 +20,11 @@ import octoroach_model as om
 from octoroach_model.errors import BagError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import read_runs, write_paths_bag
+from octoroach_model.recordings.axes import headings_from_rotations
 from octoroach_model.recordings.c3d_file import iter_c3d_pose_chunks
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.rigid import (
     fit_rigid,
-    forward_heading,
     layout_from_frames,
     layout_spans_a_plane,
 )
@@ -163,6 +163,62 @@ def test_metres_forward_axis_y_and_model_outputs(tmp_path, model_runs):
     assert any('4 body markers (front, left, right, top)' in note for note in notes), notes
 
 
+def nexus_trial(tmp_path, poses: np.ndarray, *, swing_m: float = 0.0) -> Path:
+    """
+    Write a Nexus trial of subject SI02, its labels without prefix.
+
+    Its points: the plate's four markers, a knee and an ankle marker on a leg that swings by
+    `swing_m`, and two points the model computed (a segment origin and a joint centre,
+    listed in POINT:MODELED_MARKERS).
+    """
+    markers = markers_on_body(poses, BODY_LAYOUT_M, height_m=0.01)
+    phase = np.arange(len(poses)) * 2 * np.pi / 25
+    leg = np.column_stack([swing_m * np.sin(phase), np.zeros(len(poses)),
+                           0.3 * swing_m * np.cos(phase)])
+    markers['LKNE'] = markers['left'] + [0.02, 0.03, -0.01] + leg
+    markers['LANK'] = markers['left'] + [0.05, 0.04, -0.02] + 2 * leg
+    markers['PELO'] = markers['front'] + np.column_stack([np.sin(phase), np.cos(phase),
+                                                          np.zeros(len(poses))]) * 0.05
+    markers['LKJC'] = markers['LKNE'] * 0.5 + markers['LANK'] * 0.5
+    return write_c3d(tmp_path / 'SI02_walk.c3d', RATE_HZ, markers, subjects=['SI02'],
+                     modelled=['PELO', 'LKJC'], uses_prefixes=False)
+
+
+def test_a_nexus_trial_leaves_modelled_markers_out_and_takes_subject_prefixed_names(
+        tmp_path, model_runs):
+    poses = model_runs.poses[0]
+    path = nexus_trial(tmp_path, poses)   # the leg does not swing: one rigid body
+    notes: list[str] = []
+    read_c3d(path, notes=notes)
+    said = '\n'.join(notes)
+    assert '2 modelled or virtual marker(s) left out of the body (POINT:MODELED_MARKERS): ' \
+           'PELO, LKJC' in said
+    assert '6 body markers (front, left, right, top, LKNE, LANK)' in said
+    named = ReadOptions(markers=('SI02:front', 'SI02:left', 'SI02:right', 'top'))
+    run = read_c3d(path, named, layout={name: BODY_LAYOUT_M[name]
+                                        for name in ('front', 'left', 'right', 'top')}).runs[0]
+    np.testing.assert_allclose(run.poses, poses, atol=TOLERANCE, rtol=0)
+    with pytest.raises(BagError, match=r"no marker 'SI03:front'"):
+        read_c3d(path, ReadOptions(markers=('SI03:front', 'left', 'right')))
+
+
+def test_markers_that_are_not_one_rigid_body_are_refused_naming_those_that_fit_best(
+        tmp_path, model_runs):
+    path = nexus_trial(tmp_path, model_runs.poses[0], swing_m=0.04)
+    with pytest.raises(BagError, match=r'the 6 body markers do not move as one rigid body: '
+                                       r"the rigid fit's typical residual is [\d.]+ mm, above "
+                                       r'the 5 mm a rigid body allows; the markers that keep '
+                                       r'their distances best are front, left, right, top '
+                                       r'\(within [\d.e-]+ mm\): pass them with --markers, or '
+                                       r'--accept-loose-fit') as raised:
+        read_c3d(path)
+    assert '\n' not in str(raised.value)
+    notes: list[str] = []
+    runs = read_c3d(path, ReadOptions(accept_loose_fit=True), notes=notes)
+    assert len(runs.runs) == 1
+    assert any('rigid fit rms residual' in note for note in notes)
+
+
 def test_unreadable_files_are_one_line_errors(tmp_path):
     garbage = tmp_path / 'garbage.c3d'
     garbage.write_bytes(b'not a c3d file at all' * 40)
@@ -229,7 +285,7 @@ def test_heading_is_the_yaw_of_the_forward_axis(heading, roll, pitch, axis):
     options = ReadOptions(forward_axis=axis)
     rotation = body_rotations(np.array([heading]), np.array([roll]), np.array([pitch]),
                               options.heading_offset_rad)
-    found = forward_heading(rotation.as_matrix(), options.heading_offset_rad)[0]
+    found = headings_from_rotations(rotation.as_matrix(), 'z', axis)[0]
     assert abs(np.angle(np.exp(1j * (found - heading)))) < 1e-9
 
 

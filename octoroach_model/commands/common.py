@@ -19,6 +19,7 @@ from typing import Any, NoReturn, TYPE_CHECKING
 from octoroach_model.errors import (
     EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, OutputError)
 from octoroach_model.fileio import check_writable, is_empty_directory
+from octoroach_model.recordings.axes import FORWARD_AXES, UP_AXES
 
 if TYPE_CHECKING:
     from octoroach_model.recordings.options import ReadOptions
@@ -53,17 +54,40 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f'error: {self.prog}: {message} (see --help)\n')
 
 
-def progress_printer(label: str) -> Progress:
-    """Progress lines on stderr, at most one per percent step, for long work."""
-    state = {'last': -1.0, 'start': time.monotonic()}
+# A long reading says where it is at least this often, even when it moves less than a percent
+PROGRESS_EVERY_S = 5.0
+# Reading that will last at least this long (at its pace after one second) prints progress
+READING_LASTS_S = 4.0
+
+
+def progress_printer(label: str, *, after_s: float = 0.0, lasting_s: float = 0.0) -> Progress:
+    """
+    Progress lines on stderr, one per percent step (and every PROGRESS_EVERY_S), for long work.
+
+    With `after_s` and `lasting_s`, lines start once `after_s` seconds have passed and the
+    work, at the pace so far, will last at least `lasting_s` seconds in all: work that is over
+    at once (reading a small file) prints nothing, long work speaks from its first second.
+    """
+    state = {'last': -1.0, 'start': time.monotonic(), 'said': -math.inf}
 
     def report(fraction: float, message: str) -> None:
-        if fraction - state['last'] >= 0.01 or fraction >= 1.0:
-            state['last'] = fraction
-            elapsed = time.monotonic() - state['start']
+        now = time.monotonic()
+        elapsed = now - state['start']
+        if state['said'] == -math.inf:   # nothing said yet: is this work long enough?
+            lasting = elapsed / fraction if fraction > 0 else math.inf
+            if elapsed < after_s or lasting < lasting_s or (fraction >= 1.0 and after_s):
+                return
+        due = fraction - state['last'] >= 0.01 or now - state['said'] >= PROGRESS_EVERY_S
+        if due or (fraction >= 1.0 and state['last'] < 1.0):
+            state['last'], state['said'] = fraction, now
             sys.stderr.write(f'[{label} {fraction * 100:5.1f}% {elapsed:6.1f}s] {message}\n')
             sys.stderr.flush()
     return report
+
+
+def reading_progress(label: str) -> Progress:
+    """Progress lines of reading the inputs, from the first second of a reading that lasts."""
+    return progress_printer(f'{label}: read', after_s=1.0, lasting_s=READING_LASTS_S)
 
 
 def positive_int(text: str) -> int:
@@ -114,13 +138,24 @@ def new_output(path: Path, option: str, *, directory_ok: bool = False) -> Path:
     return check_writable(path, option)
 
 
-def say_repeated_runs(measured: Any) -> None:
-    """Print the note on runs given twice (`recordings.duplicates`) on stderr, as `note:`."""
-    from octoroach_model.recordings.duplicates import REPEATED_RUNS
+def say_warnings(notes: Any) -> None:
+    """
+    Print the notes a user must see on stderr, as `note:` lines.
 
-    for note in measured.info.get('notes', ()):
-        if REPEATED_RUNS in note:
+    Those are runs given twice (`recordings.duplicates`) and an up axis that looks wrong
+    (`recordings.streams`); every other note is in the program's JSON or report.
+    """
+    from octoroach_model.recordings.duplicates import REPEATED_RUNS
+    from octoroach_model.recordings.streams import UP_AXIS_NOTE
+
+    for note in notes:
+        if REPEATED_RUNS in note or UP_AXIS_NOTE in note:
             sys.stderr.write(f'note: {note}\n')
+
+
+def say_repeated_runs(measured: Any) -> None:
+    """Print the notes of measured runs a user must see (`say_warnings`)."""
+    say_warnings(measured.info.get('notes', ()))
 
 
 def add_workers_argument(parser: argparse.ArgumentParser, what: str) -> None:
@@ -134,7 +169,9 @@ def add_input_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of the measured runs: bags, mocap files or data sets, how to split."""
     parser.add_argument('bags', nargs='+', type=Path, metavar='BAG',
                         help='rosbag2 bags (MCAP or sqlite3), .mcap files, ROS 1 .bag files, '
-                        'Vicon .csv exports, .c3d files or .npz data sets (docs/formats.md)')
+                        'Vicon .csv exports, .c3d files, Qualisys .tsv exports, TUM, EuRoC or '
+                        'headed CSV trajectory tables, .npz data sets, or folders of them '
+                        '(docs/formats.md)')
     add_pose_arguments(parser)
     parser.add_argument('--gap-s', type=finite_float, default=0.5,
                         help='a pause longer than this (s) splits runs where there is no marker')
@@ -150,10 +187,17 @@ def add_pose_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--subject', default=None, metavar='NAME',
                         help='Vicon CSV / C3D: the subject or object (default: the only one)')
     parser.add_argument('--markers', default=None, metavar='A,B,C',
-                        help='C3D / Vicon CSV trajectories: the markers on the rigid body, '
-                        "comma-separated (default: all of the subject's)")
-    parser.add_argument('--forward-axis', choices=('x', 'y', '-x', '-y'), default='x',
+                        help='C3D / Vicon CSV / Qualisys TSV trajectories: the markers on the '
+                        'rigid body, comma-separated, Subject:Marker or bare names (default: '
+                        "all of the subject's, modelled and virtual markers left out)")
+    parser.add_argument('--accept-loose-fit', action='store_true',
+                        help='fit the marker body even when its markers do not move as one '
+                        'rigid body (typical residual above 5 mm); refused otherwise')
+    parser.add_argument('--forward-axis', choices=FORWARD_AXES, default='x',
                         help="the body axis the robot walks along; heading = that axis's yaw")
+    parser.add_argument('--up-axis', choices=UP_AXES, default='z',
+                        help="the input world's up axis (y: OptiTrack Motive's default; -y: a "
+                        'camera frame); poses are turned so that it is z')
 
 
 def read_options(args: argparse.Namespace) -> ReadOptions:
@@ -162,4 +206,5 @@ def read_options(args: argparse.Namespace) -> ReadOptions:
 
     markers = tuple(name.strip() for name in (args.markers or '').split(',') if name.strip())
     return ReadOptions(topic=args.topic, frame=args.frame, subject=args.subject,
-                       markers=markers, forward_axis=args.forward_axis)
+                       markers=markers, forward_axis=args.forward_axis, up_axis=args.up_axis,
+                       accept_loose_fit=args.accept_loose_fit)

@@ -11,6 +11,8 @@ from octoroach_model.commands.common import (
     new_output,
     OneLineParser,
     read_options,
+    reading_progress,
+    say_warnings,
 )
 
 
@@ -18,13 +20,15 @@ def parser() -> argparse.ArgumentParser:
     """Build the `convert` command line."""
     result = OneLineParser(
         prog='convert', description="Turn pose recordings into the package's standard bag: "
-        'TransformStamped on /vicon/SUBJECT/SUBJECT (metres, heading as the yaw) with a run '
-        'marker on /SUBJECT/run_start before each run, as `simulate` writes. Inputs: rosbag2 '
-        'bags (MCAP or sqlite3) with poses on any pose topic or on /tf, ROS 1 .bag files, Vicon '
-        '.csv exports and .c3d files (docs/formats.md). Every sample is copied; markers are '
-        'kept, or put where runs start. Prints JSON with notes on what was converted.')
+        'TransformStamped on /vicon/SUBJECT/SUBJECT (metres, z up, heading as the yaw) with a '
+        'run marker on /SUBJECT/run_start before each run, as `simulate` writes. Inputs: '
+        'rosbag2 bags (MCAP or sqlite3) with poses on any pose topic, in an array of named '
+        'bodies or on /tf, ROS 1 .bag files, Vicon .csv exports, .c3d files, Qualisys .tsv '
+        'exports, TUM, EuRoC and headed CSV trajectory tables (docs/formats.md). Every sample '
+        'is copied; markers are kept, or put where runs start. Prints JSON with notes on what '
+        'was converted, among them the clock the poses carry.')
     result.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
-                        help='bags, .bag/.mcap/.csv/.c3d files, or folders of them')
+                        help='bags, .bag/.mcap/.csv/.c3d/.tsv/.txt files, or folders of them')
     result.add_argument('--out', type=Path, required=True, help='bag directory to create')
     add_pose_arguments(result)
     result.add_argument('--gap-s', type=finite_float, default=0.5,
@@ -50,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f'--gap-s must be positive, got {args.gap_s}')
     options = read_options(args)
     report = convert_to_bag(args.inputs, args.out, options=options, subject=args.subject,
-                            gap_s=args.gap_s)
+                            gap_s=args.gap_s, progress=reading_progress('convert'))
+    say_warnings(report.notes)
     summary = {'bag': str(report.bag), 'subject': report.subject,
                'inputs': list(report.inputs), 'poses': report.samples,
                'markers': report.markers, 'non_finite_dropped': report.dropped,

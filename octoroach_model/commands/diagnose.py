@@ -14,7 +14,7 @@ import sys
 
 from octoroach_model.commands.common import (
     add_input_arguments, add_workers_argument, new_output, nonnegative_int, OneLineParser,
-    progress_printer, read_options, say_repeated_runs)
+    progress_printer, read_options, reading_progress, say_repeated_runs)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -78,7 +78,8 @@ def run(args: argparse.Namespace) -> int:
     from octoroach_model.studies.execute import default_workers
 
     new_output(args.out, '--out', directory_ok=True)
-    measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s)
+    measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s,
+                             progress=reading_progress('diagnose'))
     say_repeated_runs(measured)
     workers = default_workers() if args.workers is None else args.workers
     settings = DiagnosisSettings(seed=args.seed, workers=1)

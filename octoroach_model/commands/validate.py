@@ -5,7 +5,7 @@ import argparse
 
 from octoroach_model.commands.common import (
     add_input_arguments, finite_float, nonnegative_int, OneLineParser, positive_int,
-    progress_printer, read_options, say_repeated_runs)
+    progress_printer, read_options, reading_progress, say_repeated_runs)
 from octoroach_model.errors import ParameterError
 
 
@@ -61,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
                                   k=args.k, gamma=args.gamma, seed=args.seed,
                                   sigma1_max=args.sigma1_max, sigma2_max=args.sigma2_max,
                                   grid_points=args.grid_points)
-    measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s)
+    measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s,
+                             progress=reading_progress('validate'))
     say_repeated_runs(measured)
     sigmas = None if args.sigma1 is None else (args.sigma1, args.sigma2)
     result = validate_measured(measured, settings, nominal=args.nominal, draws=args.draws,

@@ -47,7 +47,8 @@ NOTES = """
 Topics are subscribed when they appear in the ROS graph, with the type they are published
 with; entries of `topics` may be fnmatch patterns ('/vicon/*'). The data set holds the runs
 as read_runs splits them (run markers, else gaps longer than gap_s), resampled at
-export_rate_hz over their common duration. Log time in the bag = middleware reception time.
+export_rate_hz over their common duration, read with forward_axis and up_axis. Log time in
+the bag = middleware reception time.
 A recorder killed with SIGKILL leaves an .mcap without metadata.yaml that the package's
 readers still read, up to about one flush period before the kill; `python -m octoroach_model
 repair BAG` (ros2 run octoroach_model repair BAG) makes it a complete bag for any tool.
@@ -69,6 +70,7 @@ def recorder_specs() -> list[ParamSpec]:
         DEFAULT_POSE_TOPIC,
         DEFAULT_RATE_HZ,
     )
+    from octoroach_model.recordings.axes import FORWARD_AXES, UP_AXES
 
     return [
         ParamSpec('output', '', 'bag directory to create; empty: ./octoroach_YYYYmmdd_HHMMSS',
@@ -81,6 +83,11 @@ def recorder_specs() -> list[ParamSpec]:
                   's', 0.01, 60.0),
         ParamSpec('export_rate_hz', float(DEFAULT_RATE_HZ), 'sample rate of the data set',
                   'Hz', 1.0, 1000.0),
+        ParamSpec('forward_axis', 'x', 'data set: the body axis the robot walks along; '
+                  "heading = that axis's yaw", choices=FORWARD_AXES),
+        ParamSpec('up_axis', 'z', "data set: the up axis of the recorded poses' world (y: "
+                  "OptiTrack Motive's default); poses are turned so that it is z",
+                  choices=UP_AXES),
         ParamSpec('flush_period_s', 1.0, 'bag file flushed this often', 's', 0.1, 10.0),
         ParamSpec('log_period_s', 5.0, 'progress logged this often', 's', 0.5, 3600.0),
         ParamSpec('qos_depth', 1000, 'history depth of the subscriptions', '', 1, 100_000,
@@ -142,11 +149,15 @@ def _message_class(msgtype: str) -> Any:
 
 
 def export_dataset(bag: Path, dataset: str, gap_s: float, rate_hz: float,
-                   replace: bool = False) -> str:
-    """Resample the runs of `bag` (read_runs) into data set `dataset`; say what was written."""
+                   replace: bool = False, options: Any = None) -> str:
+    """
+    Resample the runs of `bag` (read_runs) into data set `dataset`; say what was written.
+
+    `options`: the ReadOptions (axes) the poses are read with.
+    """
     from octoroach_model.recordings import read_runs, save_dataset
 
-    paths = read_runs([bag], gap_s=gap_s).to_paths(rate_hz=rate_hz)
+    paths = read_runs([bag], gap_s=gap_s, options=options).to_paths(rate_hz=rate_hz)
     target = save_dataset(dataset, paths, replace=replace)
     return f'{paths.n_paths} run(s) of {paths.t[-1]:.2f} s at {rate_hz:g} Hz written to {target}'
 
@@ -336,10 +347,14 @@ class Recorder(Node):
         if os.path.lexists(dataset) and not own:
             raise OutputError(f'dataset {dataset} exists and was not written by this '
                               'recorder; it is left as it is')
+        from octoroach_model.recordings import ReadOptions
+
+        options = ReadOptions(forward_axis=str(self.get_parameter('forward_axis').value),
+                              up_axis=str(self.get_parameter('up_axis').value))
         message = export_dataset(self._bag.path, dataset,
                                  float(self.get_parameter('gap_s').value),
                                  float(self.get_parameter('export_rate_hz').value),
-                                 replace=own)
+                                 replace=own, options=options)
         self._own_dataset = _identity(dataset)
         return message
 

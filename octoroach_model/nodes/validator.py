@@ -5,7 +5,8 @@ A thin adapter. `~/validate` and `~/diagnose` (std_srvs/srv/Trigger) take the pa
 force at the call, hand the work to a worker thread and answer with the JSON result; the
 statistics of the last validation are latched on `~/violation`. What a call does, without ROS,
 is `octoroach_model.validation_jobs`: the measured runs are read at the first call and again
-whenever `bags`, `topic`, `gap_s`, `min_duration_s` or the files behind them change, so a bag
+whenever `bags`, `topic`, the axes, `gap_s`, `min_duration_s` or the files behind them change,
+so a bag
 that a recorder is still writing is validated as it is at each call.
 
 Why a worker thread: a validation takes seconds to minutes, and the node must keep answering
@@ -89,11 +90,17 @@ def validator_specs() -> list[ParamSpec]:
     """List every parameter but `bags` (declared apart: an empty list has no type)."""
     from octoroach_model.model import DRAWS
     from octoroach_model.recordings import DEFAULT_GAP_S
+    from octoroach_model.recordings.axes import FORWARD_AXES, UP_AXES
     from octoroach_model.validation import ValidationSettings
 
     d = ValidationSettings()
     return [
         ParamSpec('topic', '', 'pose topic in the bags; empty: the VICON one found there'),
+        ParamSpec('forward_axis', 'x', 'the body axis the robot walks along; heading = that '
+                  "axis's yaw", choices=FORWARD_AXES),
+        ParamSpec('up_axis', 'z', "the up axis of the bags' world (y: OptiTrack Motive's "
+                  'default; -y: a camera frame); poses are turned so that it is z',
+                  choices=UP_AXES),
         ParamSpec('gap_s', float(DEFAULT_GAP_S), 'a pause in the poses longer than this '
                   'splits runs (bags without run markers)', 's', 0.05, 60.0),
         ParamSpec('min_duration_s', 0.0, 'runs shorter than this are left out (0: none; all '

@@ -1,98 +1,108 @@
 """
-Pose streams from any input: ROS 2 and ROS 1 bags here, motion-capture files by dispatch.
+Pose streams from any input: ROS 2 and ROS 1 bags here, files by their readers.
 
 `iter_pose_samples` turns each source into pose streams, delivered chunk by chunk
-(`PoseChunk`), never holding a bag in memory. Inputs:
+(`PoseChunk`), never holding an input in memory. Inputs (`sources.input_kind`):
 
 - rosbag2 bags (MCAP or sqlite3) and ROS 1 bags, read by `reader.BagReader`;
-- Vicon CSV exports (.csv) and C3D files (.c3d), read by `vicon_csv` and `c3d_file`.
+- Vicon CSV exports, C3D files, Qualisys TSV exports and trajectory tables (TUM, EuRoC/ASL,
+  CSV with a header), read by `vicon_csv`, `c3d_file`, `qualisys` and `tables`.
 
-Which stream is the robot (`ReadOptions`): the topic named by `topic`; else
-``/vicon/octoroach/octoroach``; else every topic whose type holds a pose (TransformStamped,
-PoseStamped, Odometry, a bag's own type with a Pose or Transform inside; see
-`pose_messages`), each its own stream; else the transform lists on /tf (and /tf_static):
-the child frame named by `frame`, else the only moving one. A child frame that only
-/tf_static attaches to a moving frame is followed through that static chain.
+Every source's chunks pass `streams.watch_streams` (the clock, the up axis, the density).
 
-Sample time: the message's header stamp when non-zero, else the log (receive) time. Heading:
-the yaw of the child frame plus the forward-axis offset (`ReadOptions.forward_axis`).
+Which streams of a bag are the robot: `choose_streams`, the one place that decides, for every
+program. In order:
+
+1. `topic` names the topic (a topic of single poses; a list of poses, then the element by
+   `frame` or `subject`, else the only one that moves);
+2. `frame` names a child frame on /tf (a frame attached to a moving one only through
+   /tf_static is followed through that static chain);
+3. otherwise ``/vicon/<subject>/<subject>`` when `subject` names one, else
+   ``/vicon/octoroach/octoroach`` if the bag has it;
+4. otherwise the candidates are every topic of single poses (TransformStamped, PoseStamped,
+   Odometry, a bag's own type with a Pose or Transform inside; see `pose_messages`) and every
+   body that moves in an array of named bodies (MOCAP4ROS2 RigidBodies, NamedPoseArray, any
+   type of that shape, read from the bag's own definition), narrowed to `subject` where it
+   names one. One candidate is the robot. Several are several robots only when every one is
+   a VICON subject topic ``/vicon/S/S`` (a recording of many robots); else the choice is the
+   user's, and the error lists every candidate with its type and rate;
+5. with no candidate, the transform lists on /tf: the only child frame that moves.
+
+Sample time: the message's header stamp when non-zero, else the log (receive) time; then
+`streams` keeps the steadier of the two clocks. Position: the pose's x, y, z turned into the
+z-up world; heading: the yaw of the forward axis (`axes`). An orientation that is not a
+rotation (an all-zero quaternion of an occluded body) is a dropped frame, counted in the notes.
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
+import importlib
 import math
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from octoroach_model.errors import BagError, ParameterError
+from octoroach_model.recordings.axes import axes_words, Orientations, to_z_up
+from octoroach_model.recordings.chunks import PoseChunk
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.pose_messages import (
     frame_getter,
     full_pose_getter,
     FullPose,
+    list_layout,
+    ListKind,
+    ListLayout,
     pose_getter,
     pose_layout,
     PoseLayout,
-    tf_layout,
-    TfLayout,
+    stamp_getter,
 )
 from octoroach_model.recordings.reader import BagMessage, BagReader, describe_topics, TopicInfo
-from octoroach_model.recordings.sources import expand_sources, input_kind, PathLike, Sources
+from octoroach_model.recordings.sources import (
+    expand_sources,
+    input_kind,
+    InputKind,
+    PathLike,
+    Sources,
+    unknown_input_message,
+)
+from octoroach_model.recordings.streams import Progress, ReadProgress, watch_streams
 from octoroach_model.recordings.vicon import (
     DEFAULT_POSE_TOPIC,
     marker_topic,
     MARKER_TYPE,
     POSE_STAMPED,
-    quaternion_to_heading,
+    pose_topic,
     subject_of,
     TRANSFORM_STAMPED,
-    wrap_angle,
 )
 
+__all__ = ['DEFAULT_CHUNK_SIZE', 'PoseChunk', 'PoseStream', 'bag_topics', 'choose_streams',
+           'iter_bag_pose_chunks', 'iter_pose_samples', 'iter_source_pose_chunks',
+           'read_options']
+
 DEFAULT_CHUNK_SIZE = 10_000
-# A /tf frame "moves" when its position spans more than this, or its yaw more than MOVING_RAD
+# A pose in a list "moves" when its position spans more than this, or it turns (about any
+# axis: a spinning wheel moves) by more than MOVING_RAD
 MOVING_M = 1e-3
 MOVING_RAD = 1e-3
+# Intervals per stream kept to state its rate (the median interval: pauses between runs do
+# not lower it)
+RATE_INTERVALS = 4096
 _PLAIN_TYPES = (TRANSFORM_STAMPED, POSE_STAMPED)
 Quaternion = tuple[float, float, float, float]  # qx, qy, qz, qw
-
-
-class PoseChunk(NamedTuple):
-    """
-    A block of consecutive samples of one pose stream, with the markers that came with them.
-
-    `sequence` numbers every pose and marker message of a source in arrival (file) order, so
-    a marker splits a stream exactly where the recorder received it. Times are int64 ns;
-    x, y in metres, heading in radians in (-pi, pi].
-    """
-
-    source: str
-    topic: str
-    marker_topic: str
-    sequence: np.ndarray
-    stamp_ns: np.ndarray
-    log_time_ns: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    heading: np.ndarray
-    marker_sequence: np.ndarray
-    marker_log_time_ns: np.ndarray
-    marker_value: np.ndarray
-    is_last: bool
-    truncated: bool
-
-    @property
-    def stamp_s(self) -> np.ndarray:
-        """Sample times in seconds (absolute; float64 keeps about 0.2 us)."""
-        return self.stamp_ns / 1e9
-
-    @property
-    def poses(self) -> np.ndarray:
-        """(k, 3) x, y, heading."""
-        return np.column_stack([self.x, self.y, self.heading])
+# The reader of each kind of file: module, function, what the format is called
+_FILE_READERS = {
+    InputKind.VICON_CSV: ('vicon_csv', 'iter_csv_pose_chunks', 'Vicon CSV exports'),
+    InputKind.C3D: ('c3d_file', 'iter_c3d_pose_chunks', 'C3D files'),
+    InputKind.QUALISYS_TSV: ('qualisys', 'iter_tsv_pose_chunks', 'Qualisys TSV exports'),
+    InputKind.TABLE: ('tables', 'iter_table_pose_chunks', 'trajectory tables'),
+}
+# The most candidates an error lists
+_LISTED = 12
 
 
 def read_options(options: ReadOptions | None = None, topic: str | None = None) -> ReadOptions:
@@ -108,42 +118,47 @@ def read_options(options: ReadOptions | None = None, topic: str | None = None) -
 
 def iter_pose_samples(sources: Sources, *, topic: str | None = None,
                       notes: list[str] | None = None, chunk_size: int = DEFAULT_CHUNK_SIZE,
-                      options: ReadOptions | None = None) -> Iterator[PoseChunk]:
+                      options: ReadOptions | None = None, gap_s: float | None = None,
+                      progress: Progress | None = None) -> Iterator[PoseChunk]:
     """
     Pose samples of every source, chunk by chunk, without holding an input in memory.
 
-    `sources`: bags (rosbag2 directories, .mcap files, ROS 1 .bag files), motion-capture
-    exports (.csv, .c3d), or folders of them. Which stream: see the module docstring. Every
-    stream ends with one chunk whose `is_last` is True. What was converted, skipped or
-    damaged is appended to `notes` in plain words.
+    `sources`: bags, motion-capture files, trajectory tables, or folders of them. Which
+    stream: see the module docstring. Every stream ends with one chunk whose `is_last` is
+    True. What was converted, skipped or damaged is appended to `notes` in plain words. With
+    `gap_s`, a stream too sparse to form runs is refused; `progress(fraction, message)` hears
+    how far the reading has got.
     """
     notes = notes if notes is not None else []
     options = read_options(options, topic)
-    for path in expand_sources(sources):
-        yield from iter_source_pose_chunks(path, options, notes, max(1, int(chunk_size)))
+    paths = expand_sources(sources)
+    tracker = ReadProgress(progress, paths)
+    for index, path in enumerate(paths):
+        yield from tracker.follow(index, path, iter_source_pose_chunks(
+            path, options, notes, max(1, int(chunk_size)), gap_s=gap_s))
 
 
 def iter_source_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
-                            chunk_size: int = DEFAULT_CHUNK_SIZE) -> Iterator[PoseChunk]:
-    """Yield the pose streams of one source, by its kind (bag, Vicon CSV, C3D)."""
+                            chunk_size: int = DEFAULT_CHUNK_SIZE, *,
+                            gap_s: float | None = None) -> Iterator[PoseChunk]:
+    """Yield the pose streams of one source, by its kind, through `streams.watch_streams`."""
     kind = input_kind(path)
-    if kind == 'csv':
-        reader = _mocap_reader('vicon_csv', 'iter_csv_pose_chunks', 'Vicon CSV exports')
-        yield from reader(path, options, notes, chunk_size)
-    elif kind == 'c3d':
-        reader = _mocap_reader('c3d_file', 'iter_c3d_pose_chunks', 'C3D files')
-        yield from reader(path, options, notes, chunk_size)
-    elif kind == 'dataset':
+    if kind is InputKind.DATASET:
         raise BagError(f'{path}: a multisample data set holds runs, not pose streams '
                        '(load_measured reads it)')
+    if kind is InputKind.UNKNOWN:
+        raise BagError(unknown_input_message(path))
+    if kind is InputKind.BAG:
+        chunks = iter_bag_pose_chunks(path, options, notes, chunk_size)
     else:
-        yield from iter_bag_pose_chunks(path, options, notes, chunk_size)
+        reader = _file_reader(*_FILE_READERS[kind])
+        chunks = reader(path, options, notes, chunk_size)
+    yield from watch_streams(chunks, options, notes, from_files=kind is not InputKind.BAG,
+                             gap_s=gap_s)
 
 
-def _mocap_reader(module: str, function: str, what: str) -> Callable[..., Iterator[PoseChunk]]:
-    """Import the reader of a motion-capture format when first needed."""
-    import importlib
-
+def _file_reader(module: str, function: str, what: str) -> Callable[..., Iterator[PoseChunk]]:
+    """Import the reader of a file format when first needed."""
     try:
         return getattr(importlib.import_module(f'octoroach_model.recordings.{module}'),
                        function)
@@ -161,44 +176,42 @@ def bag_topics(source: PathLike) -> dict[str, TopicInfo]:
 # Which streams a bag holds
 
 
-@dataclass
-class _Buffer:
-    """Samples of one stream since the last chunk, as flat Python lists (cheap appends)."""
+@dataclass(frozen=True)
+class PoseStream:
+    """One pose stream a bag offers: its topic, type, name in a list, size and rate."""
 
-    source: str
-    label: str
-    marker: str = ''
-    integers: list[int] = field(default_factory=list)  # sequence, stamp, log time per sample
-    floats: list[float] = field(default_factory=list)  # x, y, qx, qy, qz, qw per sample
-    markers: list[int] = field(default_factory=list)  # sequence, log time, value per marker
+    topic: str
+    msgtype: str
+    name: str = ''  # the child frame or body in a list of poses; '' for single poses
+    count: int = -1
+    rate_hz: float = math.nan
 
-    def __len__(self) -> int:
-        return len(self.integers) // 3
+    @property
+    def label(self) -> str:
+        """Return the stream's name in notes and runs: the topic, or topic:name."""
+        return f'{self.topic}:{self.name}' if self.name else self.topic
 
-    def flush(self, offset_rad: float, is_last: bool = False,
-              truncated: bool = False) -> PoseChunk:
-        integers = np.array(self.integers, dtype=np.int64).reshape(-1, 3)
-        floats = np.array(self.floats, dtype=float).reshape(-1, 6)
-        markers = np.array(self.markers, dtype=np.int64).reshape(-1, 3)
-        self.integers, self.floats, self.markers = [], [], []
-        heading = quaternion_to_heading(floats[:, 2], floats[:, 3], floats[:, 4], floats[:, 5])
-        if offset_rad:
-            heading = wrap_angle(heading + offset_rad)
-        return PoseChunk(self.source, self.label, self.marker, integers[:, 0], integers[:, 1],
-                         integers[:, 2], floats[:, 0], floats[:, 1], heading, markers[:, 0],
-                         markers[:, 1], markers[:, 2], is_last, truncated)
+    @property
+    def subject(self) -> str | None:
+        """Return the subject a stream belongs to: S of /vicon/S/S, or a body's name."""
+        return self.name or subject_of(self.topic)
+
+    def describe(self) -> str:
+        """Say '/topic [type, 100 Hz]' for messages."""
+        rate = f'{self.rate_hz:.3g} Hz' if math.isfinite(self.rate_hz) else 'rate unknown'
+        return f'{self.label} [{self.msgtype}, {rate}]'
 
 
 @dataclass
-class _TfChoice:
-    """The /tf child frame to follow, and the static chain below it (if any)."""
+class _ListChoice:
+    """One followed element of a list of poses, and the static chain below it (if any)."""
 
-    topics: list[str]  # transform-list topics holding `parent` (or the frame itself)
-    layout: TfLayout
-    frame: str  # the followed frame
-    moving_frame: str  # the frame found on /tf (== frame unless a static chain follows)
+    topic: str
+    layout: ListLayout
+    name: str  # the followed frame or body
+    listed_name: str  # the name found in the list (== name unless a static chain follows)
     parent: str
-    static: FullPose | None = None  # x, y, z, qx, qy, qz, qw of frame in moving_frame
+    static: FullPose | None = None  # x, y, z, qx, qy, qz, qw of `name` in `listed_name`
 
 
 @dataclass
@@ -206,19 +219,19 @@ class _Plan:
     """What to read from one bag."""
 
     pose_topics: dict[str, PoseLayout] = field(default_factory=dict)
-    tf: _TfChoice | None = None
+    lists: list[_ListChoice] = field(default_factory=list)
 
 
 def _layouts(reader: BagReader, topics: dict[str, TopicInfo]
-             ) -> tuple[dict[str, PoseLayout], dict[str, TfLayout]]:
-    """Topics holding single poses, and topics holding transform lists."""
+             ) -> tuple[dict[str, PoseLayout], dict[str, ListLayout]]:
+    """Topics holding single poses, and topics holding lists of poses."""
     fielddefs = reader.fielddefs
     poses: dict[str, PoseLayout] = {}
-    lists: dict[str, TfLayout] = {}
+    lists: dict[str, ListLayout] = {}
     for name, info in topics.items():
         if info.serialization_format not in ('cdr', 'ros1') or info.msgtype == MARKER_TYPE:
             continue
-        listed = tf_layout(info.msgtype, fielddefs)
+        listed = list_layout(info.msgtype, fielddefs)
         if listed is not None:
             lists[name] = listed
             continue
@@ -228,126 +241,246 @@ def _layouts(reader: BagReader, topics: dict[str, TopicInfo]
     return poses, lists
 
 
-def _plan(reader: BagReader, topics: dict[str, TopicInfo], options: ReadOptions,
-          notes: list[str]) -> _Plan:
+class _Rate:
+    """The median interval of a stream's times, from its first RATE_INTERVALS intervals."""
+
+    def __init__(self) -> None:
+        """Start with no time seen."""
+        self.last: int | None = None
+        self.intervals: list[int] = []
+
+    def add(self, stamp_ns: int) -> None:
+        if self.last is not None and stamp_ns > self.last \
+                and len(self.intervals) < RATE_INTERVALS:
+            self.intervals.append(stamp_ns - self.last)
+        self.last = stamp_ns
+
+    @property
+    def hz(self) -> float:
+        return 1e9 / float(np.median(self.intervals)) if self.intervals else math.nan
+
+
+def _topic_rates(reader: BagReader, topics: list[str]) -> dict[str, float]:
+    """Return each topic's rate from the log times of its messages (one pass, no decoding)."""
+    rates = {topic: _Rate() for topic in topics}
+    for message in reader.messages(topics):
+        rates[message.topic].add(message.log_time_ns)
+        if all(len(rate.intervals) >= RATE_INTERVALS for rate in rates.values()):
+            break
+    return {topic: rate.hz for topic, rate in rates.items()}
+
+
+def choose_streams(reader: BagReader, topics: dict[str, TopicInfo],
+                   options: ReadOptions) -> _Plan:
+    """Decide which streams of a bag are the robot (module docstring); BagError if unclear."""
     name = reader.name
     poses, lists = _layouts(reader, topics)
     wanted = options.topic
-    if wanted is None and options.frame is None and DEFAULT_POSE_TOPIC in topics:
-        wanted = DEFAULT_POSE_TOPIC
+    if wanted is None and options.frame is None:
+        by_subject = pose_topic(options.subject) if options.subject else None
+        if by_subject in poses:
+            wanted = by_subject
+        elif DEFAULT_POSE_TOPIC in topics:
+            wanted = DEFAULT_POSE_TOPIC
     if wanted is not None:
         if wanted not in topics:
             raise BagError(f'{name}: no topic {wanted}; {describe_topics(topics)}')
         if wanted in poses:
             return _Plan({wanted: poses[wanted]})
         if wanted in lists:
-            return _Plan(tf=_choose_frame(reader, {wanted: lists[wanted]}, lists, options))
+            return _Plan(lists=[_choose_in_list(reader, {wanted: lists[wanted]}, lists,
+                                                options)])
         unreadable = reader.types.unreadable.get(topics[wanted].msgtype)
         why = f' ({unreadable})' if unreadable else ''
         raise BagError(f'{name}: topic {wanted} has type {topics[wanted].msgtype}{why}, '
                        f'expected {TRANSFORM_STAMPED} or {POSE_STAMPED} (or Odometry, '
-                       'TFMessage, a type with a Pose or Transform inside)')
-    if options.frame is None and poses:
-        return _Plan(poses)
-    if lists:
-        dynamic = {topic: layout for topic, layout in lists.items()
-                   if not topic.endswith('_static')}
-        if not dynamic:
+                       'TFMessage, an array of named bodies, a type with a Pose or Transform '
+                       'inside)')
+    transforms = {topic: layout for topic, layout in lists.items()
+                  if layout.kind is ListKind.TRANSFORMS and not topic.endswith('_static')}
+    if options.frame is not None:
+        if not transforms:
+            raise BagError(f'{name}: no /tf topic to find frame {options.frame} in; '
+                           f'{describe_topics(topics)}')
+        return _Plan(lists=[_choose_in_list(reader, transforms, lists, options)])
+    named = {topic: layout for topic, layout in lists.items()
+             if layout.kind is ListKind.NAMED}
+    candidates = [PoseStream(topic, topics[topic].msgtype, '', topics[topic].count)
+                  for topic in poses]
+    if named:
+        seen = _scan(reader, named, {})[0]
+        moving = [key for key, entry in seen.items() if entry.moves] or list(seen)
+        candidates += [PoseStream(topic, named[topic].msgtype, body, seen[(topic, body)].count,
+                                  seen[(topic, body)].rate_hz) for topic, body in moving]
+    if options.subject is not None:
+        own = [stream for stream in candidates if stream.subject == options.subject]
+        if own:
+            candidates = own
+        elif len(candidates) > 1 or any(stream.name for stream in candidates):
+            _no_subject(name, options.subject, candidates)
+    if not candidates:
+        if transforms:
+            return _Plan(lists=[_choose_in_list(reader, transforms, lists, options)])
+        if lists:
             raise BagError(f'{name}: only static transforms ({", ".join(sorted(lists))}); '
                            'nothing moves')
-        return _Plan(tf=_choose_frame(reader, dynamic, lists, options))
-    if options.frame is not None:
-        raise BagError(f'{name}: no /tf topic to find frame {options.frame} in; '
-                       f'{describe_topics(topics)}')
-    undecodable = sorted(reader.types.unreadable)
-    why = f'; undecodable types: {", ".join(undecodable)}' if undecodable else ''
-    raise BagError(f'{name}: no pose topic ({TRANSFORM_STAMPED} or {POSE_STAMPED}, Odometry, '
-                   f'TFMessage); {describe_topics(topics)}{why}')
+        undecodable = sorted(reader.types.unreadable)
+        why = f'; undecodable types: {", ".join(undecodable)}' if undecodable else ''
+        raise BagError(f'{name}: no pose topic ({TRANSFORM_STAMPED} or {POSE_STAMPED}, '
+                       f'Odometry, TFMessage, an array of named bodies); '
+                       f'{describe_topics(topics)}{why}')
+    robots = len(candidates) > 1 and all(not stream.name and subject_of(stream.topic)
+                                         for stream in candidates)
+    if len(candidates) > 1 and not robots:
+        rates = _topic_rates(reader, [stream.topic for stream in candidates if not stream.name])
+        candidates = [stream if stream.name else replace(stream, rate_hz=rates[stream.topic])
+                      for stream in candidates]
+        raise BagError(f'{name}: several pose streams: {_listed(candidates)}; choose one with '
+                       '--topic' + (' (a body of an array with --topic and --subject)'
+                                    if any(stream.name for stream in candidates) else ''))
+    plan = _Plan()
+    for stream in candidates:
+        if stream.name:
+            plan.lists.append(_ListChoice(stream.topic, named[stream.topic], stream.name,
+                                          stream.name, ''))
+        else:
+            plan.pose_topics[stream.topic] = poses[stream.topic]
+    return plan
+
+
+def _listed(streams: list[PoseStream]) -> str:
+    said = ', '.join(stream.describe() for stream in streams[:_LISTED])
+    return said + (f' and {len(streams) - _LISTED} more' if len(streams) > _LISTED else '')
+
+
+def _no_subject(name: str, subject: str, candidates: list[PoseStream]) -> None:
+    """Refuse a subject that names none of several streams (with one, it names run markers)."""
+    listed = ', '.join(sorted({stream.subject or '' for stream in candidates} - {''}))
+    raise BagError(f'{name}: no stream of subject {subject!r} among {_listed(candidates)} '
+                   f'(subjects: {listed or "none"})')
 
 
 @dataclass
-class _FrameSeen:
-    """What the scan of /tf saw of one child frame."""
+class _Seen:
+    """What the scan of a list of poses saw of one element (a child frame or a body)."""
 
     parent: str
-    topic: str
     count: int = 0
+    rate: _Rate = field(default_factory=_Rate)
     low: list[float] = field(default_factory=lambda: [math.inf] * 3)
     high: list[float] = field(default_factory=lambda: [-math.inf] * 3)
+    first_q: Quaternion | None = None
+    turned_rad: float = 0.0
 
-    def add(self, x: float, y: float, yaw: float) -> None:
-        for axis, value in enumerate((x, y, yaw)):
+    def add(self, stamp_ns: int, position: tuple[float, float, float],
+            q: Quaternion) -> None:
+        self.count += 1
+        self.rate.add(stamp_ns)
+        for axis, value in enumerate(position):
             if value < self.low[axis]:
                 self.low[axis] = value
             if value > self.high[axis]:
                 self.high[axis] = value
+        norm = math.sqrt(sum(c * c for c in q))
+        if not (math.isfinite(norm) and norm > 0):
+            return
+        if self.first_q is None:
+            self.first_q = (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm)
+            return
+        dot = abs(sum(a * b for a, b in zip(self.first_q, q))) / norm
+        self.turned_rad = max(self.turned_rad, 2.0 * math.acos(min(1.0, dot)))
 
     @property
     def moves(self) -> bool:
-        """Whether the frame's position or yaw changed over the bag."""
-        span = [high - low for low, high in zip(self.low, self.high)]
-        turned = min(span[2], 2 * math.pi - span[2])  # yaw near +-pi wraps
-        return span[0] > MOVING_M or span[1] > MOVING_M or turned > MOVING_RAD
+        """Whether the element's position or orientation (about any axis) changed."""
+        span = max(high - low for low, high in zip(self.low, self.high))
+        return span > MOVING_M or self.turned_rad > MOVING_RAD
+
+    @property
+    def rate_hz(self) -> float:
+        """Return its rate: one over its median interval."""
+        return self.rate.hz
 
 
-def _choose_frame(reader: BagReader, dynamic: dict[str, TfLayout],
-                  lists: dict[str, TfLayout], options: ReadOptions) -> _TfChoice:
-    """Scan the transform lists once: which child frames there are, and which move."""
-    name = reader.name
-    statics = [topic for topic in lists if topic.endswith('_static')]
-    seen: dict[str, _FrameSeen] = {}
+def _scan(reader: BagReader, dynamic: dict[str, ListLayout], statics: dict[str, ListLayout]
+          ) -> tuple[dict[tuple[str, str], _Seen], dict[str, tuple[str, FullPose]]]:
+    """Read the lists once: which elements there are, how often, whether they move."""
+    seen: dict[tuple[str, str], _Seen] = {}
     static: dict[str, tuple[str, FullPose]] = {}  # child -> (parent, pose)
     getters = {topic: (attrgetter_list(layout.field), pose_getter(layout.element),
-                       frame_getter(layout.element.child_frame),
-                       frame_getter(layout.element.parent_frame),
-                       full_pose_getter(layout.element))
-               for topic, layout in lists.items()}
+                       frame_getter(layout.name), frame_getter(layout.element.parent_frame),
+                       full_pose_getter(layout.element), stamp_getter(layout.stamp))
+               for topic, layout in {**dynamic, **statics}.items()}
     for message in reader.messages(list(getters)):
         try:
             decoded = reader.decode(message)
         except Exception:  # noqa: BLE001 - counted when the stream is read
             continue
-        transforms, pose, child, parent, full_pose = getters[message.topic]
-        for transform in transforms(decoded):
-            frame = child(transform)
-            sample = pose(transform)
+        elements, pose, name_of, parent, full_pose, outer = getters[message.topic]
+        for element in elements(decoded):
+            name = name_of(element)
             if message.topic in dynamic:
-                entry = seen.get(frame)
+                sample = pose(element)
+                key = (message.topic, name)
+                entry = seen.get(key)
                 if entry is None:
-                    entry = seen[frame] = _FrameSeen(parent(transform), message.topic)
-                entry.count += 1
-                entry.add(sample[1], sample[2], float(quaternion_to_heading(*sample[3:])))
-            elif message.topic in statics and frame not in static:
-                static[frame] = (parent(transform), full_pose(transform))
-    wanted = options.frame.lstrip('/') if options.frame else None
+                    entry = seen[key] = _Seen(parent(element))
+                stamp = sample[0] or outer(decoded) or message.log_time_ns
+                entry.add(stamp, sample[1:4], sample[4:])
+            elif name not in static:
+                static[name] = (parent(element), full_pose(element))
+    return seen, static
+
+
+def _choose_in_list(reader: BagReader, dynamic: dict[str, ListLayout],
+                    lists: dict[str, ListLayout], options: ReadOptions) -> _ListChoice:
+    """Choose the followed element of lists of poses: the one named, or the only moving one."""
+    name = reader.name
+    kinds = {layout.kind for layout in dynamic.values()}
+    transforms = ListKind.TRANSFORMS in kinds
+    statics = {topic: layout for topic, layout in lists.items()
+               if topic.endswith('_static') and layout.kind is ListKind.TRANSFORMS} \
+        if transforms else {}
+    seen, static = _scan(reader, dynamic, statics)
+    layout = next(iter(dynamic.values()))
+    on = ', '.join(sorted(dynamic))
+    wanted = options.frame if transforms else options.subject
+    wanted = wanted.lstrip('/') if wanted else None
+    by_name = {element: topic for topic, element in seen}
     if wanted is not None:
-        if wanted in seen:
-            frame = wanted
-        else:
-            chain = _static_chain(wanted, static, seen)
-            if chain is None:
-                listed = ', '.join(sorted(seen)) or 'none'
-                raise BagError(f'{name}: no transform to child frame {wanted} on '
-                               f'{", ".join(sorted(dynamic))} (child frames: {listed})')
-            moving_frame, frame_pose = chain
-            entry = seen[moving_frame]
-            return _TfChoice([entry.topic], dynamic[entry.topic], wanted, moving_frame,
-                             entry.parent, frame_pose)
-    else:
-        moving = sorted(frame for frame, entry in seen.items() if entry.moves)
-        candidates = moving or sorted(seen)
-        if not candidates:
-            raise BagError(f'{name}: no transform on {", ".join(sorted(dynamic))}')
-        if len(candidates) > 1:
-            raise BagError(f'{name}: several moving frames on {", ".join(sorted(dynamic))} '
-                           f'({", ".join(candidates)}); choose one with --frame')
-        frame = candidates[0]
-    entry = seen[frame]
-    return _TfChoice([entry.topic], dynamic[entry.topic], frame, frame, entry.parent)
+        if wanted in by_name:
+            topic = by_name[wanted]
+            return _ListChoice(topic, dynamic[topic], wanted, wanted, seen[(topic, wanted)].parent)
+        chain = _static_chain(wanted, static, by_name) if transforms else None
+        if chain is None:
+            listed = ', '.join(sorted(by_name)) or 'none'
+            raise BagError(f'{name}: no {layout.what} {wanted} on {on} '
+                           f'({layout.what}s: {listed})')
+        listed_name, frame_pose = chain
+        topic = by_name[listed_name]
+        return _ListChoice(topic, dynamic[topic], wanted, listed_name,
+                           seen[(topic, listed_name)].parent, frame_pose)
+    moving = sorted(key for key, entry in seen.items() if entry.moves)
+    candidates = moving or sorted(seen)
+    if not candidates:
+        raise BagError(f'{name}: no {"transform" if transforms else "body"} on {on}')
+    if len(candidates) > 1:
+        what = 'moving frames' if transforms else 'moving bodies'
+        rates = ', '.join(f'{element} at {_rate_words(seen[(topic, element)].rate_hz)}'
+                          for topic, element in candidates[:_LISTED])
+        more = f' and {len(candidates) - _LISTED} more' if len(candidates) > _LISTED else ''
+        raise BagError(f'{name}: several {what} on {on} [{layout.msgtype}] ({rates}{more}); '
+                       f'choose one with {layout.option}')
+    topic, element = candidates[0]
+    return _ListChoice(topic, dynamic[topic], element, element, seen[(topic, element)].parent)
+
+
+def _rate_words(rate_hz: float) -> str:
+    return f'{rate_hz:.3g} Hz' if math.isfinite(rate_hz) else 'an unknown rate'
 
 
 def attrgetter_list(path: str) -> Callable[[Any], list[Any]]:
-    """Get a message's list of transforms."""
+    """Get a message's list of poses."""
     from operator import attrgetter
 
     get = attrgetter(path)
@@ -355,8 +488,8 @@ def attrgetter_list(path: str) -> Callable[[Any], list[Any]]:
 
 
 def _static_chain(frame: str, static: dict[str, tuple[str, FullPose]],
-                  seen: dict[str, _FrameSeen]) -> tuple[str, FullPose] | None:
-    """Follow /tf_static up to a moving frame: (that frame, pose of `frame` in it) or None."""
+                  moving: dict[str, str]) -> tuple[str, FullPose] | None:
+    """Follow /tf_static up to a frame on /tf: (that frame, pose of `frame` in it) or None."""
     pose: FullPose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     current = frame
     for _ in range(32):
@@ -364,7 +497,7 @@ def _static_chain(frame: str, static: dict[str, tuple[str, FullPose]],
             return None
         parent, link = static[current]
         pose = _compose(link, pose)
-        if parent in seen:
+        if parent in moving:
             return parent, pose
         current = parent
     return None
@@ -390,12 +523,12 @@ def _compose(outer: FullPose, inner: FullPose) -> FullPose:
             *_quaternion_product(outer[3:], inner[3:]))
 
 
-def _marker_topics(name: str, topics: dict[str, TopicInfo], streams: dict[str, str],
+def _marker_topics(name: str, topics: dict[str, TopicInfo], subjects: dict[str, str | None],
                    options: ReadOptions, notes: list[str]) -> dict[str, str]:
     """
     Stream label -> its run-marker topic, for markers present with at least one message.
 
-    `streams` maps each label to the name its subject is read from (topic or frame).
+    `subjects` maps each label to the subject of its stream (None when it has none).
     """
     def usable(candidate: str) -> bool:
         info = topics.get(candidate)
@@ -408,21 +541,51 @@ def _marker_topics(name: str, topics: dict[str, TopicInfo], streams: dict[str, s
         return True
 
     found: dict[str, str] = {}
-    for label, source_name in streams.items():
-        subject = options.subject if options.subject and len(streams) == 1 \
-            else subject_of(source_name)
+    for label, own in subjects.items():
+        subject = options.subject if options.subject and len(subjects) == 1 else own
         if subject is not None and usable(marker_topic(subject)):
             found[label] = marker_topic(subject)
-    if len(streams) == 1 and not found:
+    if len(subjects) == 1 and not found:
         others = [t for t, info in topics.items()
                   if t.endswith('/run_start') and info.msgtype == MARKER_TYPE and info.count]
         if len(others) == 1:
-            found[next(iter(streams))] = others[0]
+            found[next(iter(subjects))] = others[0]
     return found
 
 
 # --------------------------------------------------------------------------------------------
 # Streaming the samples
+
+
+@dataclass
+class _Buffer:
+    """Samples of one stream since the last chunk, as flat Python lists (cheap appends)."""
+
+    source: str
+    label: str
+    options: ReadOptions
+    marker: str = ''
+    integers: list[int] = field(default_factory=list)  # sequence, stamp, log time per sample
+    floats: list[float] = field(default_factory=list)  # x, y, z, qx, qy, qz, qw per sample
+    markers: list[int] = field(default_factory=list)  # sequence, log time, value per marker
+    orientations: Orientations = field(default_factory=Orientations)
+
+    def __len__(self) -> int:
+        return len(self.integers) // 3
+
+    def flush(self, read_fraction: float, is_last: bool = False,
+              truncated: bool = False) -> PoseChunk:
+        integers = np.array(self.integers, dtype=np.int64).reshape(-1, 3)
+        floats = np.array(self.floats, dtype=float).reshape(-1, 7)
+        markers = np.array(self.markers, dtype=np.int64).reshape(-1, 3)
+        self.integers, self.floats, self.markers = [], [], []
+        position = to_z_up(floats[:, :3], self.options.up_axis)
+        heading = self.orientations.quaternion_headings(
+            floats[:, 3:], self.options.up_axis, self.options.forward_axis)
+        return PoseChunk(self.source, self.label, self.marker, integers[:, 0], integers[:, 1],
+                         integers[:, 2], position[:, 0], position[:, 1], heading,
+                         markers[:, 0], markers[:, 1], markers[:, 2], is_last, truncated,
+                         position[:, 2], read_fraction)
 
 
 def iter_bag_pose_chunks(path: PathLike, options: ReadOptions, notes: list[str],
@@ -435,27 +598,35 @@ def iter_bag_pose_chunks(path: PathLike, options: ReadOptions, notes: list[str],
         if reader.storage == 'mcap':
             raise BagError(f'{name}: truncated MCAP, cut before any topic was recorded')
         raise BagError(f'{name}: the bag has no topics')
-    plan = _plan(reader, topics, options, notes)
-    offset = options.heading_offset_rad
-    if plan.tf is not None:
-        tf = plan.tf
-        labels = {f'{tf.topics[0]}:{tf.frame}': tf.frame}
-        how = (f'{tf.topics[0]}, child frame {tf.frame} relative to {tf.parent}'
-               + (f' (through /tf_static from {tf.moving_frame})' if tf.static else ''))
+    plan = choose_streams(reader, topics, options)
+    subjects: dict[str, str | None] = {}
+    for choice in plan.lists:
+        label = f'{choice.topic}:{choice.name}'
+        subjects[label] = subject_of(choice.name) if choice.layout.kind is \
+            ListKind.TRANSFORMS else choice.name
+        kind = '' if choice.layout.kind is ListKind.TRANSFORMS \
+            else f' [{choice.layout.msgtype}]'
+        how = (f'{choice.topic}{kind}, {choice.layout.what} {choice.name}'
+               + (f' relative to {choice.parent}' if choice.parent else '')
+               + (f' (through /tf_static from {choice.listed_name})' if choice.static
+                  else ''))
         notes.append(f'{name}: poses from {how}')
-    else:
-        labels = {topic: topic for topic in plan.pose_topics}
-        for topic, layout in plan.pose_topics.items():
-            if layout.msgtype not in _PLAIN_TYPES:
-                notes.append(f'{name}: poses from {topic} [{layout.msgtype}], fields '
-                             f'{layout.description}')
+    for topic, layout in plan.pose_topics.items():
+        subjects[topic] = subject_of(topic)
+        if layout.msgtype not in _PLAIN_TYPES:
+            notes.append(f'{name}: poses from {topic} [{layout.msgtype}], fields '
+                         f'{layout.description}')
+    if len(subjects) > 1:
+        notes.append(f'{name}: {len(subjects)} pose streams, read as {len(subjects)} robots '
+                     f'(VICON subjects): {", ".join(sorted(subjects))}')
     if reader.storage == 'ros1':
         notes.append(f'{name}: ROS 1 bag (rosbag format 2.0), read with rosbags')
-    if offset:
-        notes.append(f'{name}: heading = yaw of the body + {math.degrees(offset):g} deg '
-                     f'(forward axis {options.forward_axis})')
-    markers = _marker_topics(name, topics, labels, options, notes)
-    buffers = {label: _Buffer(name, label, markers.get(label, '')) for label in labels}
+    if options.forward_axis != 'x' or options.up_axis != 'z':
+        notes.append(f'{name}: forward axis {options.forward_axis}, up axis '
+                     f'{options.up_axis}: {axes_words(options.up_axis, options.forward_axis)}')
+    markers = _marker_topics(name, topics, subjects, options, notes)
+    buffers = {label: _Buffer(name, label, options, markers.get(label, ''))
+               for label in subjects}
     listeners: dict[str, list[_Buffer]] = {}
     for label, marker in markers.items():
         listeners.setdefault(marker, []).append(buffers[label])
@@ -474,15 +645,18 @@ def iter_bag_pose_chunks(path: PathLike, options: ReadOptions, notes: list[str],
                 target.markers += (counter.sequence, message.log_time_ns, value)
             if message.topic not in handlers:
                 continue
-        full = handlers[message.topic](decoded, message, counter)
-        if full is not None and len(full) >= chunk_size:
-            yield full.flush(offset)
+        for full in handlers[message.topic](decoded, message, counter):
+            if len(full) >= chunk_size:
+                yield full.flush(reader.read_fraction)
     if counter.undecodable:
         notes.append(f'{name}: {counter.undecodable} undecodable message(s) skipped')
-    if plan.tf is not None and not counter.samples:
-        notes.append(f'{name}: no transform to {plan.tf.frame} could be read')
+    if plan.lists and not counter.samples:
+        notes.append(f'{name}: no pose of {", ".join(c.name for c in plan.lists)} could be '
+                     'read')
     for buffer in buffers.values():
-        yield buffer.flush(offset, is_last=True, truncated=reader.truncated)
+        last = buffer.flush(1.0, is_last=True, truncated=reader.truncated)
+        notes.extend(buffer.orientations.notes(f'{name} {buffer.label}'))
+        yield last
 
 
 @dataclass
@@ -492,57 +666,68 @@ class _Counter:
     undecodable: int = 0
 
 
-Handler = Callable[[Any, BagMessage, _Counter], '_Buffer | None']
+Handler = Callable[[Any, BagMessage, _Counter], list[_Buffer]]
 
 
 def _handlers(plan: _Plan, buffers: dict[str, _Buffer]) -> dict[str, Handler]:
-    """Topic -> function adding a decoded message's samples to its stream buffer."""
+    """Topic -> function adding a decoded message's samples to its stream buffers."""
     handlers: dict[str, Handler] = {}
     for topic, layout in plan.pose_topics.items():
         handlers[topic] = _single_pose_handler(layout, buffers[topic])
-    if plan.tf is not None:
-        buffer = next(iter(buffers.values()))
-        for topic in plan.tf.topics:
-            handlers[topic] = _tf_handler(plan.tf, buffer)
+    by_topic: dict[str, list[_ListChoice]] = {}
+    for choice in plan.lists:
+        by_topic.setdefault(choice.topic, []).append(choice)
+    for topic, choices in by_topic.items():
+        handlers[topic] = _list_handler(choices, buffers)
     return handlers
 
 
 def _single_pose_handler(layout: PoseLayout, buffer: _Buffer) -> Handler:
     get = pose_getter(layout)
 
-    def handle(decoded: Any, message: BagMessage, counter: _Counter) -> _Buffer:
+    def handle(decoded: Any, message: BagMessage, counter: _Counter) -> list[_Buffer]:
         sample = get(decoded)
         counter.sequence += 1
         counter.samples += 1
         buffer.integers += (counter.sequence, sample[0] or message.log_time_ns,
                             message.log_time_ns)
         buffer.floats += sample[1:]
-        return buffer
+        return [buffer]
 
     return handle
 
 
-def _tf_handler(choice: _TfChoice, buffer: _Buffer) -> Handler:
-    transforms = attrgetter_list(choice.layout.field)
-    get = pose_getter(choice.layout.element)
-    child = frame_getter(choice.layout.element.child_frame)
-    wanted, static = choice.moving_frame, choice.static
+def _list_handler(choices: list[_ListChoice], buffers: dict[str, _Buffer]) -> Handler:
+    """Handle one list topic: the samples of each followed element go to its buffer."""
+    layout = choices[0].layout
+    elements = attrgetter_list(layout.field)
+    get = pose_getter(layout.element)
+    name_of = frame_getter(layout.name)
+    outer = stamp_getter(layout.stamp)
+    wanted = {choice.listed_name: (choice, buffers[f'{choice.topic}:{choice.name}'])
+              for choice in choices}
 
-    def handle(decoded: Any, message: BagMessage, counter: _Counter) -> _Buffer | None:
-        added = None
-        for transform in transforms(decoded):
-            if child(transform) != wanted:
+    def handle(decoded: Any, message: BagMessage, counter: _Counter) -> list[_Buffer]:
+        added = []
+        message_stamp: int | None = None
+        for element in elements(decoded):
+            found = wanted.get(name_of(element))
+            if found is None:
                 continue
-            sample = get(transform)
-            if static is not None:
-                composed = _compose((sample[1], sample[2], 0.0, *sample[3:]), static)
-                sample = (sample[0], composed[0], composed[1], *composed[3:])
+            choice, buffer = found
+            stamp, x, y, z, qx, qy, qz, qw = get(element)
+            if not stamp:
+                if message_stamp is None:
+                    message_stamp = outer(decoded)
+                stamp = message_stamp
+            if choice.static is not None:
+                x, y, z, qx, qy, qz, qw = _compose((x, y, z, qx, qy, qz, qw), choice.static)
             counter.sequence += 1
             counter.samples += 1
-            buffer.integers += (counter.sequence, sample[0] or message.log_time_ns,
+            buffer.integers += (counter.sequence, stamp or message.log_time_ns,
                                 message.log_time_ns)
-            buffer.floats += sample[1:]
-            added = buffer
+            buffer.floats += (x, y, z, qx, qy, qz, qw)
+            added.append(buffer)
         return added
 
     return handle

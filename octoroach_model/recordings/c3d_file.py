@@ -6,9 +6,13 @@ converted in bounded memory (one chunk of frames at a time). The mapping (docs/f
 
 - Markers: POINT:LABELS (and LABELS2, ...), ``Subject:Marker`` as Vicon writes them; labels
   listed as model outputs (POINT:ANGLES, FORCES, MOMENTS, POWERS, SCALARS, REACTIONS) and
-  unlabelled trajectories (``*12``) are not markers. Unprefixed labels belong to the only
-  name in SUBJECTS:NAMES, if there is one. The body is `ReadOptions.markers` if given, else
-  every marker of the subject (`ReadOptions.subject`, or the only subject); it needs 3.
+  unlabelled trajectories (``*12``) are not markers. Modelled and virtual markers (labels in
+  POINT:MODELED_MARKERS, as Nexus lists the points its model computes, or in
+  POINT:VIRTUAL_MARKERS) are left out unless `ReadOptions.markers` names them. Unprefixed
+  labels belong to the only name in SUBJECTS:NAMES, if there is one. The body is
+  `ReadOptions.markers` if given (``Subject:Marker`` or bare names), else every marker of the
+  subject (`ReadOptions.subject`, or the only subject); it needs 3, moving as one rigid body
+  (`mocap.MarkerBody`).
 - Units: POINT:UNITS (mm, cm or m) converted to metres; no unit means mm, with a note.
 - Gaps: a point with a negative residual (or NaN) was not seen. A frame is fitted on the
   body markers it has; with fewer than 3 (or all on one line) it is a dropped frame.
@@ -16,7 +20,8 @@ converted in bounded memory (one chunk of frames at a time). The mapping (docs/f
   or made from the first complete frames (every body marker seen): body axes = world axes
   at the first of them, origin at the markers' centroid. Then the heading is relative to
   that frame's orientation; give the layout for headings in the robot's own frame.
-- Pose: x, y of the body origin; heading = yaw of the body axis `ReadOptions.forward_axis`.
+- Pose: x, y of the body origin in the z-up world (`ReadOptions.up_axis`); heading = yaw of
+  the body axis `ReadOptions.forward_axis`.
 - Time: frame f at POINT:RATE r is stamped (f - first frame) / r; one file is one stream
   (`topic` ``c3d:<subject>``), cut into runs by the splitter at gaps longer than gap_s.
 """
@@ -36,6 +41,7 @@ from octoroach_model.recordings.mocap import (
     axis_words,
     check_rate,
     complete_frames,
+    last_chunk,
     LAYOUT_FRAMES,
     LENGTH_UNITS,
     length_words,
@@ -51,6 +57,9 @@ from octoroach_model.recordings.options import ReadOptions
 __all__ = ['iter_c3d_pose_chunks']
 
 MODEL_OUTPUT_PARAMETERS = ('ANGLES', 'FORCES', 'MOMENTS', 'POWERS', 'SCALARS', 'REACTIONS')
+# Points a model computed from the markers (Nexus' Plug-in Gait joint centres, segment
+# origins): not measured, left out of a body unless named
+MODELLED_MARKER_PARAMETERS = ('MODELED_MARKERS', 'VIRTUAL_MARKERS')
 # What the c3d package raises on a malformed file: besides the usual ValueError, struct.error
 # and EOFError, a broken header can reach its own bugs (an UnboundLocalError, a
 # ZeroDivisionError); any of them means "not a readable C3D file", never a traceback.
@@ -85,12 +94,24 @@ def _point_labels(reader: c3d.Reader) -> list[str]:
     return labels + [''] * (reader.point_used - len(labels))
 
 
-def _marker_labels(reader: c3d.Reader) -> list[str]:
-    """Return the point labels with model outputs blanked out (they are not markers)."""
+def _marker_labels(reader: c3d.Reader, options: ReadOptions) -> tuple[list[str], list[str]]:
+    """
+    Return the point labels with what is not a marker blanked out, and the modelled ones left.
+
+    Model outputs are never markers; modelled and virtual markers are blanked unless
+    `options.markers` names markers (then they may be among them).
+    """
     outputs = set()
     for name in MODEL_OUTPUT_PARAMETERS:
         outputs.update(_strings(reader, f'POINT:{name}'))
-    return ['' if label in outputs else label for label in _point_labels(reader)]
+    modelled = set()
+    for name in MODELLED_MARKER_PARAMETERS:
+        modelled.update(_strings(reader, f'POINT:{name}'))
+    labels = ['' if label in outputs else label for label in _point_labels(reader)]
+    if options.markers:
+        return labels, []
+    left_out = [label for label in labels if label and label in modelled]
+    return ['' if label in modelled else label for label in labels], left_out
 
 
 def _layout_rows(where: str, layout: Mapping[str, Sequence[float]],
@@ -135,7 +156,7 @@ def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
         try:
             with _quiet():
                 reader = c3d.Reader(handle)
-                labels = _marker_labels(reader)
+                labels, modelled = _marker_labels(reader, options)
                 subjects = _strings(reader, 'SUBJECTS:NAMES')
                 units = _strings(reader, 'POINT:UNITS')
                 rate_hz = float(reader.point_rate)
@@ -157,6 +178,10 @@ def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
         if body.layout_m is None:
             body.set_layout_from_frames(*_first_complete(reader, chosen, scale, where))
         frame_count = last_frame - first_frame + 1
+        if modelled:
+            notes.append(f'{where}: {len(modelled)} modelled or virtual marker(s) left out of '
+                         f'the body (POINT:MODELED_MARKERS): {", ".join(modelled[:12])}'
+                         + (' ...' if len(modelled) > 12 else ''))
         notes.append(
             f'{where}: C3D, {len(names)} body markers ({", ".join(names)}) at {rate_hz:g} Hz, '
             f'frames {first_frame}..{last_frame}; '
@@ -169,21 +194,20 @@ def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
         sequence = 1
         for frames, markers_m in _frame_blocks(reader, chosen, scale, chunk_size, where):
             read += len(frames)
-            x, y, heading, valid = body.poses(markers_m)
+            x, y, z, heading, valid = body.poses(markers_m)
             if not valid.any():
                 continue
             yield pose_chunk(where, topic, sequence, stamps_ns(frames[valid], first_frame,
                                                                rate_hz),
-                             x[valid], y[valid], heading[valid])
+                             x[valid], y[valid], heading[valid], z=z[valid],
+                             read_fraction=read / max(1, frame_count))
             sequence += int(valid.sum())
         truncated = read < frame_count
         if truncated:
             notes.append(f'{where}: the file ends after {read} of its {frame_count} frames '
                          '(truncated)')
         notes.extend(body.summary.notes(where, ', '.join(names)))
-        empty = np.zeros(0)
-        yield pose_chunk(where, topic, sequence, np.zeros(0, dtype=np.int64), empty, empty,
-                         empty, is_last=True, truncated=truncated)
+        yield last_chunk(where, topic, sequence, truncated=truncated)
 
 
 def _reason(exc: BaseException) -> str:

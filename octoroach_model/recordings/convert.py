@@ -7,7 +7,10 @@ The standard bag is what `simulate` writes: `TransformStamped` on ``/vicon/S/S``
 stream is copied as it is (stamps, log times, arrival order; non-finite poses are dropped); the
 input's own run markers are kept, and where it has none a marker is put wherever a run starts
 by the reader's rule (the first sample, and every jump in the stamps longer than `gap_s`).
-Conversion streams: one chunk of samples at a time is in memory.
+Which streams an input holds is decided as for every other program (`bags.choose_streams`);
+a bag of several robots (VICON subjects ``/vicon/S/S``) is written as several subjects, each
+on its own topic. Poses come in the z-up world, so the bag is z up (REP 103). Conversion
+streams: one chunk of samples at a time is in memory.
 """
 from __future__ import annotations
 
@@ -25,6 +28,7 @@ from octoroach_model.recordings.bags import DEFAULT_CHUNK_SIZE, iter_source_pose
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.pose_writer import PoseBagWriter
 from octoroach_model.recordings.sources import expand_sources, PathLike
+from octoroach_model.recordings.streams import Progress, ReadProgress
 from octoroach_model.recordings.vicon import (
     child_frame,
     DEFAULT_SUBJECT,
@@ -55,21 +59,24 @@ class _StreamState:
 
     label: str
     has_markers: bool
+    stream: int = 0  # the writer's stream (subject) it goes to
     last_stamp: int | None = None
     pending_markers: list[tuple[int, int]] = field(default_factory=list)  # sequence, log time
 
 
 def convert_to_bag(inputs: Sequence[PathLike] | PathLike, out: PathLike, *,
                    options: ReadOptions | None = None, subject: str | None = None,
-                   gap_s: float = DEFAULT_GAP_S,
-                   chunk_size: int = DEFAULT_CHUNK_SIZE) -> ConvertReport:
+                   gap_s: float = DEFAULT_GAP_S, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                   progress: Progress | None = None) -> ConvertReport:
     """
-    Write the pose stream of every input into one new standard bag at `out`.
+    Write the pose streams of every input into one new standard bag at `out`.
 
-    Each input must hold one pose stream (choose with `options`: topic, /tf frame, subject).
-    The output subject is `subject`, else the input's (``/vicon/S/S``), else 'octoroach'.
-    Inputs are written one after another. On any error the partial output is removed; the
-    inputs are only read.
+    The streams of an input are chosen as every program chooses them (`options`: topic, /tf
+    frame, subject, axes). The output subject is `subject`, else the input's (``/vicon/S/S``),
+    else 'octoroach'; without `subject`, a stream of VICON subject S keeps S (so a bag of
+    several robots stays several subjects). Inputs are written one after another. On any
+    error the partial output is removed; the inputs are only read. `progress` hears how far
+    the reading has got.
     """
     options = options or ReadOptions()
     if not (np.isfinite(gap_s) and gap_s > 0):
@@ -81,43 +88,57 @@ def convert_to_bag(inputs: Sequence[PathLike] | PathLike, out: PathLike, *,
     notes: list[str] = []
     # written under a temporary name beside it and renamed when complete: whole or absent
     with atomic_directory(target, what='the bag') as folder:
-        report = _convert(paths, folder, options, subject, int(round(gap_s * 1e9)), notes,
-                          max(1, int(chunk_size)), target)
+        report = _convert(paths, folder, options, subject, gap_s, notes,
+                          max(1, int(chunk_size)), target, progress)
     return report
 
 
 def _convert(paths: list[Path], folder: Path, options: ReadOptions, subject: str | None,
-             gap_ns: int, notes: list[str], chunk_size: int, target: Path) -> ConvertReport:
-    chunks = (chunk for path in paths
-              for chunk in iter_source_pose_chunks(path, options, notes, chunk_size))
+             gap_s: float, notes: list[str], chunk_size: int, target: Path,
+             progress: Progress | None) -> ConvertReport:
+    tracker = ReadProgress(progress, paths)
+    chunks = (chunk for index, path in enumerate(paths)
+              for chunk in tracker.follow(index, path, iter_source_pose_chunks(
+                  path, options, notes, chunk_size, gap_s=gap_s)))
     first = next(chunks, None)
     if first is None:
         raise BagError(f'{", ".join(map(str, paths))}: no pose stream')
-    name = subject or options.subject or subject_of(first.topic.split(':')[-1]) \
-        or DEFAULT_SUBJECT
+    chosen = subject or options.subject
+    name = chosen or _stream_subject(first.topic) or DEFAULT_SUBJECT
+    gap_ns = int(round(gap_s * 1e9))
     counts = {'samples': 0, 'markers': 0, 'dropped': 0}
-    streams: dict[str, _StreamState] = {}
+    streams: dict[tuple[str, str], _StreamState] = {}
+    outputs = {name: 0}
     custom = {'octoroach_model.converted_from': ', '.join(map(str, paths))}
     with PoseBagWriter(folder, topic=pose_topic(name), world_frame=DEFAULT_WORLD_FRAME,
                        child_frame=child_frame(name), marker_topic=marker_topic(name),
                        custom_data=custom, bag_name=target.name) as writer:
         for chunk in _with_first(first, chunks):
-            state = streams.get(chunk.source)
+            key = (chunk.source, chunk.topic)
+            state = streams.get(key)
             if state is None:
-                state = streams[chunk.source] = _StreamState(chunk.topic,
-                                                             bool(chunk.marker_topic))
-            elif state.label != chunk.topic:
-                raise BagError(f'{chunk.source}: several pose streams ({state.label}, '
-                               f'{chunk.topic}); choose one with --topic or --frame')
+                own = None if chosen else _stream_subject(chunk.topic)
+                out = own or name
+                if out not in outputs:
+                    outputs[out] = writer.add_stream(pose_topic(out), child_frame(out),
+                                                     marker_topic(out))
+                state = streams[key] = _StreamState(chunk.topic, bool(chunk.marker_topic),
+                                                    outputs[out])
             _write_chunk(writer, chunk, state, gap_ns, counts)
+    written = ', '.join(pose_topic(out) for out in outputs)
     notes.append(f'{target}: {counts["samples"]} poses written as TransformStamped on '
-                 f'{pose_topic(name)} ({DEFAULT_WORLD_FRAME} -> {child_frame(name)}, metres, '
+                 f'{written} ({DEFAULT_WORLD_FRAME} -> {child_frame(name)}, metres, z up, '
                  f'heading as the yaw of the child frame), {counts["markers"]} run markers on '
-                 f'{marker_topic(name)}')
+                 f'{", ".join(marker_topic(out) for out in outputs)}')
     if counts['dropped']:
         notes.append(f'{target}: {counts["dropped"]} non-finite pose(s) dropped')
     return ConvertReport(target, name, tuple(map(str, paths)), counts['samples'],
                          counts['markers'], counts['dropped'], tuple(notes))
+
+
+def _stream_subject(label: str) -> str | None:
+    """Return the VICON subject S of a stream label (/vicon/S/S, /tf:vicon/S/S), or None."""
+    return subject_of(label.split(':')[-1])
 
 
 def _with_first(first: PoseChunk, rest: Iterator[PoseChunk]) -> Iterator[PoseChunk]:
@@ -161,9 +182,10 @@ def _write_chunk(writer: PoseBagWriter, chunk: PoseChunk, state: _StreamState, g
     low = 0
     for edge in edges:
         if edge > low:
-            writer.write_poses(stamps[low:edge], poses[low:edge], log_time_ns=logs[low:edge])
+            writer.write_poses(stamps[low:edge], poses[low:edge], log_time_ns=logs[low:edge],
+                               stream=state.stream)
             counts['samples'] += edge - low
         for log_time in starts.get(edge, []):
-            writer.write_marker(counts['markers'], log_time)
+            writer.write_marker(counts['markers'], log_time, stream=state.stream)
             counts['markers'] += 1
         low = edge

@@ -1,32 +1,38 @@
 """
 What the motion-capture file readers share: units, subject names, markers, pose chunks.
 
-The Vicon CSV reader (`vicon_csv.py`) and the C3D reader (`c3d_file.py`) both turn frames of
-a capture into `PoseChunk` streams. This module holds the facts they have in common:
+The Vicon CSV reader (`vicon_csv.py`), the C3D reader (`c3d_file.py`), the Qualisys TSV
+reader (`qualisys.py`) and the trajectory tables (`tables.py`) turn frames of a capture into
+`PoseChunk` streams. This module holds the facts they have in common:
 
 - units: lengths in mm, cm or m and angles in deg or rad, converted to SI;
 - labels: Vicon names a marker or segment ``Subject:Name``; a subject is chosen with
   `ReadOptions.subject` (or is the only one in the file);
 - stamps: frame f of a file at rate r is stamped (f - first frame) / r seconds, so every file
   starts at 0 s and a missing frame leaves a gap of its own length;
-- `MarkerBody`: the markers of one rigid body, its reference layout and forward axis, and the
-  pose per frame by `rigid.fit_rigid`.
+- `MarkerBody`: the markers of one rigid body, its reference layout and axes, and the pose
+  per frame by `rigid.fit_rigid` in the z-up world (`axes`). A body whose markers do not move
+  as one rigid body (the fit's typical residual above MAX_TYPICAL_RESIDUAL_M, a few mm: a
+  whole walking subject, a loose marker) is refused, naming the markers that keep their
+  distances best, unless `ReadOptions.accept_loose_fit`;
+- lines: `text_lines` reads a text export line by line, each at most `limits.MAX_CSV_LINE`.
 """
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 import math
+from typing import Any
 
 import numpy as np
 
 from octoroach_model.errors import BagError
-from octoroach_model.limits import MAX_BODY_MARKERS
-from octoroach_model.recordings.bags import PoseChunk
+from octoroach_model.limits import MAX_BODY_MARKERS, MAX_CSV_LINE
+from octoroach_model.recordings.axes import axes_words, headings_from_rotations, to_z_up
+from octoroach_model.recordings.chunks import PoseChunk
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.rigid import (
     fit_rigid,
-    forward_heading,
     layout_from_frames,
     layout_spans_a_plane,
     MIN_MARKERS,
@@ -39,7 +45,34 @@ ANGLE_UNITS = {'deg': math.pi / 180.0, 'degrees': math.pi / 180.0, 'rad': 1.0,
                'radians': 1.0}
 # Frames in which every body marker was seen, averaged into the reference layout.
 LAYOUT_FRAMES = 10
+# A rigid body's markers fit its layout within the capture's noise (a good Vicon or Qualisys
+# fit: well under 2 mm). A typical (median) rms residual above this is not one rigid body.
+MAX_TYPICAL_RESIDUAL_M = 0.005
+# Frames per block whose marker distances feed the search for the markers that fit best
+RIGIDITY_FRAMES = 20
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
+
+
+def text_lines(stream: Any, where: str, what: str) -> Iterator[str]:
+    """Yield the lines of a text stream, refusing one longer than `limits.MAX_CSV_LINE`."""
+    number = 0
+    while True:
+        line = stream.readline(MAX_CSV_LINE + 1)
+        if not line:
+            return
+        number += 1
+        if len(line) > MAX_CSV_LINE:
+            raise BagError(f'{where}: line {number} is longer than {MAX_CSV_LINE} characters; '
+                           f'not {what}')
+        yield line
+
+
+def stream_fraction(stream: Any, size: int) -> float:
+    """Return how much of a file an open text stream has read (its buffer's position)."""
+    try:
+        return min(1.0, stream.buffer.tell() / max(1, size))
+    except (AttributeError, OSError, ValueError):
+        return math.nan
 
 
 def unit_scale(unit: str, table: dict[str, float], what: str, where: str) -> float:
@@ -64,9 +97,8 @@ def is_marker_label(label: str) -> bool:
 
 
 def axis_words(options: ReadOptions) -> str:
-    """Say the heading convention in the words of the notes."""
-    return (f'heading = yaw of the body {options.forward_axis} axis '
-            '(pi/2: walking along world +y)')
+    """Say the axes and the heading convention in the words of the notes."""
+    return axes_words(options.up_axis, options.forward_axis)
 
 
 def length_words(unit: str) -> str:
@@ -90,14 +122,24 @@ def check_rate(rate_hz: float, where: str) -> float:
 
 def pose_chunk(source: str, topic: str, first_sequence: int, stamp_ns: np.ndarray,
                x: np.ndarray, y: np.ndarray, heading: np.ndarray, *, is_last: bool = False,
-               truncated: bool = False) -> PoseChunk:
+               truncated: bool = False, z: np.ndarray | None = None,
+               read_fraction: float = math.nan) -> PoseChunk:
     """Make a PoseChunk of one stream without run markers; log time = stamp."""
     count = len(stamp_ns)
     sequence = np.arange(first_sequence, first_sequence + count, dtype=np.int64)
     return PoseChunk(source, topic, '', sequence, stamp_ns, stamp_ns.copy(),
                      np.asarray(x, dtype=float), np.asarray(y, dtype=float),
                      np.asarray(heading, dtype=float), _EMPTY_INT, _EMPTY_INT.copy(),
-                     _EMPTY_INT.copy(), is_last, truncated)
+                     _EMPTY_INT.copy(), is_last, truncated,
+                     None if z is None else np.asarray(z, dtype=float), read_fraction)
+
+
+def last_chunk(source: str, topic: str, sequence: int, *,
+               truncated: bool = False) -> PoseChunk:
+    """Make the empty chunk that ends a stream."""
+    empty = np.zeros(0)
+    return pose_chunk(source, topic, sequence, np.zeros(0, dtype=np.int64), empty, empty,
+                      empty, is_last=True, truncated=truncated, z=empty, read_fraction=1.0)
 
 
 def _listed(names: Iterable[str], limit: int = 12) -> str:
@@ -168,15 +210,31 @@ def select_body_markers(where: str, labels: Sequence[str], options: ReadOptions,
 
 def _find_marker(where: str, labels: Sequence[str], scope: list[int],
                  owner: dict[int, tuple[str, str]], name: str) -> int:
+    """
+    Find a marker named `name`: its full label, or Subject:Marker, or the bare marker name.
+
+    ``SI02:LASI`` finds the label ``SI02:LASI``, or ``LASI`` of subject SI02 (a file whose
+    labels carry no prefix, its subject named in SUBJECTS:NAMES or by --subject), or a lone
+    unprefixed ``LASI``; a bare ``LASI`` finds the marker LASI of any one subject.
+    """
     exact = [index for index in scope if labels[index].strip() == name.strip()]
     if len(exact) == 1:
         return exact[0]
-    by_name = [index for index in scope if owner[index][1] == name.strip()]
-    if len(by_name) == 1:
+    subject, marker = split_label(name)
+    if subject:
+        owned = [index for index in scope if owner[index] == (subject, marker)]
+        if len(owned) == 1:
+            return owned[0]
+        unowned = [index for index in scope if owner[index] == ('', marker)]
+        if not owned and len(unowned) == 1:
+            return unowned[0]
+    by_name = [index for index in scope if owner[index][1] == marker]
+    if len(by_name) == 1 and not subject:
         return by_name[0]
-    if by_name:
+    if by_name and not subject:
         found = _listed(labels[index].strip() for index in by_name)
-        raise BagError(f'{where}: marker {name!r} is ambiguous ({found}); pass --subject NAME')
+        raise BagError(f'{where}: marker {name!r} is ambiguous ({found}); pass --subject NAME '
+                       'or name it as Subject:Marker')
     available = _listed(labels[index].strip() for index in scope)
     raise BagError(f'{where}: no marker {name!r}; it has {available}')
 
@@ -190,6 +248,11 @@ class FitSummary:
     partial: int = 0
     residuals_m: list[float] = field(default_factory=list)
     worst_m: float = 0.0
+
+    @property
+    def typical_m(self) -> float:
+        """Return the typical rms residual: the median of the blocks' medians (NaN: none)."""
+        return float(np.median(self.residuals_m)) if self.residuals_m else math.nan
 
     def add(self, seen: np.ndarray, valid: np.ndarray, rms_m: np.ndarray) -> None:
         """Count one block of frames: markers seen (F, M), valid fits, rms residuals."""
@@ -212,10 +275,86 @@ class FitSummary:
             notes.append(f'{where}: {self.partial} frame(s) fitted on the markers that were '
                          'seen (some body markers missing)')
         if self.residuals_m:
-            median_mm = float(np.median(self.residuals_m)) * 1e3
-            notes.append(f'{where}: rigid fit rms residual {median_mm:.3g} mm typical, '
-                         f'{self.worst_m * 1e3:.3g} mm worst')
+            notes.append(f'{where}: rigid fit rms residual {self.typical_m * 1e3:.3g} mm '
+                         f'typical, {self.worst_m * 1e3:.3g} mm worst')
         return notes
+
+
+@dataclass
+class Rigidity:
+    """
+    How well each pair of markers keeps its distance, from a sample of the frames.
+
+    Per pair: the count, sum and sum of squares of their distance over up to RIGIDITY_FRAMES
+    frames per block in which both were seen. Markers on one rigid body keep their
+    distances (spread ~ the capture's noise); markers on different segments do not.
+    """
+
+    count: np.ndarray
+    total: np.ndarray
+    squares: np.ndarray
+
+    @classmethod
+    def of(cls, markers: int) -> Rigidity:
+        """Start the statistics of `markers` markers."""
+        shape = (markers, markers)
+        return cls(np.zeros(shape), np.zeros(shape), np.zeros(shape))
+
+    def add(self, markers_m: np.ndarray) -> None:
+        """Take up to RIGIDITY_FRAMES evenly spaced frames of (F, M, 3) positions."""
+        if not len(markers_m):
+            return
+        pick = np.unique(np.linspace(0, len(markers_m) - 1, RIGIDITY_FRAMES).astype(int))
+        frames = markers_m[pick]
+        distance = np.linalg.norm(frames[:, :, None, :] - frames[:, None, :, :], axis=-1)
+        seen = np.isfinite(distance)
+        values = np.where(seen, distance, 0.0)
+        self.count += seen.sum(axis=0)
+        self.total += values.sum(axis=0)
+        self.squares += (values * values).sum(axis=0)
+
+    def spread_m(self) -> np.ndarray:
+        """(M, M) standard deviation of each pair's distance (inf where seen under 3 times)."""
+        with np.errstate(invalid='ignore', divide='ignore'):
+            mean = self.total / self.count
+            variance = self.squares / self.count - mean * mean
+        spread = np.sqrt(np.clip(variance, 0.0, None))
+        return np.where(self.count >= 3, spread, np.inf)
+
+    def best_group(self, seeds: int = 64) -> tuple[list[int], float]:
+        """
+        Return the largest group of markers that keep their distances, and its spread [m].
+
+        Grown greedily from each of the `seeds` steadiest pairs: the marker whose largest
+        spread to the group is smallest joins while that spread is within
+        MAX_TYPICAL_RESIDUAL_M.
+        """
+        spread = self.spread_m()
+        count = len(spread)
+        if count < 2:
+            return [], math.inf
+        np.fill_diagonal(spread, np.inf)
+        rows, columns = np.triu_indices(count, 1)
+        best: tuple[list[int], float] = ([], math.inf)
+        for pair in np.argsort(spread[rows, columns], kind='stable')[:seeds]:
+            first, second = int(rows[pair]), int(columns[pair])
+            if not spread[first, second] <= MAX_TYPICAL_RESIDUAL_M:
+                break
+            group = [first, second]
+            worst = np.maximum(spread[first], spread[second])
+            worst[group] = np.inf
+            while True:
+                pick = int(np.argmin(worst))
+                if not worst[pick] <= MAX_TYPICAL_RESIDUAL_M:
+                    break
+                group.append(pick)
+                worst = np.maximum(worst, spread[pick])
+                worst[group] = np.inf
+            inside = spread[np.ix_(group, group)]
+            within = float(inside[np.isfinite(inside)].max())
+            if (len(group), -within) > (len(best[0]), -best[1]):
+                best = (sorted(group), within)
+        return best
 
 
 class MarkerBody:
@@ -235,6 +374,7 @@ class MarkerBody:
         self.layout_m: np.ndarray | None = None
         self.layout_origin = ''
         self.summary = FitSummary()
+        self.rigidity = Rigidity.of(len(self.names))
         if layout_m is not None:
             self._set_layout(np.asarray(layout_m, dtype=float), 'the given layout')
 
@@ -251,19 +391,47 @@ class MarkerBody:
             raise BagError(f'{self.where}: no frame shows all of {_listed(self.names)} at '
                            'once, so their layout is unknown; pass --markers naming markers '
                            'seen together')
-        layout = layout_from_frames(complete_frames_m)
+        layout = layout_from_frames(to_z_up(complete_frames_m, self.options.up_axis))
         self._set_layout(layout, f'the layout of the first {len(complete_frames_m)} complete '
                                  f'frame(s) from frame {first_frame} (body axes = world axes '
-                                 "there, origin at the markers' centroid)")
+                                 "there, z up, origin at the markers' centroid)")
 
     def poses(self, markers_m: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Return x [m], y [m], heading [rad] and validity of (F, M, 3) frames in metres."""
+        """
+        Return x, y, z [m], heading [rad] and validity of (F, M, 3) frames in metres.
+
+        Positions are in the z-up world. Raises BagError once the fit shows that the markers
+        are not one rigid body (`check_rigid`).
+        """
         if self.layout_m is None:
             raise RuntimeError('MarkerBody.poses needs the layout first')
+        markers_m = to_z_up(markers_m, self.options.up_axis)
         fit = fit_rigid(self.layout_m, markers_m)
         self.summary.add(np.isfinite(markers_m).all(axis=2), fit.valid, fit.rms_residual)
-        heading = forward_heading(fit.rotation, self.options.heading_offset_rad)
-        return fit.translation[:, 0], fit.translation[:, 1], heading, fit.valid
+        self.rigidity.add(markers_m)
+        self.check_rigid()
+        heading = headings_from_rotations(fit.rotation, 'z', self.options.forward_axis)
+        return (fit.translation[:, 0], fit.translation[:, 1], fit.translation[:, 2], heading,
+                fit.valid)
+
+    def check_rigid(self) -> None:
+        """Refuse a body whose fit's typical residual exceeds MAX_TYPICAL_RESIDUAL_M."""
+        typical = self.summary.typical_m
+        if self.options.accept_loose_fit or not typical > MAX_TYPICAL_RESIDUAL_M:
+            return
+        group, within = self.rigidity.best_group()
+        if len(group) >= MIN_MARKERS:
+            best = (f'the markers that keep their distances best are '
+                    f'{_listed(self.names[index] for index in group)} (within '
+                    f'{within * 1e3:.2g} mm): pass them with --markers')
+        else:
+            best = (f'no {MIN_MARKERS} of them keep their distances within '
+                    f'{MAX_TYPICAL_RESIDUAL_M * 1e3:g} mm: pass --markers naming the markers '
+                    'of one rigid body')
+        raise BagError(f'{self.where}: the {len(self.names)} body markers do not move as one '
+                       f"rigid body: the rigid fit's typical residual is {typical * 1e3:.3g} "
+                       f'mm, above the {MAX_TYPICAL_RESIDUAL_M * 1e3:g} mm a rigid body allows; '
+                       f'{best}, or --accept-loose-fit to use this fit anyway')
 
 
 def complete_frames(frames_m: np.ndarray) -> np.ndarray:

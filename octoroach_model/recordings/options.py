@@ -1,19 +1,17 @@
 """
-How to find the robot's pose in an input: which topic, frame, subject, markers and axis.
+How to find the robot's pose in an input: which topic, frame, subject, markers and axes.
 
-One record for every reader (ROS 2 and ROS 1 bags, /tf, Vicon CSV exports, C3D files), so a
-choice made on the command line, in the Python API or in a node parameter means the same
-everywhere. A reader uses the fields that apply to its format and ignores the others.
+One record for every reader (ROS 2 and ROS 1 bags, /tf, arrays of named bodies, Vicon CSV
+exports, C3D files, Qualisys TSV exports, trajectory tables), so a choice made on the command
+line, in the Python API or in a node parameter means the same everywhere. A reader uses the
+fields that apply to its format and ignores the others.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-import math
 
 from octoroach_model.errors import ParameterError
-
-# Body axis that points forward, as written in the option, and its angle from the body x axis.
-FORWARD_AXES = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.pi / 2}
+from octoroach_model.recordings.axes import forward_angle_rad, FORWARD_AXES, UP_AXES
 
 
 @dataclass(frozen=True)
@@ -21,12 +19,21 @@ class ReadOptions:
     """
     Where the pose of the robot is in an input.
 
-    topic : ROS bags: the pose topic (default: the VICON topic, or the only pose topic).
+    topic : ROS bags: the pose topic (default: the VICON topic, or the only pose stream).
     frame : /tf and /tf_static: the child frame to follow (default: the only moving one).
-    subject : Vicon CSV / C3D: the object or subject name (default: the only one).
-    markers : C3D: names of the markers on the rigid body (default: all of the subject's).
-    forward_axis : the body axis that points where the robot walks ('x', 'y', '-x', '-y');
-        the heading is the yaw of that axis, so heading pi/2 means walking along world +y.
+    subject : Vicon CSV / C3D / Qualisys TSV: the object or subject; arrays of named bodies
+        (MOCAP4ROS2 RigidBodies, NamedPoseArray): the body's name; VICON topics /vicon/S/S:
+        the subject S (default: the only one, or the only one that moves).
+    markers : C3D, Vicon CSV and Qualisys TSV trajectories: the markers on the rigid body
+        (default: all of the subject's, modelled and virtual markers left out).
+    forward_axis : the body axis that points where the robot walks ('x', 'y', '-x', '-y',
+        'z', '-z'); the heading is the yaw of that axis, so heading pi/2 means walking along
+        world +y.
+    up_axis : the input world's axis that points up ('z', the default, as Vicon and REP 103;
+        'y' for OptiTrack Motive's default; '-y' for a camera's optical frame; 'x', '-x',
+        '-z'); poses are turned so that it becomes z before anything else (`axes`).
+    accept_loose_fit : fit a marker body even when its markers do not move as one rigid body
+        (the fit's typical residual above `mocap.MAX_TYPICAL_RESIDUAL_M`); refused otherwise.
     """
 
     topic: str | None = None
@@ -34,13 +41,18 @@ class ReadOptions:
     subject: str | None = None
     markers: tuple[str, ...] = ()
     forward_axis: str = 'x'
+    up_axis: str = 'z'
+    accept_loose_fit: bool = False
 
     def __post_init__(self) -> None:
         if self.forward_axis not in FORWARD_AXES:
             raise ParameterError(f'forward axis must be one of {", ".join(FORWARD_AXES)}, '
                                  f'got {self.forward_axis!r}')
+        if self.up_axis not in UP_AXES:
+            raise ParameterError(f'up axis must be one of {", ".join(UP_AXES)}, '
+                                 f'got {self.up_axis!r}')
 
     @property
     def heading_offset_rad(self) -> float:
-        """Add to the yaw of the body x axis to get the heading of the forward axis."""
-        return FORWARD_AXES[self.forward_axis]
+        """Add to the yaw of the body x axis to get the heading of an in-plane forward axis."""
+        return forward_angle_rad(self.forward_axis)

@@ -10,12 +10,20 @@ side by side) works the same way, from the definition the bag carries. The time 
 ``header.stamp`` (or a top-level `builtin_interfaces/Time`); the frames are ``header.frame_id``
 (parent) and ``child_frame_id``.
 
-A transform list is a message with a sequence of such poses that each carry a header and a
-child frame: `tf2_msgs/TFMessage` on /tf and /tf_static (and ROS 1's `tf/tfMessage`).
+A pose list is a message with a sequence of such poses, each telling which pose it is:
+
+- a transform list, whose elements carry a header and a child frame: `tf2_msgs/TFMessage` on
+  /tf and /tf_static (and ROS 1's `tf/tfMessage`);
+- an array of named bodies, whose elements carry a name (a string field, preferably one whose
+  name says "name") and a pose: MOCAP4ROS2's `mocap4r2_msgs/RigidBodies` (``rigidbodies[]``
+  with ``rigid_body_name`` and ``pose``), motion_capture_tracking's `NamedPoseArray`
+  (``poses[]`` with ``name`` and ``pose``), or any type of that shape; the time is the
+  element's own stamp if it has one, else the message's ``header.stamp``.
 """
 from __future__ import annotations
 
 from collections.abc import Mapping
+from enum import Enum
 from operator import attrgetter
 from typing import Any, Callable, NamedTuple
 
@@ -47,12 +55,32 @@ class PoseLayout(NamedTuple):
         return f'{self.position} / {self.orientation}'
 
 
-class TfLayout(NamedTuple):
-    """A transform-list message: the name of its sequence and the layout of one element."""
+class ListKind(Enum):
+    """What the elements of a pose list are."""
+
+    TRANSFORMS = 'transforms'  # TFMessage: child frames, each with its own header
+    NAMED = 'named bodies'  # RigidBodies, NamedPoseArray: a name and a pose
+
+
+class ListLayout(NamedTuple):
+    """A pose-list message: its sequence, one element's layout, what names an element."""
 
     msgtype: str
     field: str
     element: PoseLayout
+    name: str  # attribute of an element that names it ('child_frame_id', 'rigid_body_name')
+    stamp: str  # the message's own stamp, for elements without one ('' when absent)
+    kind: ListKind
+
+    @property
+    def option(self) -> str:
+        """Name the command-line option that chooses an element."""
+        return '--frame' if self.kind is ListKind.TRANSFORMS else '--subject'
+
+    @property
+    def what(self) -> str:
+        """Say what an element is, for messages ('child frame', 'body')."""
+        return 'child frame' if self.kind is ListKind.TRANSFORMS else 'body'
 
 
 def _fields(fielddefs: FieldDefs, msgtype: str) -> list[tuple[str, Any]]:
@@ -84,24 +112,34 @@ def _find_pose(fielddefs: FieldDefs, msgtype: str, prefix: str,
     return None
 
 
+def _stamp_path(fielddefs: FieldDefs, msgtype: str) -> tuple[str, str]:
+    """(stamp path, header name) of a type's own time: header.stamp or a Time field."""
+    named = _named(_fields(fielddefs, msgtype))
+    header = next((name for name, typ in named if typ == HEADER_TYPE), '')
+    time = next((name for name, typ in named if typ == TIME_TYPE), '')
+    return (f'{header}.stamp' if header else time), header
+
+
+def _strings(fielddefs: FieldDefs, msgtype: str) -> list[str]:
+    """Names of a type's string fields, in declaration order."""
+    return [name for name, kind in _fields(fielddefs, msgtype)
+            if kind[0] == Nodetype.BASE and kind[1][0] == 'string']
+
+
 def pose_layout(msgtype: str, fielddefs: FieldDefs) -> PoseLayout | None:
     """Find where a single-pose message type keeps its pose; None when it holds none."""
     found = _find_pose(fielddefs, msgtype, '', 0)
     if found is None:
         return None
-    fields = _fields(fielddefs, msgtype)
-    named = _named(fields)
-    header = next((name for name, typ in named if typ == HEADER_TYPE), '')
-    time = next((name for name, typ in named if typ == TIME_TYPE), '')
-    strings = {name for name, kind in fields if kind[0] == Nodetype.BASE
-               and kind[1][0] == 'string'}
-    return PoseLayout(msgtype, f'{header}.stamp' if header else time, found[0], found[1],
+    stamp, header = _stamp_path(fielddefs, msgtype)
+    strings = _strings(fielddefs, msgtype)
+    return PoseLayout(msgtype, stamp, found[0], found[1],
                       f'{header}.frame_id' if header else '',
                       'child_frame_id' if 'child_frame_id' in strings else '')
 
 
-def tf_layout(msgtype: str, fielddefs: FieldDefs) -> TfLayout | None:
-    """Find the layout of a transform-list type (TFMessage); None for any other type."""
+def list_layout(msgtype: str, fielddefs: FieldDefs) -> ListLayout | None:
+    """Find the layout of a pose-list type (transforms or named bodies); None for others."""
     for name, kind in _fields(fielddefs, msgtype):
         if kind[0] not in (Nodetype.SEQUENCE, Nodetype.ARRAY):
             continue
@@ -109,26 +147,47 @@ def tf_layout(msgtype: str, fielddefs: FieldDefs) -> TfLayout | None:
         if element[0] != Nodetype.NAME:
             continue
         layout = pose_layout(element[1], fielddefs)
-        if layout and layout.stamp and layout.child_frame and layout.parent_frame:
-            return TfLayout(msgtype, name, layout)
+        if layout is None:
+            continue
+        if layout.stamp and layout.child_frame and layout.parent_frame:
+            return ListLayout(msgtype, name, layout, layout.child_frame, '',
+                              ListKind.TRANSFORMS)
+        strings = _strings(fielddefs, element[1])
+        if strings:
+            label = next((field for field in strings if 'name' in field.lower()), strings[0])
+            return ListLayout(msgtype, name, layout, label, _stamp_path(fielddefs, msgtype)[0],
+                              ListKind.NAMED)
     return None
 
 
-Sample = tuple[int, float, float, float, float, float, float]  # stamp ns, x, y, qx, qy, qz, qw
+# stamp ns, x, y, z, qx, qy, qz, qw
+Sample = tuple[int, float, float, float, float, float, float, float]
 FullPose = tuple[float, float, float, float, float, float, float]  # x, y, z, qx, qy, qz, qw
 
 
+def stamp_getter(path: str) -> Callable[[Any], int]:
+    """Make a getter of a stamp in int ns (0 when the type has none)."""
+    if not path:
+        return lambda message: 0
+    get = attrgetter(path)
+
+    def stamp(message: Any) -> int:
+        t = get(message)
+        return int(t.sec) * 1_000_000_000 + int(t.nanosec)
+
+    return stamp
+
+
 def pose_getter(layout: PoseLayout) -> Callable[[Any], Sample]:
-    """Make a getter of (stamp ns, x, y, qx, qy, qz, qw); stamp 0 when there is no time."""
+    """Make a getter of (stamp ns, x, y, z, qx, qy, qz, qw); stamp 0 when there is no time."""
     position = attrgetter(layout.position)
     orientation = attrgetter(layout.orientation)
-    stamp = attrgetter(layout.stamp) if layout.stamp else None
+    stamp = stamp_getter(layout.stamp)
 
     def get(message: Any) -> Sample:
         p, q = position(message), orientation(message)
-        t = stamp(message) if stamp is not None else None
-        ns = t.sec * 1_000_000_000 + t.nanosec if t is not None else 0
-        return (ns, float(p.x), float(p.y), float(q.x), float(q.y), float(q.z), float(q.w))
+        return (stamp(message), float(p.x), float(p.y), float(p.z), float(q.x), float(q.y),
+                float(q.z), float(q.w))
 
     return get
 

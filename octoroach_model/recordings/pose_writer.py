@@ -9,6 +9,7 @@ make live: `TransformStamped` on ``/vicon/S/S`` (header frame ``vicon/world``, c
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -36,13 +37,25 @@ from octoroach_model.recordings.writer import BagWriter
 RECORDED_VICON_QOS = QosProfile(history='unknown', depth=0)
 
 
+@dataclass
+class _Stream:
+    """One subject's pose topic in the bag: its message template and channels."""
+
+    topic: str
+    marker_topic: str | None
+    message: Any
+    pose_channel: int | None = None
+    marker_channel: int | None = None
+
+
 class PoseBagWriter:
     """
     Streams pose samples and run markers into a new bag directory.
 
     Use as a context manager; samples are written in the order given (the arrival order a
     recorder would see). The marker topic is created at the first marker, so a bag without
-    markers has no marker topic at all.
+    markers has no marker topic at all. The subject given here is stream 0; `add_stream`
+    adds further subjects (several robots in one bag).
     """
 
     def __init__(self, out_path: PathLike, *, topic: str = DEFAULT_POSE_TOPIC,
@@ -59,12 +72,13 @@ class PoseBagWriter:
         self.marker_topic = marker_topic or None
         self.message_type = message_type
         self.offered_qos = offered_qos
+        self.world_frame = world_frame
         self._bag = BagWriter(out_path, custom_data=custom_data, name=bag_name)
         self.path = self._bag.path
         self._store = jazzy_types()
-        self._pose_channel: int | None = None
-        self._marker_channel: int | None = None
-        self._message = self._template(world_frame, child_frame)
+        self._open = False
+        self._streams = [_Stream(topic, self.marker_topic,
+                                 self._template(world_frame, child_frame))]
         self._marker: Any = self._store.types[MARKER_TYPE](data=0)
 
     def _template(self, world_frame: str, child_frame: str) -> Any:
@@ -85,9 +99,22 @@ class PoseBagWriter:
 
     def __enter__(self) -> PoseBagWriter:
         self._bag.create()
-        self._pose_channel = self._bag.add_topic(self.topic, self.message_type,
+        self._open = True
+        first = self._streams[0]
+        first.pose_channel = self._bag.add_topic(first.topic, self.message_type,
                                                  offered_qos=self.offered_qos)
         return self
+
+    def add_stream(self, topic: str, child_frame: str, marker_topic: str | None) -> int:
+        """Add a further subject's pose topic (and marker topic); return its stream index."""
+        if not self._open:
+            raise BagError(f'{self.path}: bag is not open for writing')
+        stream = _Stream(topic, marker_topic or None,
+                         self._template(self.world_frame, child_frame))
+        stream.pose_channel = self._bag.add_topic(topic, self.message_type,
+                                                  offered_qos=self.offered_qos)
+        self._streams.append(stream)
+        return len(self._streams) - 1
 
     def __exit__(self, exc_type: object, *exc_info: object) -> None:
         if exc_type is None:
@@ -97,19 +124,21 @@ class PoseBagWriter:
 
     def close(self) -> None:
         """Write the MCAP summary and metadata.yaml."""
-        if self._pose_channel is not None:
+        if self._open:
             self._bag.close()
-            self._pose_channel = None
+            self._open = False
 
     def write_poses(self, stamp_ns: np.ndarray, poses: np.ndarray, *,
-                    log_time_ns: np.ndarray | None = None) -> None:
+                    log_time_ns: np.ndarray | None = None, stream: int = 0) -> None:
         """
         Write samples (k, 3) x, y, heading at header stamps `stamp_ns` (int ns).
 
-        The log time defaults to the stamp, as for a recorder on the VICON machine.
+        The log time defaults to the stamp, as for a recorder on the VICON machine. `stream`:
+        the subject (0, or an index from `add_stream`).
         """
-        if self._pose_channel is None:
+        if not self._open:
             raise BagError(f'{self.path}: bag is not open for writing')
+        target = self._streams[stream]
         stamps = np.asarray(stamp_ns, dtype=np.int64).ravel()
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
         logs = stamps if log_time_ns is None else np.asarray(log_time_ns, np.int64).ravel()
@@ -120,30 +149,32 @@ class PoseBagWriter:
         qx, qy, qz, qw = heading_to_quaternion(poses[:, HEADING])
         columns = zip(stamps.tolist(), logs.tolist(), poses[:, X].tolist(),
                       poses[:, Y].tolist(), qz.tolist(), qw.tolist())
-        message, serialize = self._message, self._store.serialize_cdr
+        message, serialize = target.message, self._store.serialize_cdr
         stamp = message.header.stamp
         if self.message_type == TRANSFORM_STAMPED:
             position, rotation = message.transform.translation, message.transform.rotation
         else:
             position, rotation = message.pose.position, message.pose.orientation
-        write, channel, msgtype = self._bag.write, self._pose_channel, self.message_type
+        write, msgtype = self._bag.write, self.message_type
+        channel = int(target.pose_channel or 0)
         for stamp_int, log_int, x, y, z, w in columns:
             stamp.sec, stamp.nanosec = divmod(stamp_int, 1_000_000_000)
             position.x, position.y = x, y
             rotation.z, rotation.w = z, w
             write(channel, log_int, bytes(serialize(message, msgtype)))
 
-    def write_marker(self, run_index: int, log_time_ns: int) -> None:
+    def write_marker(self, run_index: int, log_time_ns: int, *, stream: int = 0) -> None:
         """Write one run-start marker (UInt32 run index) at `log_time_ns`."""
-        if self.marker_topic is None:
+        target = self._streams[stream]
+        if target.marker_topic is None:
             raise BagError(f'{self.path}: this writer has no marker topic')
-        if self._pose_channel is None:
+        if not self._open:
             raise BagError(f'{self.path}: bag is not open for writing')
-        if self._marker_channel is None:
-            self._marker_channel = self._bag.add_topic(self.marker_topic, MARKER_TYPE,
-                                                       offered_qos=self.offered_qos)
+        if target.marker_channel is None:
+            target.marker_channel = self._bag.add_topic(target.marker_topic, MARKER_TYPE,
+                                                        offered_qos=self.offered_qos)
         self._marker.data = int(run_index)
-        self._bag.write(self._marker_channel, int(log_time_ns),
+        self._bag.write(target.marker_channel, int(log_time_ns),
                         bytes(self._store.serialize_cdr(self._marker, MARKER_TYPE)))
 
 

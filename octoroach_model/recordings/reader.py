@@ -39,6 +39,7 @@ if TYPE_CHECKING:
     from rosbags.interfaces import Connection
 
 MCAP_MAGIC = b'\x89MCAP0\r\n'
+ROS1_MAGIC = b'#ROSBAG V2.0'
 # metadata.yaml custom_data key by which `repair` marks a bag whose recording was cut short
 TRUNCATION_KEY = 'octoroach_model.truncated'
 # What a damaged MCAP can raise while its records are parsed
@@ -90,6 +91,7 @@ class FileDamage:
     unreadable_chunks: int = 0
     damage: str = ''
     complete: bool = False  # reached the data end (or footer) record
+    position: int = 0  # the byte the walk has reached
     oversized: list[str] = field(default_factory=list)  # chunks refused by their size
 
     def note(self) -> str | None:
@@ -164,7 +166,7 @@ def iter_mcap_records(path: Path, report: FileDamage) -> Iterator[Any]:
     with stream:
         records = iter(StreamReader(stream, emit_chunks=True, record_size_limit=size).records)
         while True:
-            position = stream.tell()
+            position = report.position = stream.tell()
             try:
                 record = next(records)
             except StopIteration:
@@ -226,7 +228,7 @@ class BagReader:
         self.channels: list[ChannelInfo] = []
         self._channel_index: dict[tuple[int, int], int] = {}
         self._topics: dict[str, TopicInfo] | None = None
-        if self.path.is_file() and self.path.suffix == ROS1_SUFFIX:
+        if self.path.is_file() and is_ros1_bag(self.path):
             self.storage = 'ros1'
             self.files: tuple[Path, ...] = (self.path,)
             self.directory: Path | None = None
@@ -243,6 +245,7 @@ class BagReader:
                                '(the folder with metadata.yaml)')
         self.types = BagTypes()
         self._rosbags_types: Any = None  # the AnyReader typestore (sqlite3, ROS 1)
+        self._progress: tuple[float, float] = (0.0, 1.0)  # done, total (bytes or messages)
 
     # ----------------------------------------------------------------------------- topics
 
@@ -317,10 +320,19 @@ class BagReader:
         else:
             yield from self._rosbags_messages(topics)
 
+    @property
+    def read_fraction(self) -> float:
+        """Return the share of the bag that `messages` has walked so far (0 to 1)."""
+        done, total = self._progress
+        return min(1.0, done / total) if total > 0 else 0.0
+
     def _mcap_messages(self, topics: Collection[str] | None) -> Iterator[BagMessage]:
         wanted = None if topics is None else set(topics)
+        sizes = [_file_size(path) for path in self.files]
+        total = float(sum(sizes)) or 1.0
         for file_index, path in enumerate(self.files):
             report = FileDamage(path)
+            before = float(sum(sizes[:file_index]))
             schemas: dict[int, Schema] = {}
             channels: dict[int, tuple[int, ChannelInfo]] = {}
             for record in iter_mcap_records(path, report):
@@ -329,6 +341,7 @@ class BagReader:
                     if known is None:
                         continue
                     index, channel = known
+                    self._progress = (before + report.position, total)
                     yield BagMessage(channel.topic, channel.msgtype, record.log_time,
                                      record.publish_time, record.data, index, record.sequence)
                 elif isinstance(record, Channel):
@@ -431,6 +444,7 @@ class BagReader:
             selected = {c.id: self._connection_channel(c) for c in bag.connections
                         if wanted is None or c.topic in wanted}
             for connection, timestamp, data in bag.messages(selected):
+                self._progress = bag.progress
                 yield BagMessage(connection.topic, connection.msgtype, timestamp, timestamp,
                                  data, selected[connection.id])
 
@@ -475,11 +489,32 @@ class BagReader:
                 indexes = {id(c): self._connection_channel(c) for c in selected}
                 if not selected:
                     return
-                for connection, timestamp, data in reader.messages(connections=selected):
+                total = float(sum(int(c.msgcount) for c in selected)) or 1.0
+                for number, (connection, timestamp, data) in enumerate(
+                        reader.messages(connections=selected)):
+                    self._progress = (float(number), total)
                     yield BagMessage(connection.topic, connection.msgtype, timestamp, timestamp,
                                      data, indexes[id(connection)])
         except (AnyReaderError, Ros1Error, Ros2Error, OSError) as error:
             raise BagError(f'{self.name}: cannot read the bag: {error}') from None
+
+
+def _file_size(path: Path) -> int:
+    try:
+        return max(1, path.stat().st_size)
+    except OSError:
+        return 1
+
+
+def is_ros1_bag(path: Path) -> bool:
+    """Tell a ROS 1 bag: a .bag file, or a file that starts with rosbag's "#ROSBAG" line."""
+    if path.suffix == ROS1_SUFFIX:
+        return True
+    try:
+        with path.open('rb') as stream:
+            return stream.read(len(ROS1_MAGIC)) == ROS1_MAGIC
+    except OSError:
+        return False
 
 
 def _topic_info(channel: ChannelInfo, count: int) -> TopicInfo:

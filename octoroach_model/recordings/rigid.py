@@ -9,11 +9,10 @@ Pure numpy, vectorised over frames, for the Vicon CSV and C3D readers:
 - `fit_rigid`: the least-squares rotation and translation that carry a body's reference
   marker layout onto the markers seen in each frame (Kabsch / Umeyama without scale), with
   missing markers left out frame by frame;
-- `layout_from_frames`: a reference layout from frames in which every marker was seen;
-- `forward_heading`: the heading of a pose, the yaw of the body's forward axis.
+- `layout_from_frames`: a reference layout from frames in which every marker was seen.
 
-World frame: z up (Vicon's default), so the heading is the angle of the forward axis
-projected on the floor, measured from world +x towards +y.
+The heading of a fitted pose is `axes.headings_from_rotations`: the yaw of the body's
+forward axis in the z-up world.
 """
 from __future__ import annotations
 
@@ -25,8 +24,6 @@ MIN_MARKERS = 3
 # The markers seen in a frame must span a plane: the second singular value of their centred
 # layout at least this fraction of the first, else the rotation about their line is unknown.
 MIN_SPREAD_RATIO = 1e-3
-# Below this length of the forward axis' floor projection (unit vector) the heading is undefined.
-MIN_HORIZONTAL = 1e-9
 
 
 class RigidFit(NamedTuple):
@@ -104,20 +101,6 @@ def rotation_from_quaternion(xyzw: np.ndarray) -> np.ndarray:
         np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
         np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
     ], -2)
-
-
-def forward_heading(rotation: np.ndarray, forward_angle_rad: float) -> np.ndarray:
-    """
-    (F,) heading: yaw of the body axis at `forward_angle_rad` from body x (in body x-y).
-
-    NaN where the forward axis points (almost) straight up or down, or the pose is NaN.
-    """
-    forward = (rotation[..., :, 0] * np.cos(forward_angle_rad)
-               + rotation[..., :, 1] * np.sin(forward_angle_rad))
-    horizontal = np.hypot(forward[..., 0], forward[..., 1])
-    with np.errstate(invalid='ignore'):
-        level_enough = horizontal >= MIN_HORIZONTAL
-    return np.where(level_enough, np.arctan2(forward[..., 1], forward[..., 0]), np.nan)
 
 
 def fit_rigid(layout: np.ndarray, markers: np.ndarray) -> RigidFit:

@@ -30,6 +30,7 @@ class Ros1Bag:
         self.path = path
         self.connections: list[Any] = []  # rosbags Connection records
         self.counts: dict[int, int] = {}  # connection id -> messages
+        self.progress: tuple[float, float] = (0.0, 1.0)  # chunks read, chunks
         self._chunk_positions: list[int] = []
         self._reader: Any = None
 
@@ -90,7 +91,9 @@ class Ros1Bag:
         by_id = {connection.id: connection for connection in self.connections}
         reader = self._reader
         try:
-            for position in self._chunk_positions:
+            total = float(len(self._chunk_positions)) or 1.0
+            for number, position in enumerate(self._chunk_positions):
+                self.progress = (float(number), total)
                 reader.bio.seek(position)
                 header = Header.read(reader.bio, RecordType.CHUNK)
                 reader.bio.seek(position)

@@ -43,6 +43,7 @@ from octoroach_model.recordings.dataset import is_dataset_file, load_dataset
 from octoroach_model.recordings.duplicates import repeated_runs_note
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.sources import MEASURED_SUFFIXES
+from octoroach_model.recordings.streams import Progress
 
 DEFAULT_GAP_S = 0.5
 DEFAULT_RATE_HZ = 50.0
@@ -336,20 +337,23 @@ class _StreamSplitter:
 
 
 def read_runs(sources: Sources, *, topic: str | None = None, gap_s: float = DEFAULT_GAP_S,
-              use_markers: bool = True, options: ReadOptions | None = None) -> RunSet:
+              use_markers: bool = True, options: ReadOptions | None = None,
+              progress: Progress | None = None) -> RunSet:
     """
     Read the runs of every pose stream in `sources` (bags, motion-capture files, folders).
 
-    `options` says where the pose is (topic, /tf frame, subject, forward axis); `topic` is
-    the same as ``ReadOptions(topic=...)``. Splitting, cleaning and what is noted: see the
-    module docstring. Raises BagError for an unreadable source and DataError when no run is
-    left.
+    `options` says where the pose is (topic, /tf frame, subject, axes); `topic` is the same
+    as ``ReadOptions(topic=...)``. Splitting, cleaning and what is noted: see the module
+    docstring; a stream too sparse to form runs at `gap_s` is refused (`streams`).
+    `progress(fraction, message)` hears how far the reading has got. Raises BagError for an
+    unreadable source and DataError when no run is left.
     """
     if not (np.isfinite(gap_s) and gap_s > 0):
         raise DataError(f'gap_s must be a positive number of seconds, got {gap_s}')
     notes: list[str] = []
     splitters: dict[tuple[str, str], _StreamSplitter] = {}
-    for chunk in iter_pose_samples(sources, topic=topic, notes=notes, options=options):
+    for chunk in iter_pose_samples(sources, topic=topic, notes=notes, options=options,
+                                   gap_s=gap_s, progress=progress):
         key = (chunk.source, chunk.topic)
         splitter = splitters.get(key)
         if splitter is None:
@@ -369,18 +373,20 @@ def read_runs(sources: Sources, *, topic: str | None = None, gap_s: float = DEFA
 def load_measured(sources: Sources, *, rate_hz: float = DEFAULT_RATE_HZ,
                   gap_s: float = DEFAULT_GAP_S, topic: str | None = None,
                   min_duration_s: float | None = None, use_markers: bool = True,
-                  options: ReadOptions | None = None) -> Paths:
+                  options: ReadOptions | None = None,
+                  progress: Progress | None = None) -> Paths:
     """
     Measured runs from bags, motion-capture files and/or data sets (.npz), on one grid.
 
-    `options` (and `topic`): where the pose is, see `read_runs`. Notes on everything
-    converted, skipped or repaired are in ``.info['notes']``.
+    `options` (and `topic`): where the pose is, see `read_runs`; `progress` hears how far the
+    reading has got. Notes on everything converted, skipped or repaired are in
+    ``.info['notes']``.
     """
     found = expand_sources(sources, suffixes=MEASURED_SUFFIXES)
     datasets = [path for path in found if is_dataset_file(path)]
     bags = [path for path in found if not is_dataset_file(path)]
     sets = [read_runs(bags, topic=topic, gap_s=gap_s, use_markers=use_markers,
-                      options=options)] if bags else []
+                      options=options, progress=progress)] if bags else []
     sets += [RunSet.from_paths(load_dataset(path), source=str(path)) for path in datasets]
     paths = RunSet.combine(sets).to_paths(rate_hz, min_duration_s)
     repeated = repeated_runs_note(paths)    # the same recording under two names

@@ -3,14 +3,22 @@ Inputs by name: which files a source is, and what kind of input each one is.
 
 A source is a rosbag2 bag directory (metadata.yaml plus .mcap or .db3 files, or only the .mcap
 files when the recorder died), a bare .mcap file, a ROS 1 .bag file, a motion-capture export
-(.csv, .c3d), a multisample data set (.npz), or a folder holding any of them (searched
-recursively; a bag directory counts as one source).
+(Vicon .csv, .c3d, Qualisys .tsv), a trajectory table (TUM .txt, EuRoC/ASL .csv, a CSV with a
+header naming its time and pose columns), a multisample data set (.npz), or a folder holding
+any of them (searched recursively; a bag directory counts as one source).
+
+What a file is (`input_kind`) is told by its suffix where the suffix is a format's own (.mcap,
+.db3, .bag, .c3d, .npz), else by its first bytes: the MCAP or ROS 1 magic, a C3D header, a
+Qualisys TSV header, a Vicon CSV section name, a trajectory table's header or rows. A file that
+is none of them is refused with one line listing what the package reads (`READ_FORMATS`).
 """
 from __future__ import annotations
 
 from collections.abc import Iterable
+from enum import Enum
 import os
 from pathlib import Path
+import re
 from typing import NamedTuple, Union
 
 from octoroach_model.errors import BagError
@@ -22,11 +30,36 @@ Sources = Union[PathLike, Iterable[PathLike]]
 
 ROS2_SUFFIXES = ('.mcap', '.db3')
 ROS1_SUFFIX = '.bag'
-MOCAP_SUFFIXES = ('.csv', '.c3d')
-POSE_INPUT_SUFFIXES = (*ROS2_SUFFIXES, ROS1_SUFFIX, *MOCAP_SUFFIXES)
+MOCAP_SUFFIXES = ('.csv', '.c3d', '.tsv')
+# text files that are read in a folder only when their content is a format read here
+TEXT_SUFFIXES = ('.txt',)
+POSE_INPUT_SUFFIXES = (*ROS2_SUFFIXES, ROS1_SUFFIX, *MOCAP_SUFFIXES, *TEXT_SUFFIXES)
 DATASET_SUFFIX = '.npz'
 MEASURED_SUFFIXES = (*POSE_INPUT_SUFFIXES, DATASET_SUFFIX)
 METADATA_FILE = 'metadata.yaml'
+# What the package reads, for the error an unknown file gets (docs/formats.md has the table)
+READ_FORMATS = (
+    'rosbag2 bags (MCAP or sqlite3 folders, .mcap files)', 'ROS 1 .bag files',
+    'Vicon CSV exports', 'C3D files', 'Qualisys TSV exports (3D or 6DOF)',
+    'TUM trajectories (timestamp tx ty tz qx qy qz qw)', 'EuRoC/ASL CSV',
+    'CSV with a header naming time and pose columns', '.npz data sets')
+SNIFF_BYTES = 64 * 1024  # the first bytes a file is told by
+_MAGIC = {b'\x89MCAP0\r\n': 'bag', b'#ROSBAG V2.0': 'bag', b'PK\x03\x04': 'dataset'}
+VICON_SECTIONS = ('Objects', 'Segments', 'Trajectories', 'Devices', 'Joints',
+                  'Model Outputs', 'Events')
+_QUALISYS_KEYS = ('FILE_VERSION', 'NO_OF_FRAMES')
+
+
+class InputKind(Enum):
+    """What kind of input a file or folder is, and so which reader reads it."""
+
+    BAG = 'rosbag2 or ROS 1 bag'
+    VICON_CSV = 'Vicon CSV export'
+    C3D = 'C3D file'
+    QUALISYS_TSV = 'Qualisys TSV export'
+    TABLE = 'trajectory table'
+    DATASET = 'multisample data set'
+    UNKNOWN = 'none of the formats read here'
 
 
 class BagFiles(NamedTuple):
@@ -81,7 +114,7 @@ def expand_sources(sources: Sources, *,
 
 def _nothing_to_read(folder: Path, suffixes: tuple[str, ...]) -> str:
     """Say why a folder gave no input: empty, or which files it holds instead."""
-    wanted = ', '.join(suffixes)
+    wanted = ', '.join(suffixes).replace('.txt', '.txt trajectory')
     try:
         others = sorted({child.suffix or child.name for child in folder.iterdir()})
     except OSError as error:
@@ -127,6 +160,9 @@ def _search_folder(folder: Path, suffixes: tuple[str, ...], visited: set[tuple[i
         if child.is_dir():
             found.extend([child] if is_bag_directory(child)
                          else _search_folder(child, suffixes, visited, depth + 1))
+        elif child.suffix in TEXT_SUFFIXES and child.suffix in suffixes:
+            if input_kind(child) is not InputKind.UNKNOWN:    # a README.txt is no input
+                found.append(child)
         elif child.suffix in suffixes:
             found.append(child)
     return found
@@ -151,17 +187,65 @@ def source_files(sources: Sources, *,
     return files
 
 
-def input_kind(path: Path) -> str:
-    """'rosbag2' (directory or .mcap/.db3 file), 'ros1', 'csv', 'c3d' or 'dataset'."""
-    if path.is_dir() or path.suffix in ROS2_SUFFIXES:
-        return 'rosbag2'
-    if path.suffix == ROS1_SUFFIX:
-        return 'ros1'
-    if path.suffix in MOCAP_SUFFIXES:
-        return path.suffix[1:]
-    if path.suffix == DATASET_SUFFIX:
-        return 'dataset'
-    return 'rosbag2'  # unknown suffix: read as MCAP, which says what is wrong
+def input_kind(path: Path) -> InputKind:
+    """Tell what a source is, by its format's own suffix, else by its first bytes."""
+    suffix = path.suffix.lower()
+    if path.is_dir() or suffix in (*ROS2_SUFFIXES, ROS1_SUFFIX):
+        return InputKind.BAG
+    if suffix == '.c3d':
+        return InputKind.C3D
+    if suffix == DATASET_SUFFIX:
+        return InputKind.DATASET
+    try:
+        with path.open('rb') as stream:
+            head = stream.read(SNIFF_BYTES)
+    except OSError:
+        return InputKind.BAG  # the bag reader says why it cannot be read
+    for magic, kind in _MAGIC.items():
+        if head.startswith(magic):
+            return InputKind.BAG if kind == 'bag' else InputKind.DATASET
+    if _looks_like_c3d(head):
+        return InputKind.C3D
+    if not head or b'\0' in head:
+        return InputKind.UNKNOWN
+    return text_kind(head.decode('utf-8-sig', errors='replace'), cut=len(head) == SNIFF_BYTES)
+
+
+def _looks_like_c3d(head: bytes) -> bool:
+    """Tell a C3D header: parameter block pointer, then the key 0x50, in a 512-byte block."""
+    return len(head) >= 512 and head[1] == 0x50 and 1 < head[0] < 128
+
+
+def text_kind(text: str, cut: bool = False) -> InputKind:
+    """Tell a text export by its first lines; `cut`: the last line may be incomplete."""
+    lines = text.splitlines()
+    if cut and lines:
+        lines = lines[:-1]
+    lines = [line for line in lines[:400] if line.strip()]
+    if not lines:
+        return InputKind.UNKNOWN
+    first = lines[0].strip()
+    if first.split('\t')[0].strip() in _QUALISYS_KEYS:
+        return InputKind.QUALISYS_TSV
+    cells = [cell.strip() for cell in re.split('[,;\t]', first)]
+    if cells[0] in VICON_SECTIONS and not any(cells[1:]):
+        return InputKind.VICON_CSV
+    from octoroach_model.recordings.tables import detect_table
+
+    if detect_table(lines) is not None:
+        return InputKind.TABLE
+    return InputKind.UNKNOWN
+
+
+def unknown_input_message(path: Path) -> str:
+    """Say in one line that a file is none of the formats read, and list them."""
+    try:
+        size = path.stat().st_size
+    except OSError:
+        size = -1
+    what = 'an empty file' if size == 0 else 'its first bytes fit none of its formats'
+    return f'{path}: not a file this package reads ({what}); it reads ' + \
+        '; '.join(READ_FORMATS) + ' (docs/formats.md)'
 
 
 def bag_files(source: PathLike) -> BagFiles:

@@ -19,11 +19,12 @@ RX RY RZ are read as a helical (axis-angle) vector, Vicon's global angle, unless
 says ``Euler`` (Euler XYZ: about x, then the new y, then the new z) or the group has a W
 column (quaternion x, y, z, w). The export does not always say which, so the notes give the
 largest difference the Euler reading would make to the heading (none for a level body).
-Heading = yaw of the body axis `ReadOptions.forward_axis`. A frame whose cells are empty was
-not tracked: it is a dropped frame. With no Objects or Segments section (or when
-`ReadOptions.markers` names markers), the pose comes from the markers of a Trajectories
-section by the same rigid fit as for C3D files. Frame f at rate r is stamped
-(f - first frame) / r; one file is one stream (``csv:<object>``), cut into runs by the
+Positions (TX TY TZ) are turned into the z-up world (`ReadOptions.up_axis`); heading = yaw
+of the body axis `ReadOptions.forward_axis`. A frame whose cells are empty was not tracked:
+it is a dropped frame, and so is a quaternion that is not a rotation (`axes`). With no
+Objects or Segments section (or when `ReadOptions.markers` names markers), the pose comes from
+the markers of a Trajectories section by the same rigid fit as for C3D files. Frame f at rate
+r is stamped (f - first frame) / r; one file is one stream (``csv:<object>``), cut into runs by the
 splitter at gaps longer than gap_s.
 """
 from __future__ import annotations
@@ -39,13 +40,14 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from octoroach_model.errors import BagError
-from octoroach_model.limits import MAX_CSV_LINE
-from octoroach_model.recordings.bags import PoseChunk
+from octoroach_model.recordings.axes import headings_from_rotations, Orientations, to_z_up
+from octoroach_model.recordings.chunks import PoseChunk
 from octoroach_model.recordings.mocap import (
     ANGLE_UNITS,
     axis_words,
     check_rate,
     complete_frames,
+    last_chunk,
     LAYOUT_FRAMES,
     LENGTH_UNITS,
     length_words,
@@ -54,15 +56,12 @@ from octoroach_model.recordings.mocap import (
     select_body_markers,
     split_label,
     stamps_ns,
+    stream_fraction,
+    text_lines,
     unit_scale,
 )
 from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.recordings.rigid import (
-    forward_heading,
-    rotation_from_euler_xyz,
-    rotation_from_helical,
-    rotation_from_quaternion,
-)
+from octoroach_model.recordings.rigid import rotation_from_euler_xyz, rotation_from_helical
 
 __all__ = ['CsvSection', 'iter_csv_pose_chunks', 'read_csv_sections']
 
@@ -110,16 +109,7 @@ def _cells(line: str, delimiter: str) -> list[str]:
 
 def _lines(stream: Any, where: str) -> Iterator[str]:
     """Yield the lines of `stream`, refusing one longer than `limits.MAX_CSV_LINE`."""
-    number = 0
-    while True:
-        line = stream.readline(MAX_CSV_LINE + 1)
-        if not line:
-            return
-        number += 1
-        if len(line) > MAX_CSV_LINE:
-            raise BagError(f'{where}: line {number} is longer than '
-                           f'{MAX_CSV_LINE} characters; not a Vicon CSV export')
-        yield line
+    return text_lines(stream, where, 'a Vicon CSV export')
 
 
 def _is_blank(line: str) -> bool:
@@ -321,12 +311,15 @@ def _common_unit(where: str, group: _Group, components: tuple[str, ...], table: 
     return unit, unit_scale(unit, table, what, f'{where}: {group.label}')
 
 
-def _rotations(kind: str, values: np.ndarray, angle_scale: float) -> np.ndarray:
+def _headings(kind: str, values: np.ndarray, angle_scale: float, options: ReadOptions,
+              orientations: Orientations) -> np.ndarray:
+    """Headings of a block of rotation cells, read as `kind`."""
+    up, forward = options.up_axis, options.forward_axis
     if kind == QUATERNION:
-        return rotation_from_quaternion(values)
-    if kind == EULER_XYZ:
-        return rotation_from_euler_xyz(values * angle_scale)
-    return rotation_from_helical(values * angle_scale)
+        return orientations.quaternion_headings(values, up, forward)
+    rotation = rotation_from_euler_xyz(values * angle_scale) if kind == EULER_XYZ \
+        else rotation_from_helical(values * angle_scale)
+    return headings_from_rotations(rotation, up, forward)
 
 
 def _object_chunks(where: str, reader: _RowReader, section: CsvSection, group: _Group,
@@ -344,16 +337,22 @@ def _object_chunks(where: str, reader: _RowReader, section: CsvSection, group: _
                                                'angle')
         angle_words = f'{kind} in {angle_unit}' + (
             ' converted to rad' if angle_unit.lower().startswith('deg') else '')
-    need = [group.columns[name] for name in ('TX', 'TY') + rotation_columns]
+    has_tz = 'TZ' in group.columns
+    if not has_tz and options.up_axis != 'z':
+        raise BagError(f'{where}: {group.label}: no TZ column, so --up-axis '
+                       f'{options.up_axis} cannot turn the positions')
+    lengths = ('TX', 'TY', 'TZ') if has_tz else ('TX', 'TY')
+    need = [group.columns[name] for name in lengths + rotation_columns]
     topic = f'csv:{group.label}'
     notes.append(f'{where}: Vicon {section.title} section, {group.label} at '
                  f'{section.rate_hz:g} Hz: {length_words(length_unit)}, '
                  f'rotations read as {angle_words}{"" if stated else " (not stated in the file)"}'
                  f'; {axis_words(options)}; stamps from the first tracked frame at 0 s')
-    offset = options.heading_offset_rad
     euler_gap = 0.0
     sequence = 1
     first_frame: int | None = None
+    orientations = Orientations()
+    width = len(lengths)
     for frames, values in reader.blocks(section, need, chunk_size):
         tracked = np.isfinite(values).all(axis=1)
         frames, values = frames[tracked], values[tracked]
@@ -362,23 +361,28 @@ def _object_chunks(where: str, reader: _RowReader, section: CsvSection, group: _
             continue
         if first_frame is None:
             first_frame = int(frames[0])
-        rotation = _rotations(kind, values[:, 2:], angle_scale)
-        heading = forward_heading(rotation, offset)
+        cells = values[:, width:]
+        heading = _headings(kind, cells, angle_scale, options, orientations)
         if not stated:
-            other = forward_heading(_rotations(EULER_XYZ, values[:, 2:], angle_scale), offset)
+            other = _headings(EULER_XYZ, cells, angle_scale, options, orientations)
             gap = np.abs(np.angle(np.exp(1j * (other - heading))))
             euler_gap = max(euler_gap, float(np.nanmax(gap, initial=0.0)))
+        position = values[:, :width] * length_scale
+        if not has_tz:
+            position = np.column_stack([position, np.full(len(position), np.nan)])
+        position = to_z_up(position, options.up_axis)
         yield pose_chunk(where, topic, sequence,
                          stamps_ns(frames, first_frame, section.rate_hz),
-                         values[:, 0] * length_scale, values[:, 1] * length_scale, heading)
+                         position[:, 0], position[:, 1], heading,
+                         z=position[:, 2] if has_tz else None, read_fraction=reader.fraction)
         sequence += len(frames)
     if not stated:
         differs = (f'differ by up to {math.degrees(euler_gap):.3g} deg'
                    if euler_gap > _SAME_HEADING_RAD else 'be the same')
         notes.append(f'{where}: read as Euler XYZ angles instead, the headings would {differs}')
     notes.extend(reader.notes(where, f'for {group.label}'))
-    yield pose_chunk(where, topic, sequence, np.zeros(0, dtype=np.int64), np.zeros(0),
-                     np.zeros(0), np.zeros(0), is_last=True, truncated=reader.truncated)
+    notes.extend(orientations.notes(where))
+    yield last_chunk(where, topic, sequence, truncated=reader.truncated)
 
 
 def _marker_chunks(where: str, reader: _RowReader, section: CsvSection,
@@ -420,19 +424,19 @@ def _marker_chunks(where: str, reader: _RowReader, section: CsvSection,
     sequence = 1
     first_frame: int | None = None
     for frames, values in reader.blocks(section, need, chunk_size):
-        x, y, heading, valid = body.poses(values.reshape(len(frames), -1, 3) * scale)
+        x, y, z, heading, valid = body.poses(values.reshape(len(frames), -1, 3) * scale)
         if not valid.any():
             continue
         if first_frame is None:
             first_frame = int(frames[0])
         yield pose_chunk(where, topic, sequence,
                          stamps_ns(frames[valid], first_frame, section.rate_hz),
-                         x[valid], y[valid], heading[valid])
+                         x[valid], y[valid], heading[valid], z=z[valid],
+                         read_fraction=reader.fraction)
         sequence += int(valid.sum())
     notes.extend(reader.notes(where, ''))
     notes.extend(body.summary.notes(where, ', '.join(names)))
-    yield pose_chunk(where, topic, sequence, np.zeros(0, dtype=np.int64), np.zeros(0),
-                     np.zeros(0), np.zeros(0), is_last=True, truncated=reader.truncated)
+    yield last_chunk(where, topic, sequence, truncated=reader.truncated)
 
 
 def path_stem(where: str) -> str:
@@ -455,6 +459,7 @@ class _RowReader:
         self.sub_frames = 0
         self.untracked = 0
         self.truncated = False
+        self.fraction = math.nan  # how much of the file has been read
         self._first_value = 2
 
     def blocks(self, section: CsvSection, need: list[int],
@@ -465,12 +470,15 @@ class _RowReader:
         wanted = [0] + ([1] if has_sub_frame else []) + list(need)
         self._first_value = 2 if has_sub_frame else 1
         width = max(wanted) + 1
+        size = max(1, self.path.stat().st_size)
         with self.path.open(encoding='utf-8-sig', errors='replace', newline='') as stream:
             rows = csv.reader(itertools.islice(_lines(stream, str(self.path)),
                                                section.data_line - 1, None),
                               delimiter=self.delimiter)
             try:
-                yield from self._rows(rows, section, wanted, width, block)
+                for parsed in self._rows(rows, section, wanted, width, block):
+                    self.fraction = stream_fraction(stream, size)
+                    yield parsed
             except csv.Error:
                 raise BagError(f'{self.path}: line {section.data_line + rows.line_num - 1}: '
                                f'a cell longer than {csv.field_size_limit()} characters, or '

@@ -315,9 +315,10 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
     if nominal not in ('fit', 'table2'):
         raise ParameterError(f"nominal must be 'fit' or 'table2', got {nominal!r}")
     if measured.n_paths < settings.runs_needed:
+        left_out = f'; {duration_note}' if duration_note else ''
         raise DataError(f'{measured.n_paths} runs are too few: n x k = {settings.n} x '
                         f'{settings.k} needs {settings.runs_needed} runs (lower k, or raise '
-                        f'epsilon/delta to lower n)')
+                        f'epsilon/delta to lower n){left_out}')
     if nominal == 'fit':
         fit = fit_nominal(measured)
         model = FourBarModel(fit.parameters, fit.start_pose, draws)
