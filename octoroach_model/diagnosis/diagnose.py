@@ -20,7 +20,7 @@ Method (docs/diagnosis.md has it in full):
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 import math
@@ -44,7 +44,7 @@ from octoroach_model.diagnosis.modelfit import (
     at_size, CausesFit, CHANGE_POINT_BOOTSTRAP, change_point_step, fit_causes, fit_geometry,
     fit_mixture, fit_moment, fit_spread, fit_trend,
     FitSettings, FittedModel, GeometryUncertainty, MIXTURE_EVIDENCE_NATS, RunData, Simulator,
-    SizeEstimate, spread_statistic)
+    SizeEstimate, spread_error, spread_statistic)
 from octoroach_model.diagnosis.report import (
     CandidateResult, DiagnosisReport, NamedCause, NamedExtension, Rival, RunLengths,
     ScoreSummary, StepResult)
@@ -191,13 +191,17 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         n_model = max(halves.every.n, 1000)
         baseline_rows = discrepancies(
             halves.every.features, everything.features(baseline, n_model, DISCREPANCY_PURPOSE),
-            rng, settings.bootstrap, fit_errors(everything, baseline, baseline_fit.geometry,
-                                                n_model, halves.train.n / halves.every.n))
+            rng, settings.bootstrap, fit_errors(
+                everything, baseline, baseline_fit.geometry, n_model,
+                halves.train.n / halves.every.n,
+                independent_moves(Simulator(halves.train, settings.seed), baseline_fit,
+                                  halves, settings.fit())))
         final_paths, final_places = everything.runs(final, n_model, DISCREPANCY_PURPOSE)
         final_features = halves.every.features_of(final_paths, final_places)
         final_rows = discrepancies(
             halves.every.features, final_features, rng, settings.bootstrap,
-            fit_errors(everything, final, final_fit.geometry, n_model))
+            fit_errors(everything, final, final_fit.geometry, n_model, 1.0,
+                       independent_moves(everything, final_fit, halves, settings.fit(1))))
         bound = critical_z(settings.adequacy_alpha, len(STATISTICS))
         unexplained = [row for row in final_rows if abs(row.z) > bound and row.material]
         misfit = locate(halves.every.paths, halves.every.features, _places(halves),
@@ -589,29 +593,68 @@ def _step_message(result: StepResult) -> str:
 
 def fit_errors(simulator: Simulator, model: FittedModel,
                uncertainty: GeometryUncertainty | None, n_runs: int,
-               data_share: float = 1.0) -> np.ndarray | None:
+               data_share: float = 1.0, independent: Sequence[FittedModel] = ()
+               ) -> np.ndarray | None:
     """
-    Return each statistic's error from the model's fitted geometry.
+    Return each statistic's error from the model's fitted parameters.
 
-    Path-cause sizes count too: the change
-    of the statistic when each entry of the fit's vector moves by its standard error (common
-    random numbers), combined through the fit's correlations. `data_share` < 1 when the model
-    was fitted on a part of the runs its statistics are compared with.
+    The geometry, path-cause sizes with it: the change of the statistic when each entry of
+    the fit's vector moves by its standard error (common random numbers), combined through
+    the fit's correlations; `data_share` < 1 when the model was fitted on a part of the runs
+    its statistics are compared with. `independent`: the model with each of its other fitted
+    parameters moved by its standard error (`independent_moves`), their changes added in
+    quadrature.
     """
-    if uncertainty is None:
+    if uncertainty is None and not independent:
         return None
     base = statistic_values(simulator.features(model, n_runs, DISCREPANCY_PURPOSE))
-    errors = np.sqrt(np.maximum(np.diag(uncertainty.covariance), 0.0))
-    rows = []
-    for index, error in enumerate(errors):
-        moved = uncertainty.perturbed(model, index, float(error)) if error > 0 else model
-        rows.append(statistic_values(simulator.features(moved, n_runs,
-                                                        DISCREPANCY_PURPOSE)) - base)
-    changes = np.array(rows)                                      # (vector, statistics)
-    correlation = uncertainty.covariance / np.outer(np.maximum(errors, 1e-300),
-                                                    np.maximum(errors, 1e-300))
-    variance = np.einsum('is,ij,js->s', changes, correlation, changes)
-    return np.sqrt(np.maximum(variance, 0.0) / data_share)
+
+    def change(moved: FittedModel) -> np.ndarray:
+        return statistic_values(simulator.features(moved, n_runs, DISCREPANCY_PURPOSE)) - base
+
+    variance = np.zeros_like(base)
+    if uncertainty is not None:
+        errors = np.sqrt(np.maximum(np.diag(uncertainty.covariance), 0.0))
+        changes = np.array([change(uncertainty.perturbed(model, index, float(error)))
+                            if error > 0 else np.zeros_like(base)
+                            for index, error in enumerate(errors)])   # (vector, statistics)
+        correlation = uncertainty.covariance / np.outer(np.maximum(errors, 1e-300),
+                                                        np.maximum(errors, 1e-300))
+        variance += np.einsum('is,ij,js->s', changes, correlation, changes) / data_share
+    for moved in independent:
+        variance += change(moved) ** 2
+    return np.sqrt(np.maximum(variance, 0.0))
+
+
+def independent_moves(simulator: Simulator, fit: CausesFit, halves: _Halves,
+                      settings: FitSettings) -> list[FittedModel]:
+    """
+    Return the fitted model with each parameter outside the geometry's vector moved by one se.
+
+    The spread scale (its error on the runs it was fitted to, `simulator`'s, and on the
+    simulated runs it was matched with: with thousands of runs the latter dominates, and the
+    spreads of an exact model were called off, lateral spread at the end and per-cycle
+    heading change 4 standard errors away) and each size read off a line or two groups (the
+    moments, trend and mixture kinds; path causes move with the geometry).
+    """
+    model = fit.model
+    moves = []
+    spread_se = spread_error(simulator, model, settings)
+    if spread_se > 0:
+        moves.append(replace(model, sigma_scale=model.sigma_scale + spread_se))
+    for name, estimate in fit.estimates.items():
+        cause = BY_NAME[name]
+        if cause.kind == 'path' or name not in model.effects or not (
+                math.isfinite(estimate.se) and estimate.se > 0):
+            continue
+        values = model.effects[name]
+        size = abs(float(values[cause.parameter]) - cause.null) if cause.kind != 'mixture' \
+            else estimate.size
+        moved = at_size(cause, size + estimate.se, values, halves.every)
+        if cause.signed and float(values.get(cause.parameter, 0.0)) < cause.null:
+            moved = at_size(cause, -(size + estimate.se), values, halves.every)
+        moves.append(model.with_effect(name, moved))
+    return moves
 
 
 def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,

@@ -721,6 +721,28 @@ def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings) 
     return min(math.sqrt(max(_read_line(points, target), 0.0)), 4.0)
 
 
+def spread_error(simulator: Simulator, model: FittedModel, settings: FitSettings) -> float:
+    """
+    Return the standard error of `model`'s spread scale as `fit_spread` fits it on these runs.
+
+    The statistic's error on the data (its runs' spread over the square root of their count)
+    and on the simulated runs it is matched with (as many as `settings.moment_runs`), carried
+    through the line's slope at the fitted scale: u = scale^2, se(scale) = se(u) / (2 scale).
+    """
+    column = INDEX[spread_statistic(model)]
+    scale = model.sigma_scale
+    data = simulator.data.features[:, column]
+    fitted = simulator.features(model, settings.moment_runs, SPREAD)[:, column]
+    still = simulator.features(replace(model, sigma_scale=0.0), settings.moment_runs,
+                               SPREAD)[:, column]
+    slope = (float(fitted.mean()) - float(still.mean())) / max(scale ** 2, 1e-12)
+    if not (slope > 0 and scale > 0):
+        return 0.0
+    se_u = math.hypot(float(np.std(data, ddof=1)) / math.sqrt(len(data)),
+                      float(np.std(fitted, ddof=1)) / math.sqrt(len(fitted))) / slope
+    return se_u / (2.0 * scale)
+
+
 def _read_line(points: dict[float, float], target: float) -> float:
     """
     Return u where the piecewise-linear line through (u, S) points reaches `target`.
