@@ -36,7 +36,7 @@ PROFILES = {
 PROFILE = PROFILES[os.environ.get('OCTOROACH_ROBOT_SPACE', 'quick')]
 SUITE_SEED = int(os.environ.get('OCTOROACH_TEST_SEED', '0'))
 TINY = DiagnosisSettings(validate_models=False, score_runs=200, moment_runs=120,
-                         mean_path_runs=80, bootstrap=20, workers=1)
+                         mean_path_runs=80, discrepancy_runs=200, bootstrap=20, workers=1)
 SMALL_VALIDATION = ValidationSettings(epsilon=0.4, delta=0.4, k=3, grid_points=3)
 
 

@@ -76,7 +76,9 @@ class DiagnosisSettings:
     decision_alpha: family level of the size bounds (likewise); min_gain: smallest held-out
     gain (feature log score, nats per run) a cause must bring; adequacy_alpha:
     family level over the discrepancy statistics; moment_runs / mean_path_runs / score_runs:
-    simulated runs per moment point / per mean path / per scored model; workers: processes
+    simulated runs per moment point / per mean path / per scored model; discrepancy_runs: the
+    fewest simulated runs a model's statistics are compared with (as many as the data where
+    they are more); workers: processes
     (1: in this process), ignored when an executor is passed to `diagnose`; detection_limits:
     compute every candidate's limit of the whole decision (limits.py; without it `detectable`
     is the size bound's own limit, and the method says so).
@@ -90,6 +92,7 @@ class DiagnosisSettings:
     moment_runs: int = 400
     mean_path_runs: int = 300
     score_runs: int = 1200
+    discrepancy_runs: int = 1000
     bootstrap: int = 100
     heading_weight_m: float = 0.13
     rounds: int = 2
@@ -188,7 +191,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         say(0.85, 'discrepancies and adequacy')
         rng = np.random.default_rng([settings.seed, 41])
         everything = Simulator(halves.every, settings.seed)
-        n_model = max(halves.every.n, 1000)
+        n_model = max(halves.every.n, settings.discrepancy_runs)
         baseline_rows = discrepancies(
             halves.every.features, everything.features(baseline, n_model, DISCREPANCY_PURPOSE),
             rng, settings.bootstrap, fit_errors(
