@@ -60,7 +60,7 @@ MODEL_PURPOSE = 52
 EVIDENCE_SUBSETS = 40      # calibration halves drawn from the simulated runs for P3
 
 METHOD = ('smallest size named with 80 % power: P(size bound clears the floor) x P(held-out '
-          "test significant) (x P(two groups seen), for run_mixture), the first from the "
+          'test significant) (x P(two groups seen), for run_mixture), the first from the '
           "measured runs' own standard error, the others from runs simulated with the cause "
           '(docs/diagnosis.md, "Detection limits")')
 
