@@ -459,7 +459,9 @@ def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Sc
     Extend `current` by `cause`, refit, and score it on the held-out runs.
 
     Every included size is refit (one round) and scored against `current`; a top-level
-    function, as it runs in worker processes. An extension family whose size, estimated
+    function, as it runs in worker processes. A term that changes which statistic the spread
+    scale is read off (a heading term) is refit a second round with the geometry, which the
+    new spread moves. An extension family whose size, estimated
     before any refit, has a bound out of reach of its floor even if the refit moved it up by
     SCREEN_ALLOWANCE standard errors (the bound at `z_decision` - SCREEN_ALLOWANCE below the
     floor) is neither refit nor scored: it cannot qualify (`screened`). So is run_mixture
@@ -479,6 +481,12 @@ def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Sc
     geometry = candidate.kind in ('path', 'mixture', 'trend')
     fitted = fit_causes(halves.train, current, causes, settings.fit(), geometry=geometry,
                         rounds=1)
+    if not geometry and spread_statistic(fitted.model) != spread_statistic(current):
+        # the spread scale is read off another statistic now, and moves; the model's mean
+        # path and sway move with it, and the geometry fitted for the old spread no longer
+        # fits them (a periodic heading at its limit lost a quarter nat per held-out run in
+        # progress and sway, and went unnamed): refit the geometry for the new spread
+        fitted = fit_causes(halves.train, fitted.model, causes, settings.fit(), rounds=1)
     model, estimates = fitted.model, fitted.estimates
     scores = _score(Simulator(halves.test, settings.seed), model, halves, settings)
     return Evaluation(cause, model, estimates, scores,
@@ -557,15 +565,19 @@ def _step_result(step: int, evaluated: list[Evaluation], halves: _Halves,
 
 def _rival(chosen: Evaluation, eligible: list[Evaluation], alpha: float) -> Rival | None:
     """
-    Return the best qualifying candidate of the other table, if the data cannot tell them apart.
+    Return the best qualifying look-alike of the chosen term, if the data cannot tell them apart.
 
-    A cause of the table and an extension family that both qualify are told apart by the
-    paired difference of their held-out log scores, run by run (two-sided t-test at level
-    `alpha`); where it is not significant, the chosen one enters and the report names the
-    other beside it, with its fit, instead of guessing.
+    A look-alike is a qualifying term of the other table, or, for an extension family, of
+    another family (a heading that wanders and one that swings both widen the per-cycle
+    heading change): the two are told apart by the paired difference of their held-out log
+    scores, run by run (two-sided t-test at level `alpha`); where it is not significant, the
+    chosen one enters and the report names the other beside it, with its fit, instead of
+    guessing. Two causes of the table are not look-alikes: each is named at its own step.
     """
-    extension = BY_NAME[chosen.cause].is_extension
-    others = [e for e in eligible if BY_NAME[e.cause].is_extension != extension]
+    chosen_cause = BY_NAME[chosen.cause]
+    others = [e for e in eligible if (BY_NAME[e.cause].is_extension != chosen_cause.is_extension
+                                      or (chosen_cause.is_extension
+                                          and BY_NAME[e.cause].family != chosen_cause.family))]
     if not others:
         return None
     other = max(others, key=lambda e: e.gain.mean)

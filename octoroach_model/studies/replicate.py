@@ -200,9 +200,9 @@ def undecided_terms(report: Mapping[str, Any], named: list[str]) -> list[str]:
     """
     Return the terms reported beside a named one as what the runs cannot tell it from.
 
-    A cause of the table and an extension family that both qualify at a step, their held-out
-    scores not told apart, are both reported (the chosen one named, the other as its rival):
-    the data cannot say which, and the report does not guess.
+    Look-alikes that both qualify at a step (a cause of the table and an extension family, or
+    two families), their held-out scores not told apart, are both reported (the chosen one
+    named, the other as its rival): the data cannot say which, and the report does not guess.
     """
     return [step['rival']['cause'] for step in report.get('steps') or []
             if step.get('rival') and step.get('chosen') in named]
