@@ -6,11 +6,11 @@ Each hostile file reproduces a problem of issue 24 (a 32 KB MCAP whose zstd chun
 folder of self-referencing links, a CSV header cell over 131072 characters, `../` in
 relative_file_paths, a file whose first bytes an error used to quote). The fuzz test runs
 `validate` on every hostile file and on seeded mutations of a valid bag (MCAP, uncompressed
-and zstd, and one of a driver's arrays of named bodies), metadata.yaml, Vicon CSV, C3D,
-Qualisys TSV (3D and 6DOF), TUM, EuRoC and headed CSV table and .npz file, in one child
-process, and checks that
-each ends in exit 0 or one `error:` line with exit 1, without a traceback, and that the child's
-peak memory stays below MEMORY_BOUND_MB.
+and zstd, one whose chunks carry no checksum, so that a mutated chunk reaches the walk that
+decodes pose messages in blocks, and one of a driver's arrays of named bodies), metadata.yaml,
+Vicon CSV, C3D, Qualisys TSV (3D and 6DOF), TUM, EuRoC and headed CSV table and .npz file,
+in one child process, and checks that each ends in exit 0 or one `error:` line with exit 1,
+without a traceback, and that the child's peak memory stays below MEMORY_BOUND_MB.
 
 Every file is written by a real writer (the package's bag writer, mcap's Writer, ezc3d,
 numpy); a hostile one is a valid file with bytes patched afterwards, as each case says.
@@ -69,13 +69,14 @@ def standard_bag(directory: Path, runs: int = 3) -> Path:
     return bag
 
 
-def zstd_mcap(directory: Path, bag: Path) -> Path:
-    """Copy the bag's messages into one .mcap file written by mcap's Writer with zstd chunks."""
+def zstd_mcap(directory: Path, bag: Path, compression: CompressionType = CompressionType.ZSTD,
+              name: str = 'zstd.mcap', crcs: bool = True) -> Path:
+    """Copy the bag's messages into one .mcap file written by mcap's Writer (zstd chunks)."""
     reader = BagReader(bag)
     reader.topics()
-    path = directory / 'zstd.mcap'
+    path = directory / name
     with path.open('wb') as stream:
-        writer = Writer(stream, compression=CompressionType.ZSTD, chunk_size=4096)
+        writer = Writer(stream, compression=compression, chunk_size=4096, enable_crcs=crcs)
         writer.start(profile='ros2', library='test')
         channels = {}
         for index, channel in enumerate(reader.channels):
@@ -202,7 +203,10 @@ def valid_seeds(directory: Path) -> dict[str, Path]:
     where, rotations = planar_pose(poses)
     tracked = np.ones(len(poses), bool)
     named = named_pose_bag(directory / 'named', om.simulate(2, seed=3, cycles=2))
+    # chunks without checksums: a mutation inside one reaches the pose blocks' walk
+    unchecked = zstd_mcap(directory, bag, CompressionType.NONE, 'unchecked.mcap', crcs=False)
     return {'bag': bag, 'mcap': next(bag.glob('*.mcap')), 'zstd': zstd_mcap(directory, bag),
+            'unchecked': unchecked,
             'metadata': bag / 'metadata.yaml', 'csv': csv_path, 'c3d': c3d_path,
             'npz': save_dataset(directory / 'runs.npz', paths),
             'tsv6d': write_qtm_6d(directory / 'trial_6d.tsv', 50.0,

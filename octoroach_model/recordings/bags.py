@@ -48,6 +48,7 @@ from octoroach_model.errors import BagError, ParameterError
 from octoroach_model.recordings.axes import axes_words, Orientations, to_z_up
 from octoroach_model.recordings.chunks import PoseChunk
 from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.recordings.pose_blocks import PoseBlock
 from octoroach_model.recordings.pose_messages import (
     frame_getter,
     full_pose_getter,
@@ -85,6 +86,10 @@ __all__ = ['DEFAULT_CHUNK_SIZE', 'PoseChunk', 'PoseStream', 'bag_topics', 'choos
            'read_options']
 
 DEFAULT_CHUNK_SIZE = 10_000
+# Whether pose topics of MCAP bags are decoded in blocks (`pose_blocks`); False reads every
+# message through rosbags' deserializer, as before, to the same chunks
+# (benchmarks/bench_reading.py compares the two)
+BLOCK_DECODING = True
 # A pose in a list "moves" when its position spans more than this, or it turns (about any
 # axis: a spinning wheel moves) by more than MOVING_RAD
 MOVING_M = 1e-3
@@ -559,7 +564,12 @@ def _marker_topics(name: str, topics: dict[str, TopicInfo], subjects: dict[str, 
 
 @dataclass
 class _Buffer:
-    """Samples of one stream since the last chunk, as flat Python lists (cheap appends)."""
+    """
+    Samples of one stream since the last chunk.
+
+    Messages decoded one by one append to flat Python lists (cheap appends); a decoded block
+    (`PoseBlock`) comes as arrays. `flush` hands them on in arrival order, at most `limit`.
+    """
 
     source: str
     label: str
@@ -569,16 +579,42 @@ class _Buffer:
     floats: list[float] = field(default_factory=list)  # x, y, z, qx, qy, qz, qw per sample
     markers: list[int] = field(default_factory=list)  # sequence, log time, value per marker
     orientations: Orientations = field(default_factory=Orientations)
+    blocks: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)  # (k, 3), (k, 7)
+    in_blocks: int = 0
 
     def __len__(self) -> int:
-        return len(self.integers) // 3
+        return self.in_blocks + len(self.integers) // 3
 
-    def flush(self, read_fraction: float, is_last: bool = False,
-              truncated: bool = False) -> PoseChunk:
-        integers = np.array(self.integers, dtype=np.int64).reshape(-1, 3)
-        floats = np.array(self.floats, dtype=float).reshape(-1, 7)
+    def _settle(self) -> None:
+        """Turn the samples in the lists into a block, so that blocks keep arrival order."""
+        if self.integers:
+            integers = np.array(self.integers, dtype=np.int64).reshape(-1, 3)
+            self.blocks.append((integers, np.array(self.floats, dtype=float).reshape(-1, 7)))
+            self.in_blocks += len(integers)
+            self.integers, self.floats = [], []
+
+    def add_block(self, integers: np.ndarray, floats: np.ndarray) -> None:
+        """Add (k, 3) sequence, stamp, log time and (k, 7) x, y, z, qx, qy, qz, qw."""
+        self._settle()
+        self.blocks.append((integers, floats))
+        self.in_blocks += len(integers)
+
+    def flush(self, read_fraction: float, is_last: bool = False, truncated: bool = False,
+              limit: int | None = None) -> PoseChunk:
+        self._settle()
+        if self.blocks:
+            integers = np.concatenate([block[0] for block in self.blocks])
+            floats = np.concatenate([block[1] for block in self.blocks])
+        else:
+            integers = np.zeros((0, 3), dtype=np.int64)
+            floats = np.zeros((0, 7), dtype=float)
+        self.blocks, self.in_blocks = [], 0
+        if limit is not None and len(integers) > limit:
+            self.blocks = [(integers[limit:], floats[limit:])]
+            self.in_blocks = len(integers) - limit
+            integers, floats = integers[:limit], floats[:limit]
         markers = np.array(self.markers, dtype=np.int64).reshape(-1, 3)
-        self.integers, self.floats, self.markers = [], [], []
+        self.markers = []
         position = to_z_up(floats[:, :3], self.options.up_axis)
         heading = self.orientations.quaternion_headings(
             floats[:, 3:], self.options.up_axis, self.options.forward_axis)
@@ -589,8 +625,16 @@ class _Buffer:
 
 
 def iter_bag_pose_chunks(path: PathLike, options: ReadOptions, notes: list[str],
-                         chunk_size: int = DEFAULT_CHUNK_SIZE) -> Iterator[PoseChunk]:
-    """Yield the pose streams of one bag (rosbag2 or ROS 1), chunk by chunk."""
+                         chunk_size: int = DEFAULT_CHUNK_SIZE, *,
+                         blocks: bool | None = None) -> Iterator[PoseChunk]:
+    """
+    Yield the pose streams of one bag (rosbag2 or ROS 1), chunk by chunk.
+
+    `blocks`: single-pose topics of MCAP bags decoded in blocks where their layout is fixed
+    (`pose_blocks`), the same chunks bit for bit; False decodes every message with rosbags;
+    None: `BLOCK_DECODING`.
+    """
+    fast = BLOCK_DECODING if blocks is None else blocks
     reader = BagReader(path, notes)
     topics = reader.topics()
     name = reader.name
@@ -632,7 +676,15 @@ def iter_bag_pose_chunks(path: PathLike, options: ReadOptions, notes: list[str],
         listeners.setdefault(marker, []).append(buffers[label])
     handlers = _handlers(plan, buffers)
     counter = _Counter()
-    for message in reader.messages([*handlers, *listeners]):
+    messages: Iterator[BagMessage | PoseBlock] = (
+        reader.pose_messages([*handlers, *listeners], plan.pose_topics) if fast
+        else reader.messages([*handlers, *listeners]))
+    for message in messages:
+        if isinstance(message, PoseBlock):
+            full = _add_block(message, buffers[message.topic], counter)
+            while len(full) >= chunk_size:
+                yield full.flush(reader.read_fraction, limit=chunk_size)
+            continue
         try:
             decoded = reader.decode(message)
         except Exception:  # noqa: BLE001 - damaged bytes are data: count and skip them
@@ -664,6 +716,19 @@ class _Counter:
     sequence: int = 0
     samples: int = 0
     undecodable: int = 0
+
+
+def _add_block(block: PoseBlock, buffer: _Buffer, counter: _Counter) -> _Buffer:
+    """Add a decoded block's samples as the message-by-message handler would, one by one."""
+    count = len(block)
+    integers = np.empty((count, 3), dtype=np.int64)
+    integers[:, 0] = np.arange(counter.sequence + 1, counter.sequence + 1 + count)
+    integers[:, 1] = np.where(block.stamp_ns != 0, block.stamp_ns, block.log_time_ns)
+    integers[:, 2] = block.log_time_ns
+    counter.sequence += count
+    counter.samples += count
+    buffer.add_block(integers, block.values)
+    return buffer
 
 
 Handler = Callable[[Any, BagMessage, _Counter], list[_Buffer]]

@@ -70,7 +70,14 @@ class BagTypes:
     """The types of one bag: Jazzy's, plus the bag's own definitions of types Jazzy lacks."""
 
     def __init__(self, store: Typestore | None = None) -> None:
-        self.store = store if store is not None else get_typestore(Stores.ROS2_JAZZY)
+        """
+        Start from `store`, or from Jazzy's shared store until the bag defines a type.
+
+        The shared store keeps the deserializers it compiled (about 10 ms a type), so bag after
+        bag of standard types decodes without compiling them again.
+        """
+        self.store = store if store is not None else jazzy_types()
+        self._own = store is not None  # whether types may be registered into `store`
         self.unreadable: dict[str, str] = {}  # message type -> why its definition failed
 
     def knows(self, msgtype: str) -> bool:
@@ -90,6 +97,8 @@ class BagTypes:
             return False
         try:
             types = parse_definition(msgtype, encoding, text)
+            if not self._own:
+                self.store, self._own = get_typestore(Stores.ROS2_JAZZY), True
             self.store.register({name: fields for name, fields in types.items()
                                  if name not in self.store.fielddefs})
         except (TypesysError, ValueError, KeyError, IndexError):

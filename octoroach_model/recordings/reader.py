@@ -1,12 +1,14 @@
 """
 The one bag reader: rosbag2 (MCAP or sqlite3) and ROS 1 bags, streamed message by message.
 
-MCAP files are read with mcap's `StreamReader`, record by record in file order, and never
-through their summary index: the bags that matter most are the damaged ones. A recorder killed
-mid-write leaves a file without summary or footer, often without metadata.yaml; the reader
-keeps every message up to the damage, skips a chunk it cannot decode (bad checksum, garbled
-record) and says in `notes` what was lost. File order is arrival order, which is what cuts a
-stream at its run markers. One chunk at a time is in memory.
+MCAP files are read record by record in file order (`mcap_records`: mcap's record parsers),
+never through their summary index: the bags that matter most are the damaged ones. A recorder
+killed mid-write leaves a file without summary or footer, often without metadata.yaml; the
+reader keeps every message up to the damage, skips a chunk it cannot decode (bad checksum,
+garbled record) and says in `notes` what was lost. File order is arrival order, which is what
+cuts a stream at its run markers. One chunk at a time is in memory. `pose_messages` gives the
+messages of pose topics decoded in blocks over whole chunks where their layout is fixed
+(`pose_blocks`), the same values as message by message.
 
 sqlite3 bags go through rosbags' `AnyReader` (time order, streamed from the database); ROS 1
 bags through `ros1.Ros1Bag` (rosbags' record parsers, chunk by chunk in file order).
@@ -16,21 +18,25 @@ Message types come from the bag's own definitions where Jazzy does not know them
 """
 from __future__ import annotations
 
-from collections.abc import Collection, Iterator
+from collections.abc import Callable, Collection, Iterator, Mapping
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 import struct
 from typing import Any, NamedTuple, TYPE_CHECKING
+import zlib
 
 from mcap.exceptions import EndOfFile, McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
-from mcap.stream_reader import breakup_chunk, StreamReader
+from mcap.stream_reader import breakup_chunk, CRCValidationError
 
 from octoroach_model.errors import BagError
 from octoroach_model.limits import MAX_CHUNK_BYTES, size_words
+from octoroach_model.recordings.mcap_records import file_records
 from octoroach_model.recordings.msgtypes import BagTypes
+from octoroach_model.recordings.pose_blocks import BlockSplitter, PoseBlock, WantedChannel
+from octoroach_model.recordings.pose_messages import PoseLayout
 from octoroach_model.recordings.qos import load_profiles, QosProfile
 from octoroach_model.recordings.ros1 import Ros1Bag
 from octoroach_model.recordings.sources import bag_files, PathLike, ROS1_SUFFIX
@@ -155,8 +161,34 @@ def _decompressed(chunk: Chunk) -> Chunk:
     return dataclasses.replace(chunk, compression='', data=data)
 
 
-def iter_mcap_records(path: Path, report: FileDamage) -> Iterator[Any]:
-    """Schemas, channels, metadata and messages of one MCAP file in file order, up to damage."""
+# What a chunk becomes: its records (or pose blocks) in file order, and how many messages
+ChunkSplit = Callable[[Chunk], tuple[list[Any], int]]
+
+
+def _check_crc(chunk: Chunk) -> Chunk:
+    """Return a decompressed chunk whose checksum (where it has one) fits; raise otherwise."""
+    if chunk.uncompressed_crc != 0:
+        calculated = zlib.crc32(chunk.data)
+        if calculated != chunk.uncompressed_crc:
+            raise CRCValidationError(chunk.uncompressed_crc, calculated, chunk)
+    return chunk
+
+
+def split_records(chunk: Chunk) -> tuple[list[Any], int]:
+    """Return a checked chunk's records as mcap's `breakup_chunk` reads them, one by one."""
+    records = breakup_chunk(chunk, validate_crc=False)
+    return records, sum(isinstance(record, Message) for record in records)
+
+
+def iter_mcap_records(path: Path, report: FileDamage,
+                      split: ChunkSplit = split_records) -> Iterator[Any]:
+    """
+    Schemas, channels, metadata and messages of one MCAP file in file order, up to damage.
+
+    Each chunk is decompressed within the limit, its checksum checked, and `split` into the
+    records it holds (message by message; `pose_blocks` gives runs of pose messages decoded
+    at once).
+    """
     check_mcap_magic(path)
     try:
         size = path.stat().st_size
@@ -164,7 +196,7 @@ def iter_mcap_records(path: Path, report: FileDamage) -> Iterator[Any]:
     except OSError as exc:
         raise BagError(f'{path}: cannot read: {exc.strerror or exc}') from None
     with stream:
-        records = iter(StreamReader(stream, emit_chunks=True, record_size_limit=size).records)
+        records = file_records(stream, size)
         while True:
             position = report.position = stream.tell()
             try:
@@ -182,7 +214,7 @@ def iter_mcap_records(path: Path, report: FileDamage) -> Iterator[Any]:
                 return
             if isinstance(record, Chunk):
                 try:
-                    inner = breakup_chunk(_decompressed(record), validate_crc=True)
+                    inner, messages = split(_check_crc(_decompressed(record)))
                 except ChunkTooLarge as error:
                     report.unreadable_chunks += 1
                     report.oversized.append(f'byte {position}: {error}')
@@ -190,9 +222,8 @@ def iter_mcap_records(path: Path, report: FileDamage) -> Iterator[Any]:
                 except _PARSE_ERRORS:
                     report.unreadable_chunks += 1
                     continue
-                for item in inner:
-                    report.messages += isinstance(item, Message)
-                    yield item
+                report.messages += messages
+                yield from inner
             elif isinstance(record, (Schema, Channel, Metadata)):
                 yield record
             elif isinstance(record, Message):
@@ -209,6 +240,28 @@ class _McapFileTopics:
 
     channels: dict[int, ChannelInfo] = field(default_factory=dict)
     counts: dict[int, int] = field(default_factory=dict)
+
+
+class _FileChannels:
+    """The schemas of one MCAP file met so far, and its channels that are passed on."""
+
+    def __init__(self, reader: BagReader, file_index: int, topics: set[str] | None) -> None:
+        """Start a file of `reader`; `topics` None passes every channel on."""
+        self.reader = reader
+        self.file_index = file_index
+        self.topics = topics
+        self.schemas: dict[int, Schema] = {}
+        self.wanted: dict[int, WantedChannel] = {}
+
+    def take(self, record: Any) -> None:
+        """Take a schema or channel record (again, unchanged, when a chunk is read twice)."""
+        if isinstance(record, Schema):
+            self.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            info = self.reader._channel_info(record, self.schemas.get(record.schema_id))
+            if self.topics is None or info.topic in self.topics:
+                index = self.reader._channel(self.file_index, record.id, info)
+                self.wanted[record.id] = WantedChannel(index, info.topic, info.msgtype)
 
 
 class BagReader:
@@ -316,7 +369,23 @@ class BagReader:
     def messages(self, topics: Collection[str] | None = None) -> Iterator[BagMessage]:
         """Messages of `topics` (None: all), MCAP in file order, others in time order."""
         if self.storage == 'mcap':
-            yield from self._mcap_messages(topics)
+            for item in self._mcap_messages(topics, {}):
+                assert isinstance(item, BagMessage)  # no blocks without layouts
+                yield item
+        else:
+            yield from self._rosbags_messages(topics)
+
+    def pose_messages(self, topics: Collection[str], layouts: Mapping[str, PoseLayout]
+                      ) -> Iterator[BagMessage | PoseBlock]:
+        """
+        Messages of `topics` in order, those of `layouts`' topics decoded in blocks where fixed.
+
+        MCAP only (`pose_blocks`): runs of messages of a pose topic whose CDR layout is fixed
+        come as one `PoseBlock`, already decoded; every other message comes as from
+        `messages`. Other storages give their messages one by one.
+        """
+        if self.storage == 'mcap':
+            yield from self._mcap_messages(topics, layouts)
         else:
             yield from self._rosbags_messages(topics)
 
@@ -326,31 +395,37 @@ class BagReader:
         done, total = self._progress
         return min(1.0, done / total) if total > 0 else 0.0
 
-    def _mcap_messages(self, topics: Collection[str] | None) -> Iterator[BagMessage]:
+    def _mcap_messages(self, topics: Collection[str] | None, layouts: Mapping[str, PoseLayout]
+                       ) -> Iterator[BagMessage | PoseBlock]:
         wanted = None if topics is None else set(topics)
         sizes = [_file_size(path) for path in self.files]
         total = float(sum(sizes)) or 1.0
         for file_index, path in enumerate(self.files):
             report = FileDamage(path)
             before = float(sum(sizes[:file_index]))
-            schemas: dict[int, Schema] = {}
-            channels: dict[int, tuple[int, ChannelInfo]] = {}
-            for record in iter_mcap_records(path, report):
+            channels = _FileChannels(self, file_index, wanted)
+            split = split_records
+            if layouts:
+                split = BlockSplitter(channels.wanted, layouts, channels.take, self._decode_cdr,
+                                      lambda: self.types.store.fielddefs, seed=file_index).split
+            for record in iter_mcap_records(path, report, split):
                 if isinstance(record, Message):
-                    known = channels.get(record.channel_id)
+                    known = channels.wanted.get(record.channel_id)
                     if known is None:
                         continue
-                    index, channel = known
                     self._progress = (before + report.position, total)
-                    yield BagMessage(channel.topic, channel.msgtype, record.log_time,
-                                     record.publish_time, record.data, index, record.sequence)
-                elif isinstance(record, Channel):
-                    info = self._channel_info(record, schemas.get(record.schema_id))
-                    if wanted is None or info.topic in wanted:
-                        channels[record.id] = (self._channel(file_index, record.id, info), info)
-                elif isinstance(record, Schema):
-                    schemas[record.id] = record
+                    yield BagMessage(known.topic, known.msgtype, record.log_time,
+                                     record.publish_time, record.data, known.channel,
+                                     record.sequence)
+                elif isinstance(record, PoseBlock):
+                    self._progress = (before + report.position, total)
+                    yield record
+                elif isinstance(record, (Channel, Schema)):
+                    channels.take(record)
             self._report(report)
+
+    def _decode_cdr(self, data: bytes, msgtype: str) -> Any:
+        return self.types.deserialize_cdr(data, msgtype)
 
     def _report(self, report: FileDamage) -> None:
         for refused in report.oversized:

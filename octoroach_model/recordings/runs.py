@@ -43,7 +43,7 @@ from octoroach_model.recordings.dataset import is_dataset_file, load_dataset
 from octoroach_model.recordings.duplicates import repeated_runs_note
 from octoroach_model.recordings.options import ReadOptions
 from octoroach_model.recordings.sources import MEASURED_SUFFIXES
-from octoroach_model.recordings.streams import Progress
+from octoroach_model.recordings.streams import median_of_five, Progress
 
 DEFAULT_GAP_S = 0.5
 DEFAULT_RATE_HZ = 50.0
@@ -185,10 +185,12 @@ def reachable(poses: np.ndarray) -> np.ndarray:
     padded = np.concatenate([np.repeat(poses[:1], half, axis=0), poses,
                              np.repeat(poses[-1:], half, axis=0)])
     windows = np.lib.stride_tricks.sliding_window_view(padded, JUMP_WINDOW, axis=0)
-    centre = np.median(windows[:, :2], axis=-1)                       # (k, 2)
     heading = poses[:, HEADING]
     around = np.angle(np.exp(1j * (windows[:, HEADING] - heading[:, None])))
-    off_heading = np.abs(np.median(around, axis=-1))
+    # x, y and the heading's turn from the frame: each frame's medians in one call
+    medians = median_of_five(np.concatenate([windows[:, :2], around[:, None]], axis=1))
+    centre = medians[:, :2]                                             # (k, 2)
+    off_heading = np.abs(medians[:, 2])
     off_position = np.hypot(*(poses[:, :2] - centre).T)
     return (off_position <= JUMP_LIMIT_M) & (off_heading <= JUMP_LIMIT_RAD)
 

