@@ -98,6 +98,18 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: np.
     See the module docstring; `without_features` are the scored runs of the model without
     the cause; `fitted_values` the cause's other parameters as fitted (modelfit.at_size).
     """
+    gain = held_out_gains(simulator, without, without_features, cause, size, scales,
+                          score_runs, fitted_values)
+    spread = float(np.std(gain, ddof=1))
+    if spread <= 0:
+        return math.inf if gain.mean() > 0 else 0.0
+    return float(gain.mean() / spread * math.sqrt(held_out))
+
+
+def held_out_gains(simulator: Simulator, without: FittedModel, without_features: np.ndarray,
+                   cause: Cause, size: float, scales: np.ndarray, score_runs: int,
+                   fitted_values: dict | None = None) -> np.ndarray:
+    """Return the per-run gains of runs simulated with the cause at `size` (expected_t)."""
     values = at_size(cause, size, fitted_values, simulator.data)
     if cause.name == 'initial_pose_error':
         values['position_std_cm'] = float((without.effects.get(cause.name) or {}).get(
@@ -106,13 +118,9 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: np.
     # as many pseudo-data runs as the models are scored with, at most PSEUDO_RUNS
     pseudo = _features(simulator, extended, min(PSEUDO_RUNS, score_runs), PSEUDO_PURPOSE,
                        scales)
-    gain = (feature_log_score(_features(simulator, extended, score_runs, MODEL_PURPOSE,
+    return (feature_log_score(_features(simulator, extended, score_runs, MODEL_PURPOSE,
                                         scales), pseudo, extended.order_dependent)
             - feature_log_score(without_features, pseudo, without.order_dependent))
-    spread = float(np.std(gain, ddof=1))
-    if spread <= 0:
-        return math.inf if gain.mean() > 0 else 0.0
-    return float(gain.mean() / spread * math.sqrt(held_out))
 
 
 def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEstimate,
