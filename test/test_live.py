@@ -163,3 +163,35 @@ def test_a_question_must_name_a_term_and_a_size_that_matters():
         Question('lateral_slip', 1.0, power=1.0)
     mixture = Question('run_mixture', 10.0)
     assert mixture.internal_size == pytest.approx(10.0 * math.sqrt(0.21))
+
+
+def test_the_looks_study_applies_each_rule_to_the_same_looks(tmp_path):
+    """A look that passes the fixed-sample z but not the anytime boundary: named by one rule."""
+    from octoroach_model.studies.looks import (
+        append_row, load_looks, named_at, read_rows, summarize, table_text)
+
+    spec_file = tmp_path / 'looks.yaml'
+    spec_file.write_text('name: tiny\nruns: [100]\ncauses: [none]\n'
+                         'looks: {every: 25, planned_runs: 100, questions: [lateral_slip]}\n')
+    spec = load_looks(spec_file)
+    assert spec.look_counts() == [50, 75, 100] and spec.term(3) == 'lateral_slip'
+    # runs, calibration runs, held-out runs, bound z, p-value, screened
+    passes_fixed_only = [[50, 25, 25, 2.0, 0.005, False], [75, 37, 38, 1.0, 0.2, False]]
+    passes_both = [[50, 25, 25, 9.0, 1e-9, False]]
+    last_only = [[50, 25, 25, 0.0, 0.5, False], [100, 50, 50, 2.0, 0.005, False]]
+    levels = (0.05, 0.01)
+    assert named_at(passes_fixed_only, 'fixed, every look', levels, 100)['named'] == 50
+    assert named_at(passes_fixed_only, 'live', levels, 100)['named'] is None
+    assert named_at(passes_fixed_only, 'fixed, last look', levels, 100)['named'] is None
+    assert named_at(passes_both, 'live', levels, 100) == {'named': 50, 'bound': 50, 'test': 50}
+    assert named_at(last_only, 'fixed, last look', levels, 100)['named'] == 100
+    rows_file = tmp_path / 'rows.csv'
+    for replicate, looks in enumerate((passes_fixed_only, passes_both, last_only)):
+        append_row(rows_file, {'key': f'r{replicate}', 'replicate': replicate,
+                               'term': 'lateral_slip', 'status': 'ok', 'looks': looks})
+    rows = read_rows(rows_file)
+    assert [row['looks'] for row in rows] == [passes_fixed_only, passes_both, last_only]
+    summary = summarize(spec, rows)
+    assert summary['rules']['live']['named']['successes'] == 1
+    assert summary['rules']['fixed, every look']['named']['successes'] == 3
+    assert '| live | 1/3 = 33.3 %' in table_text(spec, summary)
