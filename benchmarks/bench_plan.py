@@ -33,12 +33,12 @@ REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / 'out' / 'bench_plan'
 CASES = ('persistent_turning=3', 'lateral_slip=0.4', 'initial_pose_error=0.8',
          'run_order_drift:yaw_rate=4')
-# one size per term for --calibrate: about the diagnosis's 80 % point at 100-300 runs
+# one size per term for --calibrate: the pilots' 80 % point at 100-300 runs
 CALIBRATION_SIZES = {
-    'initial_pose_error': 0.8, 'measurement_noise': 0.011, 'gait_frequency_variation': 0.01,
+    'initial_pose_error': 0.8, 'measurement_noise': 0.0103, 'gait_frequency_variation': 0.01,
     'speed_decay': 0.04, 'lateral_slip': 0.4, 'persistent_turning': 3.0,
-    'run_order_drift:stride_frequency': 0.02, 'run_order_drift:yaw_rate': 4.0,
-    'run_order_drift:lateral_velocity': 0.8, 'heading_random_walk': 1.5,
+    'run_order_drift:stride_frequency': 0.012, 'run_order_drift:yaw_rate': 4.0,
+    'run_order_drift:lateral_velocity': 0.6, 'heading_random_walk': 1.5,
     'periodic_heading': 1.5, 'change_point': 0.05, 'run_mixture': 8.0}
 
 
@@ -143,41 +143,58 @@ def evidence(case: str, counts: list[int], replicates: int, workers: int) -> Non
 
 
 def calibrate(workers: int, checks: int) -> None:
-    """Measure the power model's calibration (module docstring) and print the counts."""
+    """
+    Measure the power model's calibration (module docstring) and print the counts.
+
+    Each term's outcome is kept in out/bench_plan/calibration/TERM=SIZE.json and reused
+    while its size and the number of checks stay the same.
+    """
+    from octoroach_model.diagnosis.decide import decision_z
     from octoroach_model.diagnosis.executors import executor_for
     from octoroach_model.diagnosis.live import Question
     from octoroach_model.diagnosis.power import calibration_group
     from octoroach_model.studies.plan import _base_spec
     from octoroach_model.studies.plan_model import _Curve, check_task, pilot_task, PILOTS
     from octoroach_model.studies.summary import wilson
-
-    from octoroach_model.diagnosis.decide import decision_z
     from scipy import stats
 
     levels = (decision_z(0.05, 13), float(stats.norm.isf(0.01 / 13)))
     groups: dict[str, list[bool]] = {}
+    folder = OUT / 'calibration'
+    folder.mkdir(parents=True, exist_ok=True)
     print('| term | size | predicted runs for 80 % | checks named |')
     print('| --- | --- | --- | --- |')
     with executor_for(None, workers) as pool:
         for term, size in CALIBRATION_SIZES.items():
-            spec = _base_spec(term, size, None, None, 6, 0, None, 40, 2000, 0.8)
-            question = Question(term, size)
-            pilots = [future.result()[0] for future in [
-                pool.submit(pilot_task, spec, question, replicate, 500)
-                for replicate in range(PILOTS)]]
-            runs = _Curve(pilots, *levels).runs_for(0.8, 0.0, 40, 2000)
-            if not math.isfinite(runs) or runs <= 40:
-                print(f'| {term} | {size:g} | {runs:.0f} | (not checked: at a bound) |')
+            kept = folder / f'{term.replace(":", ".")}={size:g}.json'
+            entry = json.loads(kept.read_text()) if kept.exists() else None
+            if entry is None or entry['checks'] != checks:
+                spec = _base_spec(term, size, None, None, 6, 0, None, 40, 2000, 0.8)
+                question = Question(term, size)
+                pilots = [future.result()[0] for future in [
+                    pool.submit(pilot_task, spec, question, replicate, 500)
+                    for replicate in range(PILOTS)]]
+                runs = _Curve(pilots, *levels).runs_for(0.8, 0.0, 40, 2000)
+                named: list[bool] = []
+                if math.isfinite(runs) and runs > 40:
+                    named = [outcome.named for outcome in [future.result() for future in [
+                        pool.submit(check_task, spec, question, int(runs), 1000 + replicate)
+                        for replicate in range(checks)]] if outcome.status == 'ok']
+                entry = {'term': term, 'size': size, 'runs': runs, 'checks': checks,
+                         'named': named}
+                kept.write_text(json.dumps(entry) + '\n')
+            named = entry['named']
+            if not named:
+                print(f'| {term} | {size:g} | {entry["runs"]:.0f} | (not checked: at a '
+                      f'bound) |')
                 continue
-            outcomes = [future.result() for future in [
-                pool.submit(check_task, spec, question, int(runs), 1000 + replicate)
-                for replicate in range(checks)]]
-            named = [outcome.named for outcome in outcomes if outcome.status == 'ok']
             groups.setdefault(calibration_group(term), []).extend(named)
-            print(f'| {term} | {size:g} | {runs:.0f} | {sum(named)}/{len(named)} |', flush=True)
+            print(f'| {term} | {size:g} | {entry["runs"]:.0f} | {sum(named)}/{len(named)} |',
+                  flush=True)
     print('\ncalibration counts (named, checks) at a predicted 80 %, per group:')
     for group, named in groups.items():
         rate = wilson(sum(named), len(named))
+        assert rate.rate is not None and rate.interval is not None
         print(f"    '{group}': ({sum(named)}, {len(named)}),   # {rate.rate:.0%} "
               f'({rate.interval[0]:.0%}-{rate.interval[1]:.0%})')
 

@@ -176,7 +176,7 @@ class Guide:
             return {'status': 'fitting', 'reason': 'fitting the baseline on the first runs'}
         named_at = self.live.named_at_runs
         if named_at is None and self.ruled_out_at_runs is None \
-                and look.interval_95[1] < self.question.size:
+                and _reach(look) < self.question.size:
             self.ruled_out_at_runs = runs
         answer: dict[str, Any] = {'decision': jsonable(look),
                                   'calibration_runs': look.calibration_runs,
@@ -200,6 +200,15 @@ class Guide:
 
     def close(self) -> None:
         """Nothing to release but the caller's executor (the node shuts it down)."""
+
+
+def _reach(look: Any) -> float:
+    """Return how far from no effect the look's confidence sequence reaches (a size)."""
+    from octoroach_model.diagnosis.causes import BY_NAME
+
+    null = BY_NAME[look.term].null
+    low, high = look.interval_95
+    return max(abs(low - null), abs(high - null))
 
 
 def _more(total: float | None, runs: int) -> int | None:
@@ -240,9 +249,9 @@ def statement(answer: Mapping[str, Any]) -> str:
         return (f'{runs} runs: {term} named (since run {live["since_runs"]}), '
                 f'{live["parameter"]} {live["estimate"]:.3g} (95 % {low:.3g} to {high:.3g})')
     if status == 'ruled_out':
-        high = answer['decision']['interval_95'][1]
-        return (f'{runs} runs: {term}, if there, is below {size:g} (95 % upper bound '
-                f'{high:.3g}): the size that matters is ruled out')
+        low, high = answer['decision']['interval_95']
+        return (f'{runs} runs: {term}, if there, is smaller than {size:g} (95 % '
+                f'{low:.3g} to {high:.3g}): the size that matters is ruled out')
     if status in ('waiting', 'fitting'):
         return f'{runs} runs: {answer.get("reason") or "waiting for runs"}'
     needed, (low, high) = answer['runs_needed'], answer['runs_needed_interval_95']

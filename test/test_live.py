@@ -195,3 +195,36 @@ def test_the_looks_study_applies_each_rule_to_the_same_looks(tmp_path):
     assert summary['rules']['live']['named']['successes'] == 1
     assert summary['rules']['fixed, every look']['named']['successes'] == 3
     assert '| live | 1/3 = 33.3 %' in table_text(spec, summary)
+
+
+def test_the_guide_answers_validation_too_few_runs_and_a_size_ruled_out(monkeypatch):
+    from octoroach_model import guidance
+    from octoroach_model.guidance import guidance_fields, Guide, GuidanceQuestion
+
+    monkeypatch.setattr(guidance, '_settings', small_settings)
+    values = {'epsilon': 0.3, 'delta': 0.3, 'k': 4, 'seed': SEED % 1000}
+    validation = Guide(GuidanceQuestion.from_values({**values, 'question': 'validation'}))
+    runs = om.simulate(90, seed=SEED % 1000, cycles=4)
+    answer = validation.update(runs.subset(np.arange(30)))
+    assert (answer['status'], answer['runs_needed'], answer['runs_needed_interval_95']) == (
+        'collecting', 14, [14, 14])                        # n x k = 11 x 4 = 44
+    assert validation.update(runs)['status'] == 'enough_runs'
+
+    question = GuidanceQuestion.from_values({**values, 'question': 'persistent_turning',
+                                             'question_size': 30.0})
+    guide = Guide(question)
+    early = guide.update(runs.subset(np.arange(20)))
+    assert early['status'] == 'waiting' and early['runs_needed'] == 20, early
+    late = guide.update(runs)          # no turning in these runs: 30 deg/s is out of the CS
+    assert late['status'] == 'ruled_out' and late['runs_needed'] == 0, (SEED, late)
+    assert late['decision']['interval_95'][1] < 30.0 and 'ruled out' in late['statement']
+    keys = dict(guidance_fields(late))
+    assert keys['status'] == 'ruled_out' and keys['question'] == 'persistent_turning'
+    guide.diagnosed({'causes': [{'cause': 'lateral_slip', 'parameters': {
+        'velocity_cm_s': 0.4}, 'interval': {'velocity_cm_s': [0.3, 0.5]}}],
+        'adequate': True}, 90)
+    assert guide.latest is not None and guide.latest['named'] == [
+        {'term': 'lateral_slip', 'parameter': 'velocity_cm_s', 'estimate': 0.4,
+         'interval_95': [0.3, 0.5], 'source': 'diagnosis', 'runs': 90}]
+    with pytest.raises(ParameterError, match='must be positive'):
+        GuidanceQuestion.from_values({**values, 'question': 'lateral_slip'})
