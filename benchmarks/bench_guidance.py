@@ -4,14 +4,16 @@ How soon the validator's live guidance follows a new run, on a bag as a recorder
 For each session size N: a bag is written run by run (TransformStamped on the VICON topic, a
 run marker before each run, flushed after each run as the recorder flushes), the validator
 runs as its own process on it (`python -m octoroach_model validator`, as deployed) with
-`question:=persistent_turning question_size:=3.0`, and once its guidance stands at N runs,
+`question:=TERM question_size:=SIZE` (`--question`, default persistent_turning=3; the
+runs carry that effect at that size), and once its guidance stands at N runs,
 `--new-runs` more runs are written one at a time. Measured for each: from the flush that put
 the run on disk to the guidance that counts it arriving at a subscriber in this process
 (latched ~/guidance), and the time the node's look took (`decided_in_s`). The first fit of
 the baseline (in the node's worker process) is timed too.
 
 Isolated on a ROS domain of this benchmark and on localhost. Run:
-``.venv/bin/python benchmarks/bench_guidance.py [--runs 100 300 500] [--new-runs 5]``
+``.venv/bin/python benchmarks/bench_guidance.py [--runs 100 300 500] [--new-runs 5]
+[--question TERM=SIZE]``
 """
 from __future__ import annotations
 
@@ -33,7 +35,6 @@ sys.path.insert(0, str(REPO))
 
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + (os.getpid() * 11) % 200))
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-EFFECT = {'persistent_turning': {'yaw_rate_std_deg_s': 3.0}}
 
 
 class Listener:
@@ -98,12 +99,15 @@ class Listener:
         self.context.destroy()
 
 
-def session(runs: int, new_runs: int, listener: Listener, folder: Path) -> dict[str, Any]:
+def session(runs: int, new_runs: int, listener: Listener, folder: Path, term: str,
+            size: float) -> dict[str, Any]:
     """Grow a bag to `runs` runs, start the validator on it, then add runs one at a time."""
     import octoroach_model as om
     from octoroach_model.recordings.pose_writer import PoseBagWriter
+    from octoroach_model.studies.terms import term_values
 
-    paths = om.simulate(runs + new_runs, seed=runs, effects=EFFECT)
+    effects = {term: term_values(term, size, {}, 5.0)}
+    paths = om.simulate(runs + new_runs, seed=runs, effects=effects)
     period_ns = int(round(float(paths.t[-1]) * 1e9)) + 1_000_000_000
     bag = folder / f'session_{runs}'
     listener.messages.clear()
@@ -121,8 +125,8 @@ def session(runs: int, new_runs: int, listener: Listener, folder: Path) -> dict[
         started = time.monotonic()
         node = subprocess.Popen(
             [sys.executable, '-m', 'octoroach_model', 'validator', '--ros-args', '-p',
-             f'bags:=[{bag}]', '-p', 'question:=persistent_turning', '-p',
-             'question_size:=3.0', '-p', 'guidance_period_s:=0.1'],
+             f'bags:=[{bag}]', '-p', f'question:={term}', '-p',
+             f'question_size:={size!r}', '-p', 'guidance_period_s:=0.1'],
             cwd=folder, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
             first, _ = listener.wait(lambda v: v['runs'] == str(runs) and v['status'] not in (
@@ -145,16 +149,21 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--runs', type=int, nargs='+', default=[100, 300, 500])
     parser.add_argument('--new-runs', type=int, default=5)
+    parser.add_argument('--question', default='persistent_turning=3',
+                        help='TERM=SIZE: the question, and the effect put into the runs')
     args = parser.parse_args(argv)
+    term, _, size = args.question.partition('=')
     listener = Listener()
     results = []
     try:
         with tempfile.TemporaryDirectory() as folder:
             for runs in args.runs:
-                results.append(session(runs, args.new_runs, listener, Path(folder)))
+                results.append(session(runs, args.new_runs, listener, Path(folder), term,
+                                       float(size)))
                 print(f'{runs} runs done', file=sys.stderr, flush=True)
     finally:
         listener.close()
+    print(f'question {term} = {size}, the effect at that size in the runs\n')
     print('| runs in the bag | first guidance after start, s | a new run to its guidance, s '
           '(median / max) | the look itself, s (median) |')
     print('| --- | --- | --- | --- |')

@@ -520,6 +520,9 @@ class Validator(Node):
                 problem = 'no measured runs: set the parameter bags'
         except OctoroachError as error:
             problem = _one_line(error)
+        except Exception as error:  # noqa: BLE001 - a bug must not end the guidance thread
+            problem = _one_line(error)
+            logger.error(f'guidance: reading the runs failed: {problem}')
         try:
             with self._guide_lock:
                 answer = guide.update(measured, problem)
