@@ -5,7 +5,7 @@ How the power to name one term grows with the runs, predicted from one data set.
 many runs it takes to name a term of a given size. The detection limits (limits.py) already
 predict, from one data set, the probability that the decision names a term of size s: the
 size bound clears the floor (P1, from the data's own standard errors) and the held-out test
-is significant (P2, from the expected t of runs simulated with the term). Both move with the
+is significant (P2, from the gains of runs simulated with the term). Both move with the
 number of runs in a known way:
 
 - a size's standard error has a part from the measured runs, which shrinks as one over the
@@ -13,21 +13,24 @@ number of runs in a known way:
   against (a moments line's intercept and slope, a drift's, the mean path's antithetic runs
   of a path cause), which does not shrink: the diagnosis simulates as many runs whatever the
   data (`PowerModel.estimate_at`);
-- the expected t of the held-out test grows as the square root of the held-out runs.
+- the held-out test's t is that of the per-run gains of the held-out runs: its power at h
+  held-out runs is the share of samples of h simulated gains whose t passes
+  (`PowerModel.test_power`; the gains are skewed, so not simply the expected t, which
+  grows as the square root of h).
 
 So `PowerModel.power(runs, z_bound, z_test)` is P1 x P2 at any run count, with the decision's
 critical values there (the diagnosis's fixed ones, or the live decision's anytime boundary).
 
-**Calibration against the studies.** Whether a prediction of this kind holds was measured:
-at 1x the reported detection limit (predicted 80 %), the six causes were named in 102 of 120
-data sets (studies/limits.yaml), and the extension families as `CALIBRATION_COUNTS` says
-(studies/open_world.yaml, studies/periodic_check.yaml; README, "What the diagnosis can
-find"). The measured power is modelled as Phi(Phi^-1(predicted) + shift): one shift on the
-probit scale per group of terms (the six causes pooled: their counts do not differ beyond
-chance; each family apart: they do). The shift has a normal prior N(0, 1) (the predictor is
-right within two probit units) and is updated by the studies' counts and by any simulated
-checks of the caller (`Calibration.updated`); its 95 % posterior interval is what makes an
-answer's interval.
+**Calibration against simulation.** Whether the prediction holds was measured where it
+predicts 80 %: for each term at one size, the pilots of `plan` (studies/plan_model.py)
+predicted the runs for 80 % power, and 16 data sets with the term at that size and run count
+were simulated and the term's first step taken on each, as the plan's checks take it
+(`benchmarks/bench_plan.py --calibrate`; README, "How many runs: plan"). The counts are
+`CALIBRATION_COUNTS`, per group of terms (the six causes pooled, each extension family
+apart). The measured power is modelled as Phi(Phi^-1(predicted) + shift): one shift on the
+probit scale per group, with a normal prior N(0, 1) (the predictor is right within two probit
+units), updated by the group's counts and by any checks of the caller
+(`Calibration.updated`); its 95 % posterior interval is what makes an answer's interval.
 """
 from __future__ import annotations
 
@@ -45,16 +48,17 @@ from octoroach_model.diagnosis.modelfit import FittedModel, RunData, Simulator, 
 
 ZFunction = Callable[[float], float]          # information (runs in a half) -> critical z
 MOST_RUNS = 1_000_000                         # runs_for gives up beyond this
-# the studies' counts at 1x the reported limit (predicted power POWER): named, data sets
-# (README "What the diagnosis can find": studies/limits.yaml for the six causes, pooled;
-# studies/open_world.yaml and studies/periodic_check.yaml for the families, each apart)
+# named / data sets where the pilots predicted 80 % power, per calibration group: 16 data
+# sets per term (benchmarks/bench_plan.py --calibrate prints these; README, "How many runs:
+# plan"); measurement_noise and the stride frequency's drift at a size just above their
+# floors, where the runs needed are many
 CALIBRATION_COUNTS: dict[str, tuple[int, int]] = {
-    'causes': (102, 120),
-    'run_order_drift': (9, 9),
-    'heading_random_walk': (0, 4),
-    'periodic_heading': (3, 5),
-    'change_point': (0, 2),
-    'run_mixture': (0, 2),
+    'causes': (85, 96),
+    'run_order_drift': (32, 48),
+    'heading_random_walk': (12, 16),
+    'periodic_heading': (13, 16),
+    'change_point': (16, 16),
+    'run_mixture': (16, 16),
 }
 GAIN_REPEATS = 2                               # simulations pooled in gain_sample
 RESAMPLES = 1000                               # samples of the gains per run count
@@ -82,13 +86,13 @@ class Calibration:
 
     @classmethod
     def for_term(cls, term: str) -> Calibration:
-        """Return the studies' calibration of the term's group (its prior included)."""
+        """Return the measured calibration of the term's group (its prior included)."""
         group = calibration_group(term)
         named, total = CALIBRATION_COUNTS[group]
         prior = stats.norm.logpdf(SHIFTS, 0.0, PRIOR_SD)
         counts = _binomial(named, total, np.full_like(SHIFTS, POWER))
-        return cls(tuple(prior + counts), (f'studies: {group} named in {named} of {total} '
-                                           f'data sets at 1x the reported limit',))
+        return cls(tuple(prior + counts), (f'calibration: {group} named in {named} of '
+                                           f'{total} data sets where 80 % was predicted',))
 
     def updated(self, predicted: Sequence[float], named: Sequence[bool], what: str
                 ) -> Calibration:
