@@ -6,10 +6,11 @@ run marker before each run, flushed after each run as the recorder flushes), the
 runs as its own process on it (`python -m octoroach_model validator`, as deployed) with
 `question:=TERM question_size:=SIZE` (`--question`, default persistent_turning=3; the
 runs carry that effect at that size), and once its guidance stands at N runs,
-`--new-runs` more runs are written one at a time. Measured for each: from the flush that put
-the run on disk to the guidance that counts it arriving at a subscriber in this process
-(latched ~/guidance), and the time the node's look took (`decided_in_s`). The first fit of
-the baseline (in the node's worker process) is timed too.
+`--new-runs` more runs are written one at a time. Measured for each, from the flush that put
+the run on disk: to the first guidance that counts it arriving at a subscriber in this
+process (latched ~/guidance: the count and the runs still needed, carried at once), and to
+the guidance of the look taken on it (`decision_runs`); and the time the look itself took
+(`decided_in_s`). The first fit of the baseline (in the node's worker process) is timed too.
 
 Isolated on a ROS domain of this benchmark and on localhost. Run:
 ``.venv/bin/python benchmarks/bench_guidance.py [--runs 100 300 500] [--new-runs 5]
@@ -131,18 +132,22 @@ def session(runs: int, new_runs: int, listener: Listener, folder: Path, term: st
         try:
             first, _ = listener.wait(lambda v: v['runs'] == str(runs) and v['status'] not in (
                 'fitting', 'waiting'), 600)
-            latencies, looks = [], []
+            latencies, decisions, looks = [], [], []
             for run in range(runs, runs + new_runs):
                 time.sleep(1.0)                       # runs come seconds apart
                 write(run)
                 flushed = time.monotonic()
-                arrival, values = listener.wait(lambda v, n=run + 1: v['runs'] == str(n), 60)
+                arrival, _ = listener.wait(lambda v, n=run + 1: v['runs'] == str(n), 60)
+                decided, values = listener.wait(
+                    lambda v, n=run + 1: v.get('decision_runs') == str(n), 60)
                 latencies.append(arrival - flushed)
+                decisions.append(decided - flushed)
                 looks.append(float(values.get('decided_in_s', 'nan')))
         finally:
             node.send_signal(signal.SIGINT)
             node.wait(timeout=60)
-    return {'runs': runs, 'first_s': first - started, 'latencies': latencies, 'looks': looks}
+    return {'runs': runs, 'first_s': first - started, 'latencies': latencies,
+            'decisions': decisions, 'looks': looks}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -164,13 +169,15 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         listener.close()
     print(f'question {term} = {size}, the effect at that size in the runs\n')
-    print('| runs in the bag | first guidance after start, s | a new run to its guidance, s '
-          '(median / max) | the look itself, s (median) |')
-    print('| --- | --- | --- | --- |')
+    print('| runs in the bag | first guidance after start, s | a new run to the guidance that '
+          'counts it, s (median / max) | to the look on it, s (median / max) | the look '
+          'itself, s (median) |')
+    print('| --- | --- | --- | --- | --- |')
     for result in results:
-        latency = np.array(result['latencies'])
+        latency, decision = np.array(result['latencies']), np.array(result['decisions'])
         print(f'| {result["runs"]} | {result["first_s"]:.1f} | {np.median(latency):.2f} / '
-              f'{latency.max():.2f} | {np.median(result["looks"]):.2f} |')
+              f'{latency.max():.2f} | {np.median(decision):.2f} / {decision.max():.2f} | '
+              f'{np.median(result["looks"]):.2f} |')
     load = os.getloadavg()[0]
     print(f'\nload average (1 min) at the end: {load:.2f} on {os.cpu_count()} cores')
     return 0

@@ -135,11 +135,39 @@ class Guide:
                 answer.update(self._term(measured))
             except OctoroachError as error:
                 answer.update(self._too_few(runs, ' '.join(str(error).split())))
+        answer['decision_runs'] = runs
         answer = self._with_diagnosis(answer)
         answer['statement'] = statement(answer)
         answer['decided_in_s'] = round(time.monotonic() - started, 3)
         answer['decided_at'] = datetime.now().astimezone().isoformat(timespec='milliseconds')
         self.latest = answer
+        return answer
+
+    def refresh(self, runs: int) -> dict[str, Any] | None:
+        """
+        Return the last answer carried to `runs` runs at once, before their look is taken.
+
+        The runs needed in all do not depend on how many are recorded, so `runs_needed` is
+        that total less `runs`; what is named stays what the last look decided
+        (`decision_runs` says on how many runs). None where there is nothing to carry (no
+        decision yet, or a validation question, whose next answer is immediate).
+        """
+        latest = self.latest
+        if latest is None or self.live is None or latest['runs'] == runs \
+                or latest['status'] not in ('collecting', 'named', 'ruled_out'):
+            return None
+        total = latest['runs'] + (latest['runs_needed'] or 0)
+        low, high = latest['runs_needed_interval_95']
+        answer = {**latest, 'runs': runs,
+                  'runs_needed': None if latest['runs_needed'] is None
+                  else max(total - runs, 0),
+                  'runs_needed_interval_95': [
+                      None if value is None else max(latest['runs'] + value - runs, 0)
+                      for value in (low, high)]}
+        answer['statement'] = statement(answer) + (
+            f' (decided on {latest["decision_runs"]} runs; the look on {runs} is under way)')
+        answer['decided_at'] = datetime.now().astimezone().isoformat(timespec='milliseconds')
+        answer['decided_in_s'] = 0.0
         return answer
 
     def _question_json(self) -> dict[str, Any]:
@@ -296,7 +324,8 @@ def guidance_fields(answer: Mapping[str, Any]) -> list[tuple[str, str]]:
                    ('test_critical_z', f'{decision["test_critical_z"]:.3f}')]
     if answer.get('error'):
         values.append(('error', str(answer['error'])))
-    values += [('decided_at', str(answer['decided_at'])),
+    values += [('decision_runs', str(answer.get('decision_runs', answer['runs']))),
+               ('decided_at', str(answer['decided_at'])),
                ('decided_in_s', f'{answer["decided_in_s"]:.3f}')]
     return values
 

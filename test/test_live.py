@@ -220,6 +220,10 @@ def test_the_guide_answers_validation_too_few_runs_and_a_size_ruled_out(monkeypa
     assert late['decision']['interval_95'][1] < 30.0 and 'ruled out' in late['statement']
     keys = dict(guidance_fields(late))
     assert keys['status'] == 'ruled_out' and keys['question'] == 'persistent_turning'
+    carried = guide.refresh(95)        # a new run is counted at once, before its look
+    assert carried is not None and (carried['runs'], carried['decision_runs']) == (95, 90)
+    assert carried['runs_needed'] == 0 and 'under way' in carried['statement']
+    assert validation.refresh(95) is None
     guide.diagnosed({'causes': [{'cause': 'lateral_slip', 'parameters': {
         'velocity_cm_s': 0.4}, 'interval': {'velocity_cm_s': [0.3, 0.5]}}],
         'adequate': True}, 90)

@@ -525,6 +525,13 @@ class Validator(Node):
             logger.error(f'guidance: reading the runs failed: {problem}')
         try:
             with self._guide_lock:
+                # the count and the runs still needed follow a new run at once; the look
+                # on it (a second or two for a term fitted with the geometry) follows
+                carried = guide.refresh(measured.n_paths) if measured is not None else None
+            if carried is not None:
+                self._guidance.publish(guidance_array(carried, guidance_fields(carried),
+                                                      self.get_clock().now().nanoseconds))
+            with self._guide_lock:
                 answer = guide.update(measured, problem)
         except Exception as error:  # noqa: BLE001 - a bug must not take the node down
             logger.error(f'guidance failed: {_one_line(error)}')
