@@ -46,7 +46,7 @@ from octoroach_model.diagnosis.causes import (
 from octoroach_model.diagnosis.decide import judge
 from octoroach_model.diagnosis.diagnose import (
     _baseline, _Halves, _score, _with_wobble, check_runs, choose_wobble_hz,
-    DiagnosisSettings, evaluate_candidate, Evaluation, quick_fit)
+    DiagnosisSettings, evaluate_candidate, Evaluation, quick_fit, SCORE_PURPOSE)
 from octoroach_model.diagnosis.features import INDEX
 from octoroach_model.diagnosis.modelfit import FittedModel, RunData, SizeEstimate
 from octoroach_model.diagnosis.power import Calibration, gain_sample, PowerModel
@@ -117,7 +117,7 @@ class Levels:
                    Boundary(settings.alpha / candidates, False))
 
 
-@dataclass(frozen=True)
+@dataclass
 class Held:
     """A baseline fitted on the calibration half, and the ruler it measures runs with."""
 
@@ -128,6 +128,8 @@ class Held:
     model: FittedModel
     calibration_runs: int
     gains: np.ndarray | None     # held-out gains at the question's size (power.gain_sample)
+    # the baseline's scored runs (features, position points), kept by `baseline_scores`
+    scored: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -293,14 +295,12 @@ def decide(measured: Paths, held: Held, question: Question, settings: DiagnosisS
     model an earlier look fitted against the same baseline (`evaluate`).
     """
     from octoroach_model.diagnosis.executors import single_threaded
-    from octoroach_model.diagnosis.modelfit import Simulator
 
     check_runs(measured)
     cause = BY_NAME[question.term]
     with single_threaded():
         halves = live_halves(measured, held, settings.seed)
-        base_scores = _score(Simulator(halves.test, settings.seed), held.model, halves,
-                             settings)
+        base_scores = baseline_scores(halves, held, settings)
         n_cal, n_test = halves.train.n, halves.test.n
         z_bound, z_test = levels.bound.z(n_cal), levels.test.z(n_test)
         evaluation = evaluate(halves, held.model, base_scores, cause.name,
@@ -331,6 +331,30 @@ def decide(measured: Paths, held: Held, question: Question, settings: DiagnosisS
         bool(verdict.clears_floor and significant), evaluation.screened, power_now,
         _finite(needed[0]), (_finite(needed[1]), _finite(needed[2])),
         held.calibration_runs, model, evaluation.model)
+
+
+def baseline_scores(halves: _Halves, held: Held, settings: DiagnosisSettings) -> Scores:
+    """
+    Score the held-out runs under the held baseline (diagnose._score).
+
+    Its simulated runs are kept with it while every held-out run is whole: they are then the
+    same runs at every look (the same random numbers, nothing cut, and no term of the
+    baseline reads a run's place), and only the score against the growing half is new.
+    """
+    from octoroach_model.diagnosis.modelfit import Simulator
+    from octoroach_model.diagnosis.scoring import position_points_cm, score_model
+
+    whole = bool(np.all(halves.test.lengths == len(halves.test.paths.t)))
+    kept = held.scored if whole and not held.model.order_dependent else None
+    if kept is None:
+        paths, positions = Simulator(halves.test, settings.seed).runs(
+            held.model, settings.score_runs, SCORE_PURPOSE)
+        kept = (halves.every.features_of(paths, positions),
+                position_points_cm(paths.positions, paths.lengths))
+        if whole and not held.model.order_dependent:
+            held.scored = kept
+    return score_model(kept[0], kept[1], halves.test.features, halves.test_points_cm,
+                       halves.scales, held.model.order_dependent)
 
 
 def evaluate(halves: _Halves, baseline: FittedModel, base_scores: Scores, term: str,
