@@ -98,7 +98,9 @@ def model_of(kind: str, gains: np.ndarray) -> PowerModel:
 
 @pytest.mark.parametrize('kind', ['moments', 'path'])
 def test_the_power_model_scales_the_data_s_errors_and_keeps_the_simulation_s(kind):
-    gains = np.random.default_rng([SEED, 2]).gamma(0.3, 4.0, 2000) - 0.6
+    # skewed as a variance effect's gains are (skewness 3.6); many, so that resampling
+    # them is close to drawing from their distribution (2000 are 0.06 off in power)
+    gains = np.random.default_rng([SEED, 2]).gamma(0.3, 4.0, 20000) - 0.6
     model = model_of(kind, gains)
     if kind == 'moments':
         scaled = model.estimate_at(800)
@@ -121,7 +123,7 @@ def test_the_power_model_scales_the_data_s_errors_and_keeps_the_simulation_s(kin
     samples = np.random.default_rng([SEED, 3]).gamma(0.3, 4.0, (4000, held_out)) - 0.6
     t = samples.mean(axis=1) / (samples.std(axis=1, ddof=1) / math.sqrt(held_out))
     direct = float(np.mean(stats.t.sf(t, held_out - 1) < stats.norm.sf(3.17)))
-    assert model.test_power(2 * held_out, 3.17) == pytest.approx(direct, abs=0.06), SEED
+    assert model.test_power(2 * held_out, 3.17) == pytest.approx(direct, abs=0.05), SEED
 
 
 def test_the_calibration_moves_with_the_studies_and_with_checks():
@@ -141,17 +143,18 @@ def test_the_calibration_moves_with_the_studies_and_with_checks():
 
 def test_a_strong_effect_is_named_at_a_look_and_stays_named():
     paths = om.simulate(120, seed=SEED % 1000 + 7, cycles=4,
-                        effects={'persistent_turning': {'yaw_rate_std_deg_s': 15.0}})
-    live = LiveDecision(Question('persistent_turning', 5.0), small_settings(SEED % 1000))
+                        effects={'measurement_noise': {'position_std_cm': 0.1}})
+    live = LiveDecision(Question('measurement_noise', 0.05), small_settings(SEED % 1000))
     first = live.update(paths.subset(np.arange(60)))
     second = live.update(paths)
     assert first is not None and second is not None
     assert second.named_here and live.named_at_runs in (60, 120), (SEED, second)
-    assert second.interval_95[0] <= 15.0 <= second.interval_95[1] * 1.5
+    assert abs(second.estimate - 0.1) < 0.02 and second.interval_95[0] < second.estimate, (
+        SEED, second)
     assert second.bound_critical_z > stats.norm.isf(0.05)      # stricter than fixed-sample
     fixed_look = Levels.fixed(small_settings(), 13)
     assert fixed_look.bound.z(1) == pytest.approx(stats.norm.isf(0.05 / 13))
-    assert json.loads(dumps(second))['term'] == 'persistent_turning'
+    assert json.loads(dumps(second))['term'] == 'measurement_noise'
 
 
 def test_a_question_must_name_a_term_and_a_size_that_matters():
