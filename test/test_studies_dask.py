@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 from pathlib import Path
 import random
@@ -211,6 +212,10 @@ def test_bad_specs_and_an_unreachable_scheduler_stop_before_any_work(tmp_path):
     commands['plan cause'] = ['plan', '--cause', 'wobble', '--size', 1]
     commands['plan robot'] = ['plan', '--cause', 'speed_decay', '--size', 0.1,
                               '--stride-frequency-hz', 30]
+    commands['plan budget'] = ['plan', '--cause', 'speed_decay', '--size', 0.1,
+                               '--budget-s', 0]
+    commands['plan method'] = ['plan', '--cause', 'speed_decay', '--size', 0.1,
+                               '--method', 'guess']
     started = time.monotonic()
     results = {name: launch(*args) for name, args in commands.items()}
     results = {name: finish(process) for name, process in results.items()}
@@ -222,10 +227,10 @@ def test_bad_specs_and_an_unreachable_scheduler_stop_before_any_work(tmp_path):
     assert 'cannot reach the Dask scheduler at tcp://127.0.0.1:9' in one_line_error(
         results['scheduler'])
     assert not (tmp_path / 'nowhere').exists()
-    for name in ('no out', 'negative workers', 'plan cause'):
+    for name in ('no out', 'negative workers', 'plan cause', 'plan method'):
         assert results[name].returncode == 2, name
         one_line_error(results[name])
-    for name in ('plan size', 'plan power', 'plan robot'):
+    for name in ('plan size', 'plan power', 'plan robot', 'plan budget'):
         assert results[name].returncode == 1, name
         one_line_error(results[name])
     assert time.monotonic() - started < 120
@@ -235,7 +240,7 @@ def test_plan_answers_with_a_power_curve_a_plot_and_json(tmp_path):
     progress = []
     result = om.plan_runs('persistent_turning', 20.0, robot={'cycles': 5}, replicates=2,
                           run_counts=[40, 80], max_runs=80, rounds=1,
-                          diagnosis=SMALL_DIAGNOSIS,
+                          diagnosis=SMALL_DIAGNOSIS, method='simulate',
                           seed=SEED, workers=0, out=tmp_path / 'plan',
                           progress=lambda fraction, message: progress.append(message))
     assert result.status in ('found', 'at_min_runs', 'above_max_runs')
@@ -257,3 +262,26 @@ def test_plan_answers_with_a_power_curve_a_plot_and_json(tmp_path):
     assert any('coarse grid' in message for message in progress)
     with pytest.raises(ParameterError, match='power must lie'):
         om.plan_runs('persistent_turning', 1.0, power=1.0, workers=0)
+
+    # the model (the default method) answers within the full simulation's stated interval:
+    # here a noise 20 times its floor, which 40 runs name (benchmarks/bench_plan.py compares
+    # the two where the answers take minutes)
+    simulated = om.plan_runs('measurement_noise', 0.2, robot={'cycles': 5}, replicates=2,
+                             run_counts=[40], max_runs=80, rounds=0,
+                             diagnosis=SMALL_DIAGNOSIS, method='simulate', seed=SEED,
+                             workers=0)
+    steps: list[str] = []
+    model = om.plan_runs('measurement_noise', 0.2, robot={'cycles': 5}, max_runs=80,
+                         diagnosis=SMALL_DIAGNOSIS, seed=SEED, workers=0, budget_s=2.0,
+                         out=tmp_path / 'model',
+                         progress=lambda fraction, message: steps.append(message))
+    low, high = simulated.runs_needed_interval_95
+    assert (low or 40) <= model.runs_needed <= (high or math.inf), (
+        SEED, model.statement, simulated.statement)
+    assert model.method == 'model' and any('pilots done' in step for step in steps)
+    written = json.loads((tmp_path / 'model' / 'plan.json').read_text())
+    assert written['method'] == 'model' and written['fit']['curve']
+    assert (tmp_path / 'model' / 'checks.csv').read_text().startswith('runs,replicate,')
+    assert (tmp_path / 'model' / 'power_curve.png').stat().st_size > 10_000
+    with pytest.raises(ParameterError, match='--method simulate'):
+        om.plan_runs('persistent_turning', 1.0, run_counts=[40, 80], workers=0)

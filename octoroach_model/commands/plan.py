@@ -14,14 +14,18 @@ from octoroach_model.errors import ParameterError
 
 def parser() -> argparse.ArgumentParser:
     """Build the `plan` command line."""
+    from octoroach_model.studies.plan import BUDGET_S, METHODS
     from octoroach_model.studies.terms import TERMS
 
     result = OneLineParser(
         prog='plan', description='How many runs to record: the number of runs with which the '
         'diagnosis names CAUSE at SIZE with the requested power on a robot (default Table II, '
-        '10 cycles at 50 Hz), and the power curve it came from. Data sets are simulated and '
-        'diagnosed as tasks on Dask, like a study; docs/studies.md says how plan decides. '
-        'Prints the answer as JSON; with --out also plan.json, table.csv and power_curve.png.')
+        '10 cycles at 50 Hz), with its 95 % interval and the power curve it came from. By '
+        'default from a calibrated model of the power curve, checked by simulation within '
+        '--budget-s seconds; --method simulate diagnoses many data sets on Dask, like a '
+        'study (minutes). docs/studies.md says how plan decides. Prints progress lines on '
+        'stderr and the answer as JSON; with --out also plan.json, the data sets (checks.csv '
+        'or table.csv) and power_curve.png.')
     result.add_argument('--cause', required=True, choices=TERMS, metavar='CAUSE',
                         help='the cause or extension term to detect: a cause of the table, '
                         'or heading_random_walk, periodic_heading, change_point, run_mixture, '
@@ -50,17 +54,28 @@ def parser() -> argparse.ArgumentParser:
     robot.add_argument('--spread-scale', type=finite_float, default=None,
                        help="multiple of Table III's angle spreads (default 1)")
     search = result.add_argument_group('search')
+    search.add_argument('--method', choices=METHODS, default='model',
+                        help='model: a calibrated model of the power curve from two pilot '
+                        'data sets, checked by simulation as --budget-s allows (seconds); '
+                        'simulate: data sets diagnosed in full at several run counts (minutes, '
+                        'the reference); docs/studies.md, "How plan decides"')
+    search.add_argument('--budget-s', type=finite_float, default=BUDGET_S,
+                        help='for --method model: seconds the plan may take, pilots and '
+                        'checks')
     search.add_argument('--replicates', type=positive_int, default=6,
-                        help='data sets per run count (more on a cluster: tighter intervals)')
+                        help='for --method simulate: data sets per run count (more on a '
+                        'cluster: tighter intervals)')
     search.add_argument('--runs', type=positive_int, nargs='+', default=None, metavar='N',
-                        help="start from these run counts instead of the pilot's guess")
+                        help='for --method simulate: start from these run counts instead of '
+                        "the pilot's guess")
     search.add_argument('--max-runs', type=positive_int, default=2000,
                         help='the largest run count tried')
     search.add_argument('--seed', type=nonnegative_int, default=0,
                         help='seed of every data set and of the bootstrap')
     add_where_arguments(result)
     result.add_argument('--out', type=Path, default=None, metavar='DIR',
-                        help='also write plan.json, table.csv and power_curve.png here')
+                        help='also write plan.json, the data sets (checks.csv, or table.csv '
+                        'for --method simulate) and power_curve.png here')
     return result
 
 
@@ -103,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
                        parameters=parameters, replicates=args.replicates, run_counts=args.runs,
                        max_runs=args.max_runs, seed=args.seed, scheduler=args.scheduler,
                        workers=args.workers, progress=progress_lines(), out=args.out,
-                       connect_timeout_s=args.connect_timeout_s)
+                       connect_timeout_s=args.connect_timeout_s, method=args.method,
+                       budget_s=args.budget_s)
     sys.stderr.write(f'plan: {result.statement}\n')
     print(dumps(result, indent=2))
     return 0

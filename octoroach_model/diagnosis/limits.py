@@ -120,6 +120,28 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: np.
     See the module docstring; `without_features` are the scored runs of the model without
     the cause; `fitted_values` the cause's other parameters as fitted (modelfit.at_size).
     """
+    gain, runs = simulated_gains(simulator, without, without_features, cause, size, scales,
+                                 score_runs, fitted_values)
+    identified = two_groups_power(without_features * scales, runs, held_out) \
+        if cause.kind == 'mixture' else 1.0
+    spread = float(np.std(gain, ddof=1))
+    if spread <= 0:
+        return TestPoint(math.inf if gain.mean() > 0 else 0.0, identified)
+    return TestPoint(float(gain.mean() / spread * math.sqrt(held_out)), identified)
+
+
+def held_out_gains(simulator: Simulator, without: FittedModel, without_features: np.ndarray,
+                   cause: Cause, size: float, scales: np.ndarray, score_runs: int,
+                   fitted_values: dict | None = None) -> np.ndarray:
+    """Return the per-run gains of runs simulated with the cause at `size` (expected_t)."""
+    return simulated_gains(simulator, without, without_features, cause, size, scales,
+                           score_runs, fitted_values)[0]
+
+
+def simulated_gains(simulator: Simulator, without: FittedModel, without_features: np.ndarray,
+                    cause: Cause, size: float, scales: np.ndarray, score_runs: int,
+                    fitted_values: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Return (per-run gains, the pseudo-data runs' features in SI units) at `size`."""
     values = at_size(cause, size, fitted_values, simulator.data)
     if cause.name == 'initial_pose_error':
         values['position_std_cm'] = float((without.effects.get(cause.name) or {}).get(
@@ -131,12 +153,7 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: np.
     gain = (feature_log_score(_features(simulator, extended, score_runs, MODEL_PURPOSE,
                                         scales), pseudo, extended.order_dependent)
             - feature_log_score(without_features, pseudo, without.order_dependent))
-    identified = two_groups_power(without_features * scales, runs, held_out) \
-        if cause.kind == 'mixture' else 1.0
-    spread = float(np.std(gain, ddof=1))
-    if spread <= 0:
-        return TestPoint(math.inf if gain.mean() > 0 else 0.0, identified)
-    return TestPoint(float(gain.mean() / spread * math.sqrt(held_out)), identified)
+    return gain, runs
 
 
 def two_groups_power(without_runs: np.ndarray, runs: np.ndarray, half: int) -> float:

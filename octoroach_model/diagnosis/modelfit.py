@@ -194,6 +194,8 @@ class SizeEstimate:
     slope_relative_se: float = 0.0   # the slope's relative Monte Carlo error (its simulated
     #                                  runs draw the cause afresh: 7 % at 400 runs for a spread)
     reference_slope_relative_se: float = 0.0   # the same at the reference size (limits.py)
+    simulation_se: float = 0.0   # path causes: the part of `se` from simulated runs, which
+    #                              more measured runs do not shrink (diagnosis/power.py)
     others: Mapping[str, float] = field(default_factory=dict)   # errors of other parameters
     detail: Mapping[str, Any] = field(default_factory=dict)     # kind-specific (run_mixture:
     #                                                              the turning runs)
@@ -507,15 +509,18 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
         refine=True, tolerance=settings.tolerance)
     fitted = replace(model, parameters=fit.parameters, effects={
         name: dict(fit.effects.get(name, values)) for name, values in model.effects.items()})
-    covariance = path_covariance(fit, data, mean, settings)
+    data_part, model_part = path_covariance(fit, data, mean, settings, parts=True)
+    covariance = data_part + model_part
     errors = np.sqrt(np.diag(covariance))
+    simulated = np.sqrt(np.maximum(np.diag(model_part), 0.0))
     estimates = {}
     for offset, item in enumerate(free):
         if item.parameter != BY_NAME[item.cause].parameter:
             continue
         size = float(fit.effects[item.cause][item.parameter])
         estimates[item.cause] = SizeEstimate(item.cause, size, float(errors[6 + offset]),
-                                             others=_other_errors(free, errors, item.cause))
+                                             others=_other_errors(free, errors, item.cause),
+                                             simulation_se=float(simulated[6 + offset]))
     return fitted, estimates, GeometryUncertainty(
         tuple((item.cause, item.parameter) for item in free), covariance, fit.cost)
 
@@ -541,13 +546,14 @@ def _other_errors(free, errors: np.ndarray, cause: str) -> dict[str, float]:
 
 
 def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSettings,
-                    n_boot: int = 60) -> np.ndarray:
+                    n_boot: int = 60, parts: bool = False) -> Any:
     """
     Return the covariance of the fit's vector.
 
     Two sources of error added: the measured runs
     (bootstrap) and the simulated runs (bootstrap of their antithetic pairs); each resample's
-    solution is one Gauss-Newton step from the fit.
+    solution is one Gauss-Newton step from the fit. With `parts`, the two apart (measured,
+    simulated): only the first shrinks with more runs (diagnosis/power.py).
     """
     pseudo_inverse = np.linalg.pinv(fit.jacobian)
     target = data.target
@@ -581,8 +587,9 @@ def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSet
         change = vector(pairs[pick, :, :2].mean(axis=0), pairs[pick, :, 2].mean(axis=0),
                         pair_sway[pick].mean(axis=0)) - centre
         model_steps.append(pseudo_inverse @ change)
-    return (np.atleast_2d(np.cov(np.array(data_steps), rowvar=False))
-            + np.atleast_2d(np.cov(np.array(model_steps), rowvar=False)))
+    measured = np.atleast_2d(np.cov(np.array(data_steps), rowvar=False))
+    simulated = np.atleast_2d(np.cov(np.array(model_steps), rowvar=False))
+    return (measured, simulated) if parts else measured + simulated
 
 
 def path_start(simulator: Simulator, model: FittedModel, cause: Cause,

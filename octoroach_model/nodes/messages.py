@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 __all__ = ['STATUS_KEYS', 'PlanarPose', 'fill_transform', 'planar_rows', 'pose_to_transform',
            'run_marker', 'set_stamp', 'status_fields', 'transform_message',
            'transform_to_pose', 'violation_array', 'validation_status', 'diagnosis_status',
-           'diagnosis_fields']
+           'diagnosis_fields', 'guidance_array']
 
 NS_PER_S = 1_000_000_000
 PlanarPose = tuple[float, float, float, float]  # x [m], y [m], qz, qw of one sample
@@ -182,6 +182,26 @@ def diagnosis_status(report: Mapping[str, Any], name: str,
         level=DiagnosticStatus.OK if sufficient else DiagnosticStatus.WARN, name=name,
         message=message, hardware_id=hardware_id,
         values=[KeyValue(key=key, value=value) for key, value in values])
+
+
+def guidance_array(answer: Mapping[str, Any], values: Sequence[tuple[str, str]],
+                   stamp_ns: int, name: str = 'octoroach_model/guidance',
+                   hardware_id: str = 'octoroach') -> DiagnosticArray:
+    """
+    Make the latched guidance (octoroach_model.guidance): one status, its values.
+
+    OK once the question is settled (named, ruled out, enough runs), WARN while runs are
+    still needed, STALE when the runs cannot be read or decided on yet.
+    """
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+    status = str(answer.get('status'))
+    level = (DiagnosticStatus.OK if status in ('named', 'ruled_out', 'enough_runs')
+             else DiagnosticStatus.WARN if status == 'collecting' else DiagnosticStatus.STALE)
+    return violation_array([DiagnosticStatus(
+        level=level, name=name, message=str(answer.get('statement', '')),
+        hardware_id=hardware_id, values=[KeyValue(key=key, value=value)
+                                         for key, value in values])], stamp_ns)
 
 
 def violation_array(statuses: list[DiagnosticStatus], stamp_ns: int) -> DiagnosticArray:

@@ -17,6 +17,13 @@ One job (validation or diagnosis) runs at a time: both are CPU-bound.
 
 `validator --call validate` (or `diagnose`) is the client side: it calls the service of a
 running validator and prints the JSON answer, for machines without the `ros2` command.
+
+Live guidance: with `question` set (a cause or extension term and `question_size`, or
+`validation`), a thread of its own watches the files behind `bags` every `guidance_period_s`
+and, when they change, reads the runs and asks `octoroach_model.guidance.Guide` what is known
+so far and how many runs the question still needs; the answer is latched on `~/guidance` and
+joins `~/diagnose`'s answer. The guide fits its baselines in a worker process (forkserver,
+like the diagnosis's pool inside a node), so a look never waits for one.
 """
 from __future__ import annotations
 
@@ -39,7 +46,8 @@ from octoroach_model.nodes.common import (
     rejected_override, run_node, set_parameters_callback, split_ros_args, start_exit_code,
     UsageError)
 from octoroach_model.nodes.messages import (
-    diagnosis_fields, diagnosis_status, status_fields, validation_status, violation_array)
+    diagnosis_fields, diagnosis_status, guidance_array, status_fields, validation_status,
+    violation_array)
 from octoroach_model.validation_jobs import (
     Cancelled, Job, Progress, run_diagnosis, run_validation, Workbench)
 
@@ -61,13 +69,23 @@ another call answers at once with {"error": "busy: ..."}. ~/violation is reliabl
 transient_local (latched), depth 1. `bags` is a string array (to clear it from rclpy, give
 the type: Parameter('bags', Parameter.Type.STRING_ARRAY, [])). Params file:
 config/validator.yaml (share/octoroach_model/config when installed).
+Live guidance: set question (a cause or extension term, with question_size in its unit;
+or validation) and ~/guidance (DiagnosticArray, latched) says after every new run what is
+named so far and how many more runs the question needs (runs_needed, 95 % interval);
+~/diagnose's answer carries it too. Changing a question parameter starts the question anew.
 Example: python -m octoroach_model validator --ros-args -p bags:=[bags/] -p k:=11
+         ... -p question:=persistent_turning -p question_size:=3.0
 """
 TOPICS = (
     ('service', '~/validate', 'std_srvs/srv/Trigger: run the validation, JSON result'),
     ('service', '~/diagnose', 'std_srvs/srv/Trigger: run the diagnosis, JSON report'),
     ('publishes', '~/violation', 'diagnostic_msgs/msg/DiagnosticArray, latched, last result'),
+    ('publishes', '~/guidance', 'diagnostic_msgs/msg/DiagnosticArray, latched: the live '
+     'answer to `question` after each new run'),
 )
+GUIDANCE_STATUS_NAME = 'octoroach_model/guidance'
+GUIDANCE_PARAMETERS = ('question', 'question_size', 'question_power', 'planned_runs',
+                       'guidance_period_s')
 STATUS_NAME = 'octoroach_model/validation'
 DIAGNOSIS_STATUS_NAME = 'octoroach_model/diagnosis'
 HARDWARE_ID = 'octoroach'
@@ -78,6 +96,11 @@ SERVICES = {'validate': 'validation', 'diagnose': 'diagnosis'}  # service -> job
 DISCOVERY_TIMEOUT_S = 30.0  # --call: longest wait for the service to appear
 BUSY_RETRY_S = 10.0         # "call again in" before the first job of a kind has finished
 
+QUESTIONS = ('', 'validation', 'initial_pose_error', 'measurement_noise',
+             'gait_frequency_variation', 'speed_decay', 'lateral_slip', 'persistent_turning',
+             'run_order_drift:stride_frequency', 'run_order_drift:yaw_rate',
+             'run_order_drift:lateral_velocity', 'heading_random_walk', 'periodic_heading',
+             'change_point', 'run_mixture')
 BAGS = ParamSpec('bags', [], 'bag directories, .mcap files or .npz data sets to validate on; '
                  'at run time only inside data_dirs')
 DATA_DIRS = ParamSpec('data_dirs', [], 'folders `bags` may name when set at run time; empty: '
@@ -133,15 +156,29 @@ def validator_specs() -> list[ParamSpec]:
                   -1.0, 1.5),
         ParamSpec('report_dir', '', '~/diagnose also writes each report (report.json, '
                   'summary.md, plots) into a new folder here; empty: no files', read_only=True),
+        ParamSpec('question', '', 'live guidance on ~/guidance: a cause or extension term '
+                  "(with question_size), validation (runs for the paper's validation), or "
+                  'empty: none', choices=QUESTIONS),
+        ParamSpec('question_size', 0.0, "the size that matters: the term's main parameter "
+                  '(its distance from no effect; run_mixture: the yaw rate of 30 % of the '
+                  'runs), in its unit', 'as the term', 0.0, 1000.0),
+        ParamSpec('question_power', 0.8, 'probability with which runs_needed names the term at '
+                  'question_size', '', 0.5, 0.99),
+        ParamSpec('planned_runs', 500, 'runs the session is planned to reach: where the live '
+                  'decision is least strict (any count stays valid)', '', 40, 1000000),
+        ParamSpec('guidance_period_s', 0.25, 'how often the files behind bags are looked at '
+                  'for new runs', 's', 0.05, 10.0),
     ]
 
 
 def _reject_reason(values: dict[str, ParamValue]) -> str | None:
+    from octoroach_model.guidance import check_question
+
     try:
         Job.from_values(values)
     except OctoroachError as error:
         return str(error)
-    return None
+    return check_question(values)
 
 
 def _bags_reason(value: Any) -> str | None:
@@ -236,12 +273,20 @@ class Validator(Node):
             make_report_dir(values['report_dir'])
         job = Job.from_values({**values, 'bags': self.bags()})
         job.sigmas()  # at start-up both spreads come together: a half-set pair is a mistake
+        reason = _reject_reason(values)
+        if reason:
+            raise ParameterError(reason)
         check = set_parameters_callback(self, self._specs, _reject_reason)
         self.add_on_set_parameters_callback(lambda params: self._check_parameters(params, check))
         latched = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self._violation = self.create_publisher(DiagnosticArray, '~/violation', latched)
+        self._guidance = self.create_publisher(DiagnosticArray, '~/guidance', latched)
+        self._guide_lock = threading.Lock()
+        self._guide: Any = None
+        self._refits: Any = None
+        self._guidance_thread: threading.Thread | None = None
         self._bench = Workbench()
         self._statuses: dict[str, Any] = {}
         self._lock = threading.Lock()
@@ -256,9 +301,14 @@ class Validator(Node):
                             qos_profile=queue)
         self.create_service(Trigger, '~/diagnose', self._on_diagnose, callback_group=group,
                             qos_profile=queue)
+        self._guidance_thread = threading.Thread(target=self._watch, name='validator-guidance',
+                                                 daemon=True)
+        self._guidance_thread.start()
         self.get_logger().info(
             f'ready: {len(job.sources)} source(s) in bags; services ~/validate, ~/diagnose; '
-            f'statistics on ~/violation')
+            f'statistics on ~/violation'
+            + (f'; live guidance for {values["question"]} on ~/guidance'
+               if values['question'] else ''))
 
     # parameters
 
@@ -365,6 +415,8 @@ class Validator(Node):
             result = work(job, self._bench, self._progress(running.kind))
             elapsed = round(time.monotonic() - running.started, 3)
             result = {**result, 'started_at': running.started_at, 'elapsed_s': elapsed}
+            if running.kind == 'diagnosis':
+                result = self._with_guidance(result)
             self._publish(running.kind, result)
             running.success, running.message = True, dumps(result)
             outcome = (status_fields(result)[1] if running.kind == 'validation'
@@ -410,12 +462,119 @@ class Validator(Node):
         self._violation.publish(violation_array(list(self._statuses.values()),
                                                 self.get_clock().now().nanoseconds))
 
+    # live guidance
+
+    def _with_guidance(self, report: dict[str, Any]) -> dict[str, Any]:
+        """Tell the guide what the diagnosis named; return the report with the guidance."""
+        with self._guide_lock:
+            guide = self._guide
+            if guide is None:
+                return report
+            guide.diagnosed(report, int(report.get('paths') or 0))
+            latest = guide.latest
+        return {**report, 'guidance': latest}
+
+    def _watch(self) -> None:
+        """
+        Guidance thread: decide again whenever the runs or the question change.
+
+        Polls the stamps of the files behind `bags` (validation_jobs.source_stamps) every
+        guidance_period_s; a baseline fitted apart is taken up at the next poll.
+        """
+        from octoroach_model.guidance import Guide, GuidanceQuestion
+        from octoroach_model.validation_jobs import source_stamps
+
+        logger = self.get_logger()
+        bench = Workbench()
+        question_key: tuple | None = None
+        seen: tuple | None = None
+        while not self._stop.is_set() and self.context.ok():
+            try:
+                values = current_values(self, self._specs)
+                job = Job.from_values({**values, 'bags': self.bags()})
+                question = GuidanceQuestion.from_values(values)
+            except OctoroachError:    # parameters mid-change: the set callback refuses
+                self._stop.wait(0.1)     # what does not fit; read again in a moment
+                continue
+            period = values['guidance_period_s']
+            assert isinstance(period, float)      # the spec's type, rclpy enforces it
+            key = (question, job.sources, job.topic, job.gap_s, job.min_duration_s)
+            if key != question_key:
+                question_key, seen = key, None
+                term = question.asked and question.kind != 'validation'
+                with self._guide_lock:
+                    self._guide = Guide(question, self._refit_pool() if term else None) \
+                        if question.asked else None
+            guide = self._guide
+            if guide is None:
+                self._stop.wait(period)
+                continue
+            stamps = source_stamps(job.sources)
+            if stamps != seen or (guide.live is not None and guide.live.ready):
+                seen = stamps
+                self._decide(guide, bench, job, logger)
+            self._stop.wait(period)
+
+    def _decide(self, guide: Any, bench: Workbench, job: Job, logger: Any) -> None:
+        """Read the runs, ask the guide, latch the answer on ~/guidance."""
+        from octoroach_model.guidance import guidance_fields
+
+        measured, problem = None, None
+        try:
+            if job.sources:
+                measured = bench.measured(job)
+            else:
+                problem = 'no measured runs: set the parameter bags'
+        except OctoroachError as error:
+            problem = _one_line(error)
+        except Exception as error:  # noqa: BLE001 - a bug must not end the guidance thread
+            problem = _one_line(error)
+            logger.error(f'guidance: reading the runs failed: {problem}')
+        try:
+            with self._guide_lock:
+                # the count and the runs still needed follow a new run at once; the look
+                # on it (a second or two for a term fitted with the geometry) follows
+                carried = guide.refresh(measured.n_paths) if measured is not None else None
+            if carried is not None:
+                self._guidance.publish(guidance_array(carried, guidance_fields(carried),
+                                                      self.get_clock().now().nanoseconds))
+            with self._guide_lock:
+                answer = guide.update(measured, problem)
+        except Exception as error:  # noqa: BLE001 - a bug must not take the node down
+            logger.error(f'guidance failed: {_one_line(error)}')
+            return
+        self._guidance.publish(guidance_array(answer, guidance_fields(answer),
+                                              self.get_clock().now().nanoseconds))
+
+    def _refit_pool(self) -> Any:
+        """Return the one worker process the guide fits its baselines in (made once)."""
+        if self._refits is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            from octoroach_model.diagnosis.executors import one_blas_thread
+
+            server = multiprocessing.get_context('forkserver')
+            server.set_forkserver_preload(['octoroach_model.diagnosis.live'])
+            self._refits = ProcessPoolExecutor(max_workers=1, mp_context=server,
+                                               initializer=one_blas_thread)
+        return self._refits
+
     def stop_jobs(self) -> None:
         """Ask a running job to stop at its next progress report; waiting callbacks return."""
         self._stop.set()
 
     def destroy_node(self) -> None:
         self.stop_jobs()
+        thread = self._guidance_thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=5.0)
+        if self._refits is not None:
+            # a baseline being fitted is not worth waiting for: its process is ended (the
+            # pool has no public way to), then the pool is shut down cleanly
+            for process in list(getattr(self._refits, '_processes', {}).values()):
+                process.terminate()
+            self._refits.shutdown(wait=True, cancel_futures=True)
         super().destroy_node()
 
 

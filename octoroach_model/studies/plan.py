@@ -1,7 +1,10 @@
 """
 `plan_runs`: how many runs an experiment needs to detect a cause of a given size.
 
-How it decides (docs/studies.md, "How plan decides"):
+Two methods (docs/studies.md, "How plan decides"). `method='model'` (the default, seconds):
+a calibrated model of the power curve from two pilot data sets, checked by simulation as
+time allows (studies/plan_model.py). `method='simulate'` (minutes, the reference): many data
+sets simulated and diagnosed in full at several run counts, as follows.
 
 1. Pilot: one data set of the paper's model on the robot (PILOT_RUNS runs) is diagnosed; the
    detection limit L it reports for the cause gives a first guess n0 = PILOT_RUNS (L / size)^2
@@ -22,7 +25,7 @@ The observed share at every run count is reported with its Wilson interval besid
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 import math
 from pathlib import Path
 import time
@@ -41,6 +44,8 @@ from octoroach_model.studies.table import cell, write_table
 from octoroach_model.studies.terms import main_parameter, null_value
 
 PILOT_RUNS = 200
+METHODS = ('model', 'simulate')
+BUDGET_S = 15.0             # method 'model': seconds a plan may take, pilots and checks
 MAX_ROUNDS = 3
 BOOTSTRAP = 400
 MAX_SLOPE = 20.0            # per unit of ln(runs): power 10 % -> 90 % over at least x1.25 runs
@@ -79,6 +84,8 @@ class PlanResult:
     seed: int
     elapsed_s: float
     rows: tuple[dict, ...] = field(default=(), metadata={'json': False}, repr=False)
+    method: str = 'simulate'
+    checks: tuple = ()            # method 'model': the simulated checks (plan_model.py)
 
     def to_json(self) -> dict:
         from octoroach_model.jsonio import fields_jsonable
@@ -96,24 +103,44 @@ def plan_runs(cause: str, size: float, *, power: float = 0.8,
               diagnosis: Mapping[str, Any] | None = None, client: Any | None = None,
               scheduler: str | None = None, workers: int | None = None,
               progress: Progress | None = None, out: str | Path | None = None,
-              connect_timeout_s: float = CONNECT_TIMEOUT_S) -> PlanResult:
+              connect_timeout_s: float = CONNECT_TIMEOUT_S, method: str = 'model',
+              budget_s: float = BUDGET_S) -> PlanResult:
     """
     Find the number of runs needed to name `cause` at `size` with probability `power`.
 
     `size` is the cause's main parameter, in its unit; `robot` defaults to Table II (10
-    cycles at 50 Hz).
+    cycles at 50 Hz); `parameters` sets the cause's other parameters; `diagnosis` overrides
+    DiagnosisSettings as in a study spec. Where tasks run: as in `run_study`. With `out`,
+    writes plan.json, the data sets (table.csv, or checks.csv for the model) and
+    power_curve.png there.
 
-    `run_counts` skips the pilot and starts from these counts; `rounds` bounds the refinement
-    rounds after the coarse grid; `parameters` sets the cause's
-    other parameters; `diagnosis` overrides DiagnosisSettings as in a study spec. Where tasks
-    run: as in `run_study`. With `out`, writes plan.json, table.csv and power_curve.png there.
+    `method`: 'model' (module docstring; `budget_s` bounds its time, pilots and checks) or
+    'simulate', where `replicates` data sets are diagnosed at each run count, `run_counts`
+    skips the pilot and starts from these counts and `rounds` bounds the refinement rounds
+    after the coarse grid.
     """
     started = time.perf_counter()
     say = progress or (lambda fraction, message: None)
     fewest = diagnosis_min_runs()
     min_runs = max(fewest, min_runs or fewest)
+    if method not in METHODS:
+        raise ParameterError(f'method must be one of {", ".join(METHODS)}, got {method!r}')
     base = _base_spec(cause, size, robot, parameters, replicates, seed, diagnosis,
                       min_runs, max_runs, power)
+    if method == 'model':
+        if run_counts is not None:
+            raise ParameterError('run counts (--runs) go with --method simulate')
+        if not (math.isfinite(budget_s) and budget_s > 0):
+            raise ParameterError(f'the time budget must be a positive number of seconds, got '
+                                 f'{budget_s:g}')
+        check_where(client, scheduler, workers)
+        out_dir = _check_out(out)
+        result = _plan_by_model(base, cause, size, power, min_runs, max_runs, seed, client,
+                                scheduler, workers, connect_timeout_s, budget_s, say,
+                                started)
+        if out_dir is not None:
+            write_plan(result, out_dir)
+        return result
     if run_counts is not None:
         run_counts = sorted({int(n) for n in run_counts})
         if not run_counts or run_counts[0] < min_runs or run_counts[-1] > max_runs:
@@ -153,6 +180,80 @@ def plan_runs(cause: str, size: float, *, power: float = 0.8,
     if out_dir is not None:
         write_plan(result, out_dir)
     return result
+
+
+def _plan_by_model(base: StudySpec, cause: str, size: float, power: float, min_runs: int,
+                   max_runs: int, seed: int, client: Any | None, scheduler: str | None,
+                   workers: int | None, connect_timeout_s: float, budget_s: float,
+                   say: Progress, started: float) -> PlanResult:
+    """Plan with the calibrated power model (plan_model.py), on a pool or a Dask cluster."""
+    import contextlib
+
+    from octoroach_model.diagnosis.executors import executor_for
+    from octoroach_model.diagnosis.live import Question
+    from octoroach_model.studies.execute import default_workers
+    from octoroach_model.studies.plan_model import plan_by_model
+
+    question = Question(cause, size, power)
+    with contextlib.ExitStack() as stack:
+        if client is not None or scheduler:
+            where = stack.enter_context(where_to_run(client, scheduler, None,
+                                                     connect_timeout_s))
+            executor, count = where.get_executor(), max(len(where.scheduler_info().get(
+                'workers', {})), 1)
+        else:
+            count = default_workers() if workers is None else workers
+            executor = stack.enter_context(executor_for(None, count))
+        answer = plan_by_model(base, question, min_runs=min_runs, max_runs=max_runs,
+                               executor=executor, workers=count, budget_s=budget_s,
+                               progress=say)
+    return _model_result(base, cause, size, power, answer, seed, min_runs, max_runs,
+                         time.perf_counter() - started)
+
+
+def _model_result(base: StudySpec, cause: str, size: float, power: float, answer: Any,
+                  seed: int, min_runs: int, max_runs: int, elapsed_s: float) -> PlanResult:
+    """Make the PlanResult of the model method: answer, interval, checks, curve."""
+    parameter = main_parameter(cause)
+    what = (f'{cause} with {parameter} {null_value(cause):g} - {size:g}' if null_value(cause)
+            else f'{cause} with {parameter} = {size:g}')
+    checks = [check for check in answer.checks if check.status == 'ok']
+    named = sum(check.named for check in checks)
+    basis = (f'calibrated power model from {len(answer.pilots)} pilot data sets, checked on '
+             f'{len(checks)} simulated data sets ({named} named)')
+    low, high = (float(max(value, min_runs)) if math.isfinite(value) else None
+                 for value in answer.interval)
+    if not math.isfinite(answer.runs) or answer.runs > max_runs:
+        status, needed = 'above_max_runs', None
+        statement = (f'more than {max_runs} runs are needed to name {what} with '
+                     f'{power:.0%} power ({basis})')
+    elif answer.runs <= min_runs:
+        status, needed = 'at_min_runs', min_runs
+        statement = (f'{min_runs} runs (the fewest the diagnosis takes) already name {what} '
+                     f'with at least {power:.0%} power ({basis})')
+    else:
+        status, needed = 'found', int(math.ceil(answer.runs))
+        statement = (f'about {needed} runs name {what} with {power:.0%} power (95 % '
+                     f'interval {_runs_text(low or math.inf)} to '
+                     f'{_runs_text(high or math.inf)} runs; {basis})')
+    curve = []
+    for runs in sorted({check.runs for check in checks}):
+        group = [check for check in checks if check.runs == runs]
+        rate = wilson(sum(check.named for check in group), len(group))
+        assert rate.rate is not None and rate.interval is not None
+        curve.append(PowerPoint(runs, rate.successes, rate.trials, rate.rate, rate.interval))
+    fit_json = {'model': 'P(size bound clears the floor) x P(held-out test significant) from '
+                         'the pilots, shifted on the probit scale (diagnosis/power.py)',
+                'shift': answer.shift, 'shift_interval_95': list(answer.shift_interval_95),
+                'calibration': list(answer.sources),
+                'curve': [{'runs': runs, 'power': p, 'low': lo, 'high': hi}
+                          for runs, p, lo, hi in answer.curve]}
+    pilot = {'data_sets': list(answer.pilots),
+             'how': "null data sets of the robot; the term's first step on each gives the "
+                    'errors of its size and the gains of its held-out test'}
+    return PlanResult(cause, parameter, size, power, needed, (low, high), status, statement,
+                      tuple(curve), fit_json, pilot, base.robot.to_json(), len(checks), seed,
+                      round(elapsed_s, 2), (), 'model', tuple(answer.checks))
 
 
 def _base_spec(cause: str, size: float, robot: RobotSpec | Mapping[str, Any] | None,
@@ -387,17 +488,83 @@ def _check_out(out: str | Path | None) -> Path | None:
 
 
 def write_plan(result: PlanResult, out: Path) -> dict[str, Path]:
-    """Write plan.json, table.csv (every diagnosed data set) and power_curve.png to `out`."""
+    """
+    Write plan.json, the data sets and power_curve.png to `out`.
+
+    The data sets: table.csv (every diagnosed data set, method 'simulate') or checks.csv
+    (every simulated check, method 'model').
+    """
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise ParameterError(f'--out {out}: cannot create it ({error.strerror})') from None
-    paths = {'plan': out / 'plan.json', 'table': out / 'table.csv',
+    model = result.method == 'model'
+    paths = {'plan': out / 'plan.json', 'table': out / ('checks.csv' if model else 'table.csv'),
              'plot': out / 'power_curve.png'}
     paths['plan'].write_text(dumps(result, indent=2) + '\n')
-    write_table(paths['table'], result.rows)
-    plot_power_curve(result, paths['plot'])
+    if model:
+        from octoroach_model.studies.plan_model import outcome_rows
+
+        _write_checks(paths['table'], outcome_rows(result.checks))
+        plot_model_curve(result, paths['plot'])
+    else:
+        write_table(paths['table'], result.rows)
+        plot_power_curve(result, paths['plot'])
     return paths
+
+
+def _write_checks(path: Path, rows: list[dict[str, Any]]) -> None:
+    """Write the checks as CSV (one row each, the columns of plan_model.CheckOutcome)."""
+    import csv
+    import io
+
+    from octoroach_model.fileio import write_text_atomic
+    from octoroach_model.studies.plan_model import CheckOutcome
+
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=[f.name for f in fields(CheckOutcome)],
+                            lineterminator='\n')
+    writer.writeheader()
+    writer.writerows(rows)
+    write_text_atomic(path, buffer.getvalue())
+
+
+def plot_model_curve(result: PlanResult, path: Path) -> None:
+    """Plot the calibrated power curve with its band, the checks and the answer."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(6.5, 4.5))
+    points = result.fit['curve']
+    runs = np.array([point['runs'] for point in points])
+    axis.fill_between(runs, [point['low'] for point in points],
+                      [point['high'] for point in points], color='tab:blue', alpha=0.15,
+                      label='95 % band (calibration shift)')
+    axis.plot(runs, [point['power'] for point in points], color='tab:blue',
+              label='predicted power, calibrated')
+    if result.curve:
+        checked = np.array([point.runs for point in result.curve], dtype=float)
+        rates = np.array([point.power for point in result.curve])
+        below = rates - np.array([point.interval_95[0] for point in result.curve])
+        above = np.array([point.interval_95[1] for point in result.curve]) - rates
+        axis.errorbar(checked, rates, yerr=[below, above], fmt='o', capsize=4,
+                      color='tab:green', label='checks: share named (95 % Wilson)')
+    axis.axhline(result.power, color='grey', linestyle='--',
+                 label=f'requested power {result.power:.0%}')
+    if result.runs_needed is not None:
+        axis.axvline(result.runs_needed, color='tab:red',
+                     label=f'answer: {result.runs_needed} runs')
+    axis.set_xscale('log')
+    axis.set_ylim(-0.02, 1.02)
+    axis.set_xlabel('runs recorded (log scale)')
+    axis.set_ylabel('power: probability the cause is named')
+    axis.set_title(f'Runs needed: {result.cause}, {result.parameter} = {result.size:g}')
+    axis.legend(fontsize=7, loc='lower right')
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
 
 
 def plot_power_curve(result: PlanResult, path: Path) -> None:

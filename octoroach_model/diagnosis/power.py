@@ -1,0 +1,279 @@
+"""
+How the power to name one term grows with the runs, predicted from one data set.
+
+`plan` (studies/plan.py) and the validator's live guidance (diagnosis/live.py) both ask how
+many runs it takes to name a term of a given size. The detection limits (limits.py) already
+predict, from one data set, the probability that the decision names a term of size s: the
+size bound clears the floor (P1, from the data's own standard errors) and the held-out test
+is significant (P2, from the gains of runs simulated with the term). Both move with the
+number of runs in a known way:
+
+- a size's standard error has a part from the measured runs, which shrinks as one over the
+  square root of the calibration runs, and a part from the simulated runs the size is read
+  against (a moments line's intercept and slope, a drift's, the mean path's antithetic runs
+  of a path cause), which does not shrink: the diagnosis simulates as many runs whatever the
+  data (`PowerModel.estimate_at`);
+- the held-out test's t is that of the per-run gains of the held-out runs: its power at h
+  held-out runs is the share of samples of h simulated gains whose t passes
+  (`PowerModel.test_power`; the gains are skewed, so not simply the expected t, which
+  grows as the square root of h).
+
+So `PowerModel.power(runs, z_bound, z_test)` is P1 x P2 at any run count, with the decision's
+critical values there (the diagnosis's fixed ones, or the live decision's anytime boundary).
+
+**Calibration against simulation.** Whether the prediction holds was measured where it
+predicts 80 %: for each term at one size, the pilots of `plan` (studies/plan_model.py)
+predicted the runs for 80 % power, and 16 data sets with the term at that size and run count
+were simulated and the term's first step taken on each, as the plan's checks take it
+(`benchmarks/bench_plan.py --calibrate`; README, "How many runs: plan"). The counts are
+`CALIBRATION_COUNTS`, per group of terms (the six causes pooled, each extension family
+apart). The measured power is modelled as Phi(Phi^-1(predicted) + shift): one shift on the
+probit scale per group, with a normal prior N(0, 1) (the predictor is right within two probit
+units), updated by the group's counts and by any checks of the caller
+(`Calibration.updated`); its 95 % posterior interval is what makes an answer's interval.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+import math
+
+import numpy as np
+from scipy import stats
+
+from octoroach_model.diagnosis.causes import BY_NAME
+from octoroach_model.diagnosis.decide import POWER
+from octoroach_model.diagnosis.limits import bound_power, held_out_gains, limit_base
+from octoroach_model.diagnosis.modelfit import FittedModel, RunData, Simulator, SizeEstimate
+
+ZFunction = Callable[[float], float]          # information (runs in a half) -> critical z
+MOST_RUNS = 1_000_000                         # runs_for gives up beyond this
+# named / data sets where the pilots predicted 80 % power, per calibration group: 16 data
+# sets per term (benchmarks/bench_plan.py --calibrate prints these; README, "How many runs:
+# plan"); measurement_noise and the stride frequency's drift at a size just above their
+# floors, where the runs needed are many
+CALIBRATION_COUNTS: dict[str, tuple[int, int]] = {
+    'causes': (85, 96),
+    'run_order_drift': (32, 48),
+    'heading_random_walk': (12, 16),
+    'periodic_heading': (13, 16),
+    'change_point': (16, 16),
+    'run_mixture': (16, 16),
+}
+GAIN_REPEATS = 2                               # simulations pooled in gain_sample
+RESAMPLES = 1000                               # samples of the gains per run count
+RESAMPLED_RUNS = 2000                          # beyond: the t taken as normal
+RESAMPLE_SEED = 54
+PRIOR_SD = 1.0                                 # of the probit shift
+SHIFTS = np.linspace(-5.0, 5.0, 2001)          # the grid the shift's posterior is taken on
+
+
+def calibration_group(term: str) -> str:
+    """Return the calibration group of a term: 'causes', or its extension family."""
+    return BY_NAME[term].family or 'causes'
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """
+    The probit shift between predicted and measured power (module docstring).
+
+    `log_likelihood` is on the grid SHIFTS; `sources` says which counts it holds.
+    """
+
+    log_likelihood: tuple[float, ...]
+    sources: tuple[str, ...]
+
+    @classmethod
+    def for_term(cls, term: str) -> Calibration:
+        """Return the measured calibration of the term's group (its prior included)."""
+        group = calibration_group(term)
+        named, total = CALIBRATION_COUNTS[group]
+        prior = stats.norm.logpdf(SHIFTS, 0.0, PRIOR_SD)
+        counts = _binomial(named, total, np.full_like(SHIFTS, POWER))
+        return cls(tuple(prior + counts), (f'calibration: {group} named in {named} of '
+                                           f'{total} data sets where 80 % was predicted',))
+
+    def updated(self, predicted: Sequence[float], named: Sequence[bool], what: str
+                ) -> Calibration:
+        """Return the calibration with outcomes of simulated checks at `predicted` powers."""
+        total = np.array(self.log_likelihood)
+        for power, outcome in zip(predicted, named):
+            total += _binomial(int(bool(outcome)), 1, np.full_like(SHIFTS, power))
+        return Calibration(tuple(total), (*self.sources, what))
+
+    def _posterior(self) -> np.ndarray:
+        log_p = np.array(self.log_likelihood)
+        weights = np.exp(log_p - log_p.max())
+        return weights / weights.sum()
+
+    @property
+    def shift(self) -> float:
+        """Return the posterior median of the shift."""
+        return self.quantile(0.5)
+
+    @property
+    def interval_95(self) -> tuple[float, float]:
+        """Return the shift's equal-tailed 95 % posterior interval."""
+        return self.quantile(0.025), self.quantile(0.975)
+
+    def quantile(self, q: float) -> float:
+        cumulative = np.cumsum(self._posterior())
+        return float(np.interp(q, cumulative, SHIFTS))
+
+
+def _binomial(named: int, total: int, predicted: np.ndarray) -> np.ndarray:
+    """Log-likelihood over SHIFTS of `named` of `total` at the shifted predicted powers."""
+    probability = stats.norm.cdf(stats.norm.ppf(np.clip(predicted, 1e-12, 1 - 1e-12))
+                                 + SHIFTS)
+    probability = np.clip(probability, 1e-300, 1 - 1e-16)
+    return named * np.log(probability) + (total - named) * np.log1p(-probability)
+
+
+def shifted(power: float, shift: float) -> float:
+    """Return the power measured where `power` is predicted (module docstring)."""
+    return float(stats.norm.cdf(stats.norm.ppf(min(max(power, 1e-12), 1 - 1e-12)) + shift))
+
+
+@dataclass
+class PowerModel:
+    """
+    The power to name `term` at `size`, as a function of the run count (module docstring).
+
+    `estimate` is the term's size estimate on `calibration_runs` runs (its errors are what
+    scale), `gains` the held-out test's per-run gains of runs simulated with the term at
+    `size` (limits.held_out_gains), `floor` the smallest size that matters.
+    """
+
+    term: str
+    size: float
+    floor: float
+    estimate: SizeEstimate
+    calibration_runs: int
+    gains: np.ndarray = field(repr=False)
+    _t_values: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def estimate_at(self, calibration_runs: float) -> SizeEstimate:
+        """Return the estimate with the errors it would have on `calibration_runs` runs."""
+        ratio = self.calibration_runs / max(float(calibration_runs), 1.0)
+        estimate = self.estimate
+        kind = BY_NAME[self.term].kind
+        if kind == 'moments':
+            return replace(estimate, data_se=estimate.data_se * math.sqrt(ratio),
+                           relative_se=estimate.relative_se * math.sqrt(ratio))
+        if kind == 'trend':
+            slope = abs(estimate.slope) or math.inf
+            se = math.hypot(estimate.data_se / slope * math.sqrt(ratio),
+                            estimate.intercept_se / slope,
+                            estimate.slope_relative_se * self.size)
+            return replace(estimate, se=se)
+        simulated = min(estimate.simulation_se, estimate.se)
+        measured = math.sqrt(max(estimate.se ** 2 - simulated ** 2, 0.0))
+        return replace(estimate, se=math.hypot(measured * math.sqrt(ratio), simulated))
+
+    def bound_power(self, runs: float, z: float) -> float:
+        """Return P(the size bound clears the floor) with `runs` runs in all."""
+        return bound_power(self.estimate_at(runs // 2), self.size, self.floor, z)
+
+    def test_power(self, runs: float, z: float) -> float:
+        """
+        Return P(the held-out test is significant) with `runs` runs in all.
+
+        The t statistic of `held_out` gains drawn from the simulated ones, as the test takes
+        it (one-sided, t distribution), against the critical z. A variance effect's gains are
+        skewed (most runs lose a little, a few far out gain much), so the t of some hundred
+        runs is not normal around mean / spread x sqrt(runs): fewer samples reach a high
+        critical value at first, more a little later (persistent_turning at 3 deg/s against
+        3.17: 0.30 at 91 held-out runs where the ratio says 0.38, 0.79 at 150 where it says
+        0.70). Beyond RESAMPLED_RUNS held-out runs, where the t is normal, that ratio.
+        """
+        held_out = int(runs - runs // 2)
+        gains = self.gains
+        if held_out < 3 or len(gains) < 3:
+            return 0.0
+        critical = float(stats.norm.sf(z))
+        if held_out > RESAMPLED_RUNS:
+            spread = float(np.std(gains, ddof=1))
+            t = math.inf if spread <= 0 else float(np.mean(gains)) / spread * math.sqrt(
+                held_out)
+            return float(stats.norm.cdf(t - z)) if math.isfinite(t) else float(t > 0)
+        t_values = self.t_values()[:, held_out - 1]
+        return float(np.mean(t_values > stats.t.isf(critical, held_out - 1)))
+
+    def t_values(self) -> np.ndarray:
+        """
+        Return the t statistics of RESAMPLES samples of the gains, for 1 ... RESAMPLED_RUNS runs.
+
+        Sample b of h runs is the first h of one draw (common random numbers: the power is
+        smooth in the runs); computed once, by running sums.
+        """
+        if self._t_values is None:
+            rng = np.random.default_rng(RESAMPLE_SEED)
+            draws = self.gains[rng.integers(0, len(self.gains), (RESAMPLES, RESAMPLED_RUNS))]
+            counts = np.arange(1, RESAMPLED_RUNS + 1)
+            total = np.cumsum(draws, axis=1)
+            squares = np.cumsum(draws ** 2, axis=1)
+            del draws
+            mean = total / counts
+            variance = (np.maximum(squares - counts * mean ** 2, 0.0)
+                        / np.maximum(counts - 1, 1))
+            with np.errstate(divide='ignore', invalid='ignore'):
+                t = mean / np.sqrt(variance / counts)
+            t = np.where(variance > 0, t, np.where(mean > 0, np.inf, 0.0))
+            self._t_values = t.astype(np.float32)
+        return self._t_values
+
+    def power(self, runs: float, z_bound: ZFunction, z_test: ZFunction,
+              shift: float = 0.0) -> float:
+        """Return P(named) with `runs` runs, critical z's as functions of the half's runs."""
+        runs = float(runs)
+        predicted = (self.bound_power(runs, z_bound(runs // 2))
+                     * self.test_power(runs, z_test(runs - runs // 2)))
+        return shifted(predicted, shift) if shift else predicted
+
+    def runs_for(self, target: float, z_bound: ZFunction, z_test: ZFunction,
+                 shift: float = 0.0, least: int = 2) -> float:
+        """
+        Return the fewest runs (in all) with which P(named) reaches `target` (inf: none).
+
+        The power is taken as rising with the runs: the search doubles, then bisects.
+        """
+        def reaches(runs: float) -> bool:
+            return self.power(runs, z_bound, z_test, shift) >= target
+
+        low = float(max(least, 2))
+        if reaches(low):
+            return low
+        high = low
+        while not reaches(high):
+            low, high = high, high * 2
+            if high > MOST_RUNS:
+                return math.inf
+        while high - low > 1:
+            middle = math.floor((low + high) / 2)
+            low, high = (middle, high) if not reaches(middle) else (low, middle)
+        return high
+
+
+def gain_sample(test: RunData, without: FittedModel, term: str, size: float,
+                scales: np.ndarray, score_runs: int, seed: int,
+                fitted_values: dict | None = None, repeats: int = GAIN_REPEATS) -> np.ndarray:
+    """
+    Return held-out gains of runs simulated with the term at `size` (limits.held_out_gains).
+
+    From `repeats` independent simulations: one of 1000 runs puts a Monte Carlo error of
+    about 10 % on the mean gain of a term near its limit, 20 % on the runs needed.
+    """
+    values = []
+    for repeat in range(repeats):
+        simulator = Simulator(test, int(np.random.SeedSequence([seed, 53, repeat])
+                                        .generate_state(1)[0]))
+        base = limit_base(simulator, without, scales, score_runs)
+        values.append(held_out_gains(simulator, without, base, BY_NAME[term], size, scales,
+                                     score_runs, fitted_values))
+    return np.concatenate(values)
+
+
+def fixed(z: float) -> ZFunction:
+    """Return a critical z that is the same at every run count (a fixed-sample test)."""
+    return lambda information: z

@@ -1,0 +1,347 @@
+"""
+The validator's live guidance, without ROS: what is known so far, and how many runs to go.
+
+A lab recording runs wants to know, run by run, what its question's answer is so far and
+when it may stop. The validator node (nodes/validator.py) names the question in parameters
+and hands every new state of its runs to a `Guide`, which answers with a JSON-ready dict
+(docs/ros.md, "Live guidance"). Two kinds of question:
+
+- **a term** (a cause of the table or an extension term) and the size that matters: the
+  term is decided again at every look by diagnosis/live.py (nested halves, a held baseline,
+  anytime-valid boundaries: naming it at some look when it is not there stays below the
+  test's level however often one looks); `runs_needed` is how many more runs the live
+  decision needs to name it at that size with the requested power (with a 95 % interval).
+  The question is settled when the term is named, or when the 95 % confidence sequence of
+  its size lies wholly below the size that matters (`ruled_out`: if it is there, it is
+  smaller than what matters).
+- **validation at the paper's settings**: n x k runs (eq. 16 with the node's epsilon, delta
+  and k), so `runs_needed` is exact.
+
+Either way, the causes and extensions the last full diagnosis (`~/diagnose`) named are listed
+beside the live decision, with the run count they were named on.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from concurrent.futures import Executor
+from dataclasses import dataclass
+from datetime import datetime
+import math
+import time
+from typing import Any
+
+from octoroach_model.errors import OctoroachError, ParameterError
+from octoroach_model.paths import Paths
+
+VALIDATION = 'validation'
+NO_QUESTION = ''
+
+
+@dataclass(frozen=True)
+class GuidanceQuestion:
+    """The question the node's parameters name (docs/ros.md, "Live guidance")."""
+
+    kind: str                    # '' (none), 'validation' or a term
+    size: float = 0.0            # the size that matters (terms)
+    power: float = 0.8
+    planned_runs: int = 500      # where the live boundaries are tightest
+    seed: int = 0
+    validation_runs: int = 495   # n x k (validation)
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, Any]) -> GuidanceQuestion:
+        """Make the question from parameter values; ParameterError where they do not fit."""
+        from octoroach_model.diagnosis.live import Question
+        from octoroach_model.validation import chernoff_sample_size
+
+        kind = str(values.get('question', NO_QUESTION))
+        size = float(values.get('question_size', 0.0))
+        power = float(values.get('question_power', 0.8))
+        if kind not in (NO_QUESTION, VALIDATION):
+            Question(kind, size if size > 0 else math.nan, power)   # raises with the reason
+        n = chernoff_sample_size(float(values['epsilon']), float(values['delta']))
+        return cls(kind, size, power, int(values.get('planned_runs', 500)),
+                   int(values.get('seed', 0)), n * int(values['k']))
+
+    @property
+    def asked(self) -> bool:
+        return self.kind != NO_QUESTION
+
+
+class Guide:
+    """
+    Answers the question for each new state of the runs (module docstring).
+
+    `refits`: an executor the live decision fits its baselines on while looks go on (a
+    process pool in the node); None fits them at the look.
+    """
+
+    def __init__(self, question: GuidanceQuestion, refits: Executor | None = None) -> None:
+        from octoroach_model.diagnosis.live import LiveDecision, Question
+
+        self.question = question
+        self.refits = refits
+        self.live = None
+        if question.asked and question.kind != VALIDATION:
+            self.live = LiveDecision(Question(question.kind, question.size, question.power),
+                                     _settings(question.seed), _levels(question))
+        self.diagnosis: dict[str, Any] | None = None
+        self.ruled_out_at_runs: int | None = None
+        self.latest: dict[str, Any] | None = None
+
+    def diagnosed(self, report: Mapping[str, Any], runs: int) -> None:
+        """Keep what a full diagnosis of `runs` runs named, to list beside the live answer."""
+        named = []
+        for entry in report.get('causes') or []:
+            parameter = next(iter(entry.get('interval') or entry.get('parameters') or {}), '')
+            named.append({'term': entry['cause'], 'parameter': parameter,
+                          'estimate': (entry.get('parameters') or {}).get(parameter),
+                          'interval_95': (entry.get('interval') or {}).get(parameter),
+                          'source': 'diagnosis', 'runs': runs})
+        for entry in report.get('extensions') or []:
+            interval = entry.get('interval') or {}
+            parameter = next(iter(interval), '')
+            named.append({'term': entry.get('term', entry.get('family')),
+                          'parameter': parameter,
+                          'estimate': (entry.get('parameters') or {}).get(parameter),
+                          'interval_95': interval.get(parameter), 'source': 'diagnosis',
+                          'runs': runs})
+        self.diagnosis = {'runs': runs, 'named': named,
+                          'adequate': bool(report.get('adequate'))}
+        if self.latest is not None:
+            self.latest = self._with_diagnosis(self.latest)
+
+    def _with_diagnosis(self, answer: dict[str, Any]) -> dict[str, Any]:
+        """Return the answer with the last diagnosis's named terms after the live ones."""
+        answer = {**answer, 'named': [entry for entry in answer['named']
+                                      if entry['source'] != 'diagnosis']}
+        if self.diagnosis is not None:
+            answer['named'] += self.diagnosis['named']
+            answer['diagnosis'] = {'runs': self.diagnosis['runs'],
+                                   'adequate': self.diagnosis['adequate']}
+        return answer
+
+    def update(self, measured: Paths | None, problem: str | None = None) -> dict[str, Any]:
+        """Return the guidance for the runs so far (None and `problem`: they cannot be read)."""
+        started = time.monotonic()
+        runs = measured.n_paths if measured is not None else 0
+        answer: dict[str, Any] = {'question': self._question_json(), 'runs': runs,
+                                  'status': 'waiting', 'named': [], 'runs_needed': None,
+                                  'runs_needed_interval_95': [None, None], 'error': problem}
+        if measured is not None and self.question.kind == VALIDATION:
+            answer.update(self._validation(runs))
+        elif measured is not None and self.live is not None:
+            try:
+                answer.update(self._term(measured))
+            except OctoroachError as error:
+                answer.update(self._too_few(runs, ' '.join(str(error).split())))
+        answer['decision_runs'] = runs
+        answer = self._with_diagnosis(answer)
+        answer['statement'] = statement(answer)
+        answer['decided_in_s'] = round(time.monotonic() - started, 3)
+        answer['decided_at'] = datetime.now().astimezone().isoformat(timespec='milliseconds')
+        self.latest = answer
+        return answer
+
+    def refresh(self, runs: int) -> dict[str, Any] | None:
+        """
+        Return the last answer carried to `runs` runs at once, before their look is taken.
+
+        The runs needed in all do not depend on how many are recorded, so `runs_needed` is
+        that total less `runs`; what is named stays what the last look decided
+        (`decision_runs` says on how many runs). None where there is nothing to carry (no
+        decision yet, or a validation question, whose next answer is immediate).
+        """
+        latest = self.latest
+        if latest is None or self.live is None or latest['runs'] == runs \
+                or latest['status'] not in ('collecting', 'named', 'ruled_out'):
+            return None
+        total = latest['runs'] + (latest['runs_needed'] or 0)
+        low, high = latest['runs_needed_interval_95']
+        answer = {**latest, 'runs': runs,
+                  'runs_needed': None if latest['runs_needed'] is None
+                  else max(total - runs, 0),
+                  'runs_needed_interval_95': [
+                      None if value is None else max(latest['runs'] + value - runs, 0)
+                      for value in (low, high)]}
+        answer['statement'] = statement(answer) + (
+            f' (decided on {latest["decision_runs"]} runs; the look on {runs} is under way)')
+        answer['decided_at'] = datetime.now().astimezone().isoformat(timespec='milliseconds')
+        answer['decided_in_s'] = 0.0
+        return answer
+
+    def _question_json(self) -> dict[str, Any]:
+        question = self.question
+        if question.kind == VALIDATION:
+            return {'validation': {'runs': question.validation_runs}}
+        if not question.asked:
+            return {}
+        from octoroach_model.diagnosis.causes import BY_NAME
+
+        return {'term': question.kind, 'parameter': BY_NAME[question.kind].parameter,
+                'size': question.size, 'power': question.power,
+                'planned_runs': question.planned_runs}
+
+    def _validation(self, runs: int) -> dict[str, Any]:
+        needed = max(self.question.validation_runs - runs, 0)
+        return {'status': 'enough_runs' if needed == 0 else 'collecting',
+                'runs_needed': needed, 'runs_needed_interval_95': [needed, needed]}
+
+    def _too_few(self, runs: int, reason: str) -> dict[str, Any]:
+        from octoroach_model.diagnosis.diagnose import MIN_RUNS
+
+        needed = max(MIN_RUNS - runs, 0)
+        return {'status': 'waiting', 'reason': reason,
+                'runs_needed': needed or None, 'runs_needed_interval_95': [needed or None, None]}
+
+    def _term(self, measured: Paths) -> dict[str, Any]:
+        from octoroach_model.jsonio import jsonable
+
+        assert self.live is not None
+        look = self.live.update(measured, self.refits)
+        runs = measured.n_paths
+        if look is None:
+            return {'status': 'fitting', 'reason': 'fitting the baseline on the first runs'}
+        named_at = self.live.named_at_runs
+        if named_at is None and self.ruled_out_at_runs is None \
+                and _reach(look) < self.question.size:
+            self.ruled_out_at_runs = runs
+        answer: dict[str, Any] = {'decision': jsonable(look),
+                                  'calibration_runs': look.calibration_runs,
+                                  'held_out_runs': look.held_out_runs,
+                                  'power_now': look.power_now}
+        if named_at is not None:
+            answer.update(status='named', runs_needed=0, runs_needed_interval_95=[0, 0])
+            answer['named'] = [{'term': look.term, 'parameter': look.parameter,
+                                'estimate': look.estimate, 'interval_95': list(look.interval_95),
+                                'source': 'live', 'since_runs': named_at}]
+        elif self.ruled_out_at_runs is not None:
+            answer.update(status='ruled_out', runs_needed=0, runs_needed_interval_95=[0, 0],
+                          ruled_out_at_runs=self.ruled_out_at_runs)
+        else:
+            low, high = look.runs_for_power_interval
+            answer.update(status='collecting', runs_needed=_more(look.runs_for_power, runs),
+                          runs_needed_interval_95=[_more(low, runs), _more(high, runs)])
+        if self.live.fitting:
+            answer['refitting'] = True
+        return answer
+
+    def close(self) -> None:
+        """Nothing to release but the caller's executor (the node shuts it down)."""
+
+
+def _reach(look: Any) -> float:
+    """Return how far from no effect the look's confidence sequence reaches (a size)."""
+    from octoroach_model.diagnosis.causes import BY_NAME
+
+    null = BY_NAME[look.term].null
+    low, high = look.interval_95
+    return max(abs(low - null), abs(high - null))
+
+
+def _more(total: float | None, runs: int) -> int | None:
+    """Return the runs still to record to reach `total` (None: beyond any count)."""
+    return None if total is None else max(int(math.ceil(total)) - runs, 0)
+
+
+def _settings(seed: int) -> Any:
+    from octoroach_model.diagnosis import DiagnosisSettings
+
+    return DiagnosisSettings(seed=seed, validate_models=False, detection_limits=False,
+                             workers=1)
+
+
+def _levels(question: GuidanceQuestion) -> Any:
+    from octoroach_model.diagnosis.live import Levels
+
+    return Levels.live(_settings(question.seed), question.planned_runs)
+
+
+def statement(answer: Mapping[str, Any]) -> str:
+    """Say the guidance in one line, as the latched status's message."""
+    runs, status = answer['runs'], answer['status']
+    question = answer['question']
+    if 'validation' in question:
+        target = question['validation']['runs']
+        return (f"{runs} runs: enough for the paper's validation (n x k = {target})"
+                if status == 'enough_runs' else
+                f'{runs} runs: {answer["runs_needed"]} more for the paper' + "'s validation "
+                f'(n x k = {target})')
+    if not question:
+        return f'{runs} runs; no question asked (set the parameter question)'
+    term, size = question['term'], question['size']
+    what = f'{term} at {question["parameter"]} = {size:g}'
+    if status == 'named':
+        live = next(entry for entry in answer['named'] if entry['source'] == 'live')
+        low, high = live['interval_95']
+        return (f'{runs} runs: {term} named (since run {live["since_runs"]}), '
+                f'{live["parameter"]} {live["estimate"]:.3g} (95 % {low:.3g} to {high:.3g})')
+    if status == 'ruled_out':
+        low, high = answer['decision']['interval_95']
+        return (f'{runs} runs: {term}, if there, is smaller than {size:g} (95 % '
+                f'{low:.3g} to {high:.3g}): the size that matters is ruled out')
+    if status in ('waiting', 'fitting'):
+        return f'{runs} runs: {answer.get("reason") or "waiting for runs"}'
+    needed, (low, high) = answer['runs_needed'], answer['runs_needed_interval_95']
+    if needed is None:
+        return f'{runs} runs: {what} is out of reach of any number of runs here'
+    span = f'{low} to {high}' if high is not None else f'at least {low}'
+    return (f'{runs} runs: about {needed} more ({span}) to name {what} with '
+            f'{question["power"]:.0%} power')
+
+
+def guidance_fields(answer: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """Return the guidance as key/value pairs (the latched DiagnosticStatus's values)."""
+    values: list[tuple[str, str]] = [('status', str(answer['status'])),
+                                     ('runs', str(answer['runs']))]
+    question = answer['question']
+    if 'term' in question:
+        values += [('question', question['term']),
+                   ('question.' + question['parameter'], repr(float(question['size']))),
+                   ('question.power', repr(float(question['power'])))]
+    elif 'validation' in question:
+        values.append(('question', 'validation'))
+    values.append(('runs_needed', _text(answer['runs_needed'])))
+    low, high = answer['runs_needed_interval_95']
+    values.append(('runs_needed_interval_95', f'[{_text(low)}, {_text(high)}]'))
+    if 'power_now' in answer:
+        values.append(('power_now', f'{answer["power_now"]:.3f}'))
+    for number, entry in enumerate(answer['named'], 1):
+        interval = entry.get('interval_95') or [None, None]
+        values += [(f'named_{number}', str(entry['term'])),
+                   (f'named_{number}.{entry["parameter"]}', _text(entry.get('estimate'))),
+                   (f'named_{number}.interval_95', f'[{_text(interval[0])}, '
+                                                   f'{_text(interval[1])}]'),
+                   (f'named_{number}.source', str(entry['source']))]
+    decision = answer.get('decision')
+    if decision:
+        values += [('estimate', _text(decision['estimate'])),
+                   ('interval_95', f'[{_text(decision["interval_95"][0])}, '
+                                   f'{_text(decision["interval_95"][1])}]'),
+                   ('bound_z', f'{decision["bound_z"]:.3f}'),
+                   ('bound_critical_z', f'{decision["bound_critical_z"]:.3f}'),
+                   ('test_z', _text(decision['test_z'])),
+                   ('test_critical_z', f'{decision["test_critical_z"]:.3f}')]
+    if answer.get('error'):
+        values.append(('error', str(answer['error'])))
+    values += [('decision_runs', str(answer.get('decision_runs', answer['runs']))),
+               ('decided_at', str(answer['decided_at'])),
+               ('decided_in_s', f'{answer["decided_in_s"]:.3f}')]
+    return values
+
+
+def _text(value: Any) -> str:
+    if value is None:
+        return 'none'
+    if isinstance(value, float):
+        return f'{value:.6g}' if math.isfinite(value) else 'none'
+    return str(value)
+
+
+def check_question(values: Mapping[str, Any]) -> str | None:
+    """Why the question parameters do not fit together, or None."""
+    try:
+        GuidanceQuestion.from_values(values)
+    except ParameterError as error:
+        return f'question: {error}'
+    return None

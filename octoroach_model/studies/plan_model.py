@@ -1,0 +1,276 @@
+"""
+`plan` by a calibrated model of the power curve (`method='model'`, the default): seconds.
+
+How it decides (docs/studies.md, "How plan decides"):
+
+1. **Pilots.** PILOTS data sets of the robot without the effect (PILOT_RUNS runs each, side
+   by side) are fitted as the diagnosis fits them and the term's first step of the forward
+   selection is taken on each (diagnosis/live.py, `pilot_model`). The errors of its size and
+   the expected t of its held-out test at the requested size give the power at any run
+   count (diagnosis/power.py): P(size bound clears the floor) x P(held-out test
+   significant), at the diagnosis's levels (thirteen candidates in the race). The pilots'
+   powers are averaged.
+2. **Calibration.** The predicted power is shifted on the probit scale by what the studies
+   measured at the reported limits (power.Calibration: the six causes named in 102 of 120
+   data sets where 80 % was predicted); the answer is where the shifted curve reaches the
+   requested power, its 95 % interval where the curve does with the shift at the ends of its
+   interval.
+3. **Checks, as time allows** (`budget_s`, the plan's whole time). Data sets with the
+   effect at the requested size are simulated at the current answer and the term's first
+   step taken on each, at the diagnosis's levels; each outcome updates the shift
+   (`Calibration.updated`), and with it the answer, its interval and where the next checks
+   go. A check starts only when it can end within the budget (its expected time from the
+   checks so far).
+
+What it leaves out, and the reason: the full diagnosis of each check (a minute each with
+every candidate in the race); the first step of C alone is what names C when it is the only
+effect, and what the detection limits (and so the power model) describe. The full
+simulation that `method='simulate'` runs is the reference: benchmarks/bench_plan.py puts
+both answers side by side.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from concurrent.futures import Executor, FIRST_COMPLETED, Future, wait
+from dataclasses import dataclass, field, replace
+import math
+import time
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from octoroach_model.diagnosis.causes import CANDIDATES
+from octoroach_model.diagnosis.decide import decision_z
+from octoroach_model.diagnosis.live import (
+    decide, fit_held, Levels, pilot_model, Question)
+from octoroach_model.diagnosis.modelfit import FittedModel
+from octoroach_model.diagnosis.power import Calibration, fixed, PowerModel, shifted
+from octoroach_model.studies.design import build_tasks, draw_robot, RobotDraw
+from octoroach_model.studies.replicate import simulate_data, task_effects
+from octoroach_model.studies.spec import StudySpec
+
+PILOTS = 2
+PILOT_RUNS = 500
+CURVE_POINTS = 41
+Progress = Callable[[float, str], None]
+
+
+@dataclass(frozen=True)
+class CheckOutcome:
+    """One simulated check: the term at the size, `runs` runs, named or not."""
+
+    runs: int
+    replicate: int
+    seed: int
+    status: str
+    named: bool
+    predicted: float             # the pilots' (uncalibrated) power at these runs
+    estimate: float
+    gain: float
+    p_value: float
+    elapsed_s: float
+    note: str = ''
+
+
+@dataclass(frozen=True)
+class ModelAnswer:
+    """What the calibrated model answers, and what it rests on."""
+
+    runs: float                                   # inf: never within MOST_RUNS
+    interval: tuple[float, float]
+    shift: float
+    shift_interval_95: tuple[float, float]
+    sources: tuple[str, ...]
+    pilots: tuple[dict, ...]
+    checks: tuple[CheckOutcome, ...]
+    curve: tuple[tuple[float, float, float, float], ...]   # runs, power, low, high
+    models: tuple[PowerModel, ...] = field(default=(), metadata={'json': False}, repr=False)
+
+
+def robot_model(draw: RobotDraw) -> FittedModel:
+    """Return the robot a replicate simulates, as the model a baseline fit starts from."""
+    return FittedModel(draw.parameters(), (0.0, 0.0, math.pi / 2), draw.spread_scale, {})
+
+
+def pilot_task(spec: StudySpec, question: Question, replicate: int, runs: int
+               ) -> tuple[PowerModel, dict]:
+    """Simulate a null data set of replicate `replicate`'s robot; its power model (step 1)."""
+    from octoroach_model.studies.replicate import use_large_malloc_thresholds
+
+    use_large_malloc_thresholds()
+    started = time.perf_counter()
+    draw = draw_robot(spec, replicate)
+    measured = simulate_data(spec, draw, runs, {}, {})
+    settings = spec.diagnosis_settings(draw.data_seed)
+    model = pilot_model(measured, question, settings, robot_model(draw))
+    return model, {'replicate': replicate, 'runs': runs, 'seed': draw.data_seed,
+                   'elapsed_s': round(time.perf_counter() - started, 3)}
+
+
+def check_task(spec: StudySpec, question: Question, runs: int, replicate: int
+               ) -> CheckOutcome:
+    """Simulate the term at the size with `runs` runs; take its first step (module doc)."""
+    from octoroach_model.studies.replicate import use_large_malloc_thresholds
+
+    use_large_malloc_thresholds()
+    started = time.perf_counter()
+    draw = draw_robot(spec, replicate)
+    task = replace(build_tasks(spec)[0], runs_cell=runs, replicate=replicate)
+    try:
+        effects = task_effects(task, spec, None, draw.cycles / draw.stride_frequency_hz)
+        measured = simulate_data(spec, draw, runs, effects, {})
+        settings = spec.diagnosis_settings(draw.data_seed)
+        held = fit_held(measured, question, settings, robot_model(draw), with_power=False)
+        look = decide(measured, held, question, settings,
+                      Levels.fixed(settings, len(CANDIDATES)))
+    except Exception as error:  # noqa: BLE001 - a check that fails is a result, not a crash
+        return CheckOutcome(runs, replicate, draw.data_seed, 'error', False, math.nan,
+                            math.nan, math.nan, math.nan,
+                            round(time.perf_counter() - started, 3),
+                            f'{type(error).__name__}: {error}')
+    return CheckOutcome(runs, replicate, draw.data_seed, 'ok', look.named_here, math.nan,
+                        look.estimate, look.gain, look.p_value,
+                        round(time.perf_counter() - started, 3))
+
+
+@dataclass
+class _Curve:
+    """The pilots' power curve at the diagnosis's levels, averaged over the pilots."""
+
+    models: Sequence[PowerModel]
+    z_bound: float
+    z_test: float
+
+    def power(self, runs: float, shift: float = 0.0) -> float:
+        predicted = float(np.mean([model.power(runs, fixed(self.z_bound), fixed(self.z_test))
+                                   for model in self.models]))
+        return shifted(predicted, shift) if shift else predicted
+
+    def runs_for(self, target: float, shift: float, least: int, most: int) -> float:
+        """Fewest runs in [least, most] where the shifted power reaches `target` (inf: none)."""
+        if self.power(least, shift) >= target:
+            return float(least)
+        low, high = float(least), float(least)
+        while self.power(high, shift) < target:
+            low, high = high, high * 2
+            if high > 4 * most:
+                return math.inf
+        while high - low > 1:
+            middle = math.floor((low + high) / 2)
+            low, high = (middle, high) if self.power(middle, shift) < target else (low, middle)
+        return high
+
+
+def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_runs: int,
+                  executor: Executor, workers: int, budget_s: float,
+                  progress: Progress | None = None) -> ModelAnswer:
+    """Answer the plan by the calibrated power model and checks (module docstring)."""
+    say = progress or (lambda fraction, message: None)
+    started = time.monotonic()
+    settings = spec.diagnosis_settings(0)
+    candidates = len(CANDIDATES)
+    curve_levels = (decision_z(settings.decision_alpha, candidates),
+                    float(stats.norm.isf(settings.alpha / candidates)))
+    say(0.05, f'pilots: {PILOTS} data sets of {PILOT_RUNS} runs without the effect, the '
+              "term's first step on each")
+    futures = [executor.submit(pilot_task, spec, question, replicate, PILOT_RUNS)
+               for replicate in range(PILOTS)]
+    pilots = [future.result() for future in futures]
+    curve = _Curve([model for model, _ in pilots], *curve_levels)
+    calibration = Calibration.for_term(question.term)
+    answer = _answer(curve, calibration, question.power, min_runs, max_runs)
+    say(0.3, f'pilots done ({time.monotonic() - started:.1f} s): predicted '
+             f'{_runs_text(answer[0])} runs (95 % {_runs_text(answer[1][0])} to '
+             f'{_runs_text(answer[1][1])}), calibration shift {calibration.shift:+.2f}')
+    checks = _check(spec, question, curve, calibration, answer, min_runs, max_runs, executor,
+                    workers, started + budget_s, say)
+    if checks:
+        calibration = calibration.updated(
+            [check.predicted for check in checks if check.status == 'ok'],
+            [check.named for check in checks if check.status == 'ok'],
+            f'checks: named in {sum(check.named for check in checks)} of '
+            f'{sum(check.status == "ok" for check in checks)} simulated data sets')
+        answer = _answer(curve, calibration, question.power, min_runs, max_runs)
+    return ModelAnswer(answer[0], answer[1], calibration.shift, calibration.interval_95,
+                       calibration.sources, tuple(info for _, info in pilots), tuple(checks),
+                       _curve_points(curve, calibration, answer, min_runs, max_runs),
+                       tuple(curve.models))
+
+
+def _answer(curve: _Curve, calibration: Calibration, power: float, min_runs: int,
+            max_runs: int) -> tuple[float, tuple[float, float]]:
+    low_shift, high_shift = calibration.interval_95
+    middle = curve.runs_for(power, calibration.shift, min_runs, max_runs)
+    # a larger shift means more power, so fewer runs: the interval's low end is the high shift
+    return middle, (curve.runs_for(power, high_shift, min_runs, max_runs),
+                    curve.runs_for(power, low_shift, min_runs, max_runs))
+
+
+def _check(spec: StudySpec, question: Question, curve: _Curve, calibration: Calibration,
+           answer: tuple[float, tuple[float, float]], min_runs: int, max_runs: int,
+           executor: Executor, workers: int, deadline: float, say: Progress
+           ) -> list[CheckOutcome]:
+    """Run checks at the current answer until the deadline (module docstring)."""
+    done: list[CheckOutcome] = []
+    running: dict[Future, tuple[int, float]] = {}
+    replicate = PILOTS
+    costs: list[float] = []
+
+    def expected_cost(runs: int) -> float:
+        # the checks so far, per run, times the runs (a first guess before any is done)
+        per_run = float(np.median(costs)) if costs else 4.0 / PILOT_RUNS
+        return per_run * runs
+
+    while True:
+        target = answer[0]
+        runs = int(min(max(round(target), min_runs), max_runs)) if math.isfinite(target) \
+            else max_runs
+        now = time.monotonic()
+        while len(running) < max(workers, 1) and now + expected_cost(runs) <= deadline:
+            future = executor.submit(check_task, spec, question, runs, replicate)
+            running[future] = (runs, curve.power(runs))
+            replicate += 1
+        if not running:
+            return done
+        finished, _ = wait(list(running), return_when=FIRST_COMPLETED)
+        for future in finished:
+            runs_done, predicted = running.pop(future)
+            outcome = replace(future.result(), predicted=predicted)
+            done.append(outcome)
+            if outcome.status == 'ok':
+                costs.append(outcome.elapsed_s / max(runs_done, 1))
+                calibration = calibration.updated([predicted], [outcome.named], 'check')
+                answer = _answer(curve, calibration, question.power, min_runs, max_runs)
+            say(min(0.3 + 0.6 * len(done) / (len(done) + 2), 0.95),
+                f'check {len(done)}: {runs_done} runs, '
+                + ('named' if outcome.named else 'not named' if outcome.status == 'ok'
+                   else f'failed ({outcome.note})')
+                + f' (predicted power {predicted:.0%}); answer now {_runs_text(answer[0])} '
+                  f'runs (95 % {_runs_text(answer[1][0])} to {_runs_text(answer[1][1])})')
+
+
+def _curve_points(curve: _Curve, calibration: Calibration,
+                  answer: tuple[float, tuple[float, float]], min_runs: int, max_runs: int
+                  ) -> tuple[tuple[float, float, float, float], ...]:
+    """Return the calibrated curve (runs, power, and its 95 % band) around the answer."""
+    finite = [value for value in (answer[0], *answer[1]) if math.isfinite(value)]
+    low = max(min(finite or [min_runs]) / 2, min_runs)
+    high = min(max(finite or [max_runs]) * 2, 4 * max_runs)
+    low_shift, high_shift = calibration.interval_95
+    points = []
+    for runs in np.geomspace(low, max(high, low * 1.01), CURVE_POINTS):
+        points.append((float(runs), curve.power(runs, calibration.shift),
+                       curve.power(runs, low_shift), curve.power(runs, high_shift)))
+    return tuple(points)
+
+
+def _runs_text(value: float) -> str:
+    return f'{value:.0f}' if math.isfinite(value) else 'more than any count'
+
+
+def outcome_rows(checks: Sequence[CheckOutcome]) -> list[dict[str, Any]]:
+    """Return the checks as plain rows (checks.csv)."""
+    from dataclasses import asdict
+
+    return [asdict(check) for check in checks]
