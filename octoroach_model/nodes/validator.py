@@ -6,8 +6,7 @@ force at the call, hand the work to a worker thread and answer with the JSON res
 statistics of the last validation are latched on `~/violation`. What a call does, without ROS,
 is `octoroach_model.validation_jobs`: the measured runs are read at the first call and again
 whenever `bags`, `topic`, the axes, `gap_s`, `min_duration_s` or the files behind them change,
-so a bag
-that a recorder is still writing is validated as it is at each call.
+so a bag that a recorder is still writing is validated as it is at each call.
 
 Why a worker thread: a validation takes seconds to minutes, and the node must keep answering
 parameter requests meanwhile. The node spins a MultiThreadedExecutor; both services sit in a
