@@ -39,7 +39,7 @@ from driver_bags import named_pose_bag
 from mocap_helpers import body_rotations, write_c3d, write_vicon_csv
 import octoroach_model as om
 from octoroach_model.errors import BagError
-from octoroach_model.recordings import BagReader, save_dataset, write_paths_bag
+from octoroach_model.recordings import BagReader, read_runs, save_dataset, write_paths_bag
 from octoroach_model.recordings.repair import repair_bag
 from octoroach_model.recordings.sources import bag_files, expand_sources
 from trajectory_writers import (
@@ -302,7 +302,8 @@ def check_one_line(case: dict) -> str:
     `note:` lines (what a user must see of the data, e.g. an up axis that looks wrong) and
     progress lines may come before the error; the error itself is one line.
     """
-    where = f'{case["path"]}: exit {case["code"]}\n{case["stderr"]}'
+    where = (f'OCTOROACH_TEST_SEED={SEED} {case["path"]}: exit {case["code"]}\n'
+             f'{case["stderr"]}')
     assert 'Traceback' not in case['stderr'], where
     if case['code'] == 0:
         return ''
@@ -342,6 +343,32 @@ def test_hostile_and_mutated_files_end_as_one_line_in_bounded_memory(hostile, tm
     assert 'no input in this directory' in said['loop'], said['loop']
     assert '131072 characters' in said['csv'] and 'xxx' not in said['csv'], said['csv']
     assert 'root:*' not in said['secret'] and 'not an MCAP file' in said['secret']
+
+
+def test_a_message_logged_past_2262_is_skipped_with_a_note(tmp_path):
+    # a log time is a uint64 in MCAP; past int64 nanoseconds no clock reaches it (a fuzzed
+    # file once ended in OverflowError in the message-by-message reader)
+    bag = standard_bag(tmp_path)
+    reader = BagReader(bag)
+    reader.topics()
+    path = tmp_path / 'late.mcap'
+    with path.open('wb') as stream:
+        writer = Writer(stream, chunk_size=4096)
+        writer.start(profile='ros2', library='test')
+        channels = {}
+        for index, channel in enumerate(reader.channels):
+            schema = writer.register_schema(channel.msgtype, channel.schema_encoding,
+                                            channel.schema_data)
+            channels[index] = writer.register_channel(channel.topic, channel.message_encoding,
+                                                      schema, channel.metadata)
+        for number, message in enumerate(reader.messages()):
+            late = (1 << 64) - 1 - number if number % 50 == 7 else message.log_time_ns
+            writer.add_message(channels[message.channel], late, message.data,
+                               message.publish_time_ns)
+        writer.finish()
+    runs = read_runs([path])
+    assert len(runs) == 3
+    assert any('log time past the year 2262 skipped' in note for note in runs.notes), runs.notes
 
 
 def test_a_chunk_over_the_limit_is_skipped_with_a_note_naming_the_limit(hostile):

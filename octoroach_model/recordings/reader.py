@@ -88,6 +88,9 @@ class BagMessage(NamedTuple):
     sequence: int = 0
 
 
+LATEST_LOG_TIME_NS = 1 << 63  # int64 nanoseconds end in 2262: a later log time is damage
+
+
 @dataclass
 class FileDamage:
     """What the walk over one MCAP file met."""
@@ -99,6 +102,7 @@ class FileDamage:
     complete: bool = False  # reached the data end (or footer) record
     position: int = 0  # the byte the walk has reached
     oversized: list[str] = field(default_factory=list)  # chunks refused by their size
+    impossible_times: int = 0  # messages logged after 2262 (past int64 ns): skipped
 
     def note(self) -> str | None:
         """Say in plain words what a cut file lost; None for a whole file."""
@@ -413,6 +417,9 @@ class BagReader:
                     known = channels.wanted.get(record.channel_id)
                     if known is None:
                         continue
+                    if not 0 <= record.log_time < LATEST_LOG_TIME_NS:
+                        report.impossible_times += 1
+                        continue
                     self._progress = (before + report.position, total)
                     yield BagMessage(known.topic, known.msgtype, record.log_time,
                                      record.publish_time, record.data, known.channel,
@@ -430,6 +437,9 @@ class BagReader:
     def _report(self, report: FileDamage) -> None:
         for refused in report.oversized:
             self.notes.append(f'{report.path}: {refused}; skipped (docs/bags.md, "Limits")')
+        if report.impossible_times:
+            self.notes.append(f'{report.path}: {report.impossible_times} message(s) with a log '
+                              'time past the year 2262 skipped (a damaged record)')
         if report.unreadable_chunks:
             self.notes.append(f'{report.path}: {report.unreadable_chunks} unreadable chunk(s) '
                               'skipped (bad checksum or garbled records); their messages are '
