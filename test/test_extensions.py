@@ -243,7 +243,8 @@ def draw_extension(rng: random.Random, family: str, robot: om.ModelParameters, c
     """
     Return (extensions, the term's main parameter, its size) at a size 300 runs find.
 
-    run_mixture's turning rate is drawn in units of the robot's own spread of heading rates
+    heading_random_walk's step is drawn in units of the robot's spread scale, and
+    run_mixture's turning rate in units of the robot's own spread of heading rates
     across runs (4.5 to 6.5 of them): its detection limit is about 3 (8.4 deg/s for a robot
     whose rates spread by 2.8 deg/s, 150 calibration runs), so a rate drawn in deg/s alone
     fell below the limit of the robots with the widest spread.
@@ -257,7 +258,10 @@ def draw_extension(rng: random.Random, family: str, robot: om.ModelParameters, c
                        'lateral_velocity': rng.uniform(1.5, 3.0)}[drifted]
         return {family: {'parameter': drifted, 'change': round(size, 4)}}, 'change', size
     if family == 'heading_random_walk':
-        size = rng.uniform(1.5, 3.0)
+        # in units of the robot's spread scale: its limit at 500 runs is 0.9-1.2 x the scale
+        # (studies/open_world.yaml), a little more at 300; 1.5-3 deg alone came within 1.2 x
+        # the limit of the widest-spread robots
+        size = scale * rng.uniform(2.5, 3.5)
         return {family: {'step_std_deg': round(size, 3)}}, 'step_std_deg', size
     if family == 'periodic_heading':
         size = rng.uniform(3.0, 6.0)
