@@ -17,6 +17,7 @@ numpy); a hostile one is a valid file with bytes patched afterwards, as each cas
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 import json
 import os
 from pathlib import Path
@@ -70,8 +71,13 @@ def standard_bag(directory: Path, runs: int = 3) -> Path:
 
 
 def zstd_mcap(directory: Path, bag: Path, compression: CompressionType = CompressionType.ZSTD,
-              name: str = 'zstd.mcap', crcs: bool = True) -> Path:
-    """Copy the bag's messages into one .mcap file written by mcap's Writer (zstd chunks)."""
+              name: str = 'zstd.mcap', crcs: bool = True,
+              log_time: Callable[[int, int], int] | None = None) -> Path:
+    """
+    Copy the bag's messages into one .mcap file written by mcap's Writer (zstd chunks).
+
+    `log_time(number, log_time_ns)` gives the k-th message's log time (default: kept).
+    """
     reader = BagReader(bag)
     reader.topics()
     path = directory / name
@@ -84,8 +90,10 @@ def zstd_mcap(directory: Path, bag: Path, compression: CompressionType = Compres
                                             channel.schema_data)
             channels[index] = writer.register_channel(channel.topic, channel.message_encoding,
                                                       schema, channel.metadata)
-        for message in reader.messages():
-            writer.add_message(channels[message.channel], message.log_time_ns, message.data,
+        for number, message in enumerate(reader.messages()):
+            logged = message.log_time_ns if log_time is None else log_time(
+                number, message.log_time_ns)
+            writer.add_message(channels[message.channel], logged, message.data,
                                message.publish_time_ns)
         writer.finish()
     return path
@@ -348,24 +356,8 @@ def test_hostile_and_mutated_files_end_as_one_line_in_bounded_memory(hostile, tm
 def test_a_message_logged_past_2262_is_skipped_with_a_note(tmp_path):
     # a log time is a uint64 in MCAP; past int64 nanoseconds no clock reaches it (a fuzzed
     # file once ended in OverflowError in the message-by-message reader)
-    bag = standard_bag(tmp_path)
-    reader = BagReader(bag)
-    reader.topics()
-    path = tmp_path / 'late.mcap'
-    with path.open('wb') as stream:
-        writer = Writer(stream, chunk_size=4096)
-        writer.start(profile='ros2', library='test')
-        channels = {}
-        for index, channel in enumerate(reader.channels):
-            schema = writer.register_schema(channel.msgtype, channel.schema_encoding,
-                                            channel.schema_data)
-            channels[index] = writer.register_channel(channel.topic, channel.message_encoding,
-                                                      schema, channel.metadata)
-        for number, message in enumerate(reader.messages()):
-            late = (1 << 64) - 1 - number if number % 50 == 7 else message.log_time_ns
-            writer.add_message(channels[message.channel], late, message.data,
-                               message.publish_time_ns)
-        writer.finish()
+    path = zstd_mcap(tmp_path, standard_bag(tmp_path), name='late.mcap', log_time=lambda
+                     number, logged: (1 << 64) - 1 - number if number % 50 == 7 else logged)
     runs = read_runs([path])
     assert len(runs) == 3
     assert any('log time past the year 2262 skipped' in note for note in runs.notes), runs.notes
