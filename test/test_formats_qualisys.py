@@ -115,6 +115,25 @@ def test_a_3d_export_is_fitted_like_a_c3d_file_and_leaves_virtual_trajectories_o
     assert '5 frame(s) fitted on the markers that were seen' in said
 
 
+@pytest.mark.filterwarnings('error')
+@pytest.mark.parametrize('far', [1e300, np.inf])
+def test_a_marker_at_an_impossible_position_is_a_marker_not_seen(tmp_path, truth, far):
+    """A coordinate no capture volume holds is read as a gap, with no arithmetic warning."""
+    poses = truth.poses[1]
+    markers = markers_on_body(poses, BODY_LAYOUT_M, height_m=0.02)
+    path = write_qtm_3d(tmp_path / 'walk.tsv', RATE_HZ, markers)
+    lines = path.read_text().splitlines()
+    for row in range(len(lines) - len(poses) + 40, len(lines) - len(poses) + 43):
+        cells = lines[row].split('\t')
+        cells[2] = repr(far)          # the first marker's X, in mm
+        lines[row] = '\t'.join(cells)
+    path.write_text('\n'.join(lines) + '\n')
+    runs = read_runs(path)
+    assert len(runs.runs) == 1
+    assert np.isfinite(runs.runs[0].poses).all()
+    assert '3 frame(s) fitted on the markers that were seen' in '\n'.join(runs.notes)
+
+
 @pytest.mark.parametrize('content, reason', [
     ('NO_OF_FRAMES\t1\nDATA_INCLUDED\t2D\nFrame\tTime\n1\t0\n', 'of 2D camera data'),
     ('NO_OF_FRAMES\t1\nFREQUENCY\tfast\nDATA_INCLUDED\t6D\nBODY_NAMES\tb\n1\t0\n',

@@ -50,6 +50,9 @@ LAYOUT_FRAMES = 10
 MAX_TYPICAL_RESIDUAL_M = 0.005
 # Frames per block whose marker distances feed the search for the markers that fit best
 RIGIDITY_FRAMES = 20
+# A marker coordinate beyond this (or not finite) is no position a capture volume holds: the
+# marker counts as not seen, so no arithmetic on it overflows.
+MAX_COORDINATE_M = 1e4
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
 
 
@@ -406,6 +409,7 @@ class MarkerBody:
         if self.layout_m is None:
             raise RuntimeError('MarkerBody.poses needs the layout first')
         markers_m = to_z_up(markers_m, self.options.up_axis)
+        markers_m = seen_markers(markers_m)
         fit = fit_rigid(self.layout_m, markers_m)
         self.summary.add(np.isfinite(markers_m).all(axis=2), fit.valid, fit.rms_residual)
         self.rigidity.add(markers_m)
@@ -434,6 +438,13 @@ class MarkerBody:
                        f'{best}, or --accept-loose-fit to use this fit anyway')
 
 
+def seen_markers(frames_m: np.ndarray) -> np.ndarray:
+    """Return (F, M, 3) frames with every marker whose position is not plausible set to NaN."""
+    plausible = (np.abs(frames_m) <= MAX_COORDINATE_M).all(axis=-1, keepdims=True)
+    return np.where(plausible, frames_m, np.nan)
+
+
 def complete_frames(frames_m: np.ndarray) -> np.ndarray:
     """Return the frames of (F, M, 3) in which every marker was seen."""
+    frames_m = seen_markers(frames_m)
     return frames_m[np.isfinite(frames_m).all(axis=(1, 2))]

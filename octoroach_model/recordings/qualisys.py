@@ -51,6 +51,7 @@ from octoroach_model.recordings.mocap import (
     LAYOUT_FRAMES,
     MarkerBody,
     pose_chunk,
+    seen_markers,
     select_body_markers,
     stamps_ns,
     stream_fraction,
@@ -334,7 +335,7 @@ def _marker_chunks(where: str, header: TsvHeader, rate: float | None, rows: _Row
     found: list[np.ndarray] = []
     start_frame = 0
     for frames, _, values in _Rows(rows.path, header, 1000).blocks(wanted, frame, time):
-        markers = _markers_m(values)
+        markers = seen_markers(_markers_m(values))
         complete = np.isfinite(markers).all(axis=(1, 2))
         if complete.any() and not found:
             start_frame = int(frames[complete][0])

@@ -53,6 +53,7 @@ from octoroach_model.recordings.mocap import (
     length_words,
     MarkerBody,
     pose_chunk,
+    seen_markers,
     select_body_markers,
     split_label,
     stamps_ns,
@@ -406,7 +407,7 @@ def _marker_chunks(where: str, reader: _RowReader, section: CsvSection,
     start = 0
     for frames, values in _RowReader(reader.path, reader.delimiter, reader.cut_line).blocks(
             section, need, 1000):
-        markers = values.reshape(len(frames), -1, 3) * scale
+        markers = seen_markers(values.reshape(len(frames), -1, 3) * scale)
         complete = np.isfinite(markers).all(axis=(1, 2))
         if complete.any() and not found:
             start = int(frames[complete][0])
