@@ -704,7 +704,7 @@ def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
     limit = detection_limit(
         Simulator(halves.test, settings.seed), without, estimate, floor, z_bound,
         float(stats.norm.isf(settings.alpha / everyone)), halves.scales, halves.test.n,
-        settings.score_runs, start, fitted, base)
+        settings.score_runs, start, fitted, base, settings.fit())
     if cause.kind == 'mixture' and limit.size is not None:
         share = MIXTURE_FRACTION * (1 - MIXTURE_FRACTION)
         limit = replace(limit, size=limit.size / math.sqrt(share))

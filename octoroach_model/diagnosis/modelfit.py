@@ -704,14 +704,18 @@ def spread_statistic(model: FittedModel) -> str:
     return 'stride_length_var' if turned else 'increment_var'
 
 
-def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings) -> float:
+def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings,
+               features: np.ndarray | None = None) -> float:
     """
     Fit the spread scale to its statistic (`spread_statistic`) on a line.
 
-    u = scale^2 is read off a line through simulated points, refined once.
+    u = scale^2 is read off a line through simulated points, refined once. The statistic's
+    target is its mean over the simulator's data, or over `features` (runs x features, SI)
+    when given: runs simulated elsewhere, as a detection limit fits them (limits.py).
     """
     column = INDEX[spread_statistic(model)]
-    target = float(simulator.data.features[:, column].mean())
+    observed = simulator.data.features if features is None else features
+    target = float(observed[:, column].mean())
 
     def statistic(scale: float) -> float:
         trial = replace(model, sigma_scale=scale)

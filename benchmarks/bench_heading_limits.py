@@ -1,0 +1,128 @@
+"""
+Why the limits of the heading terms lean low: a held-out test weighed on one data set.
+
+Takes one replicate of studies/open_world.yaml and prints
+
+- the detection limits of heading_random_walk and periodic_heading on its null data set, as
+  the diagnosis reports them now, beside those in the study's table.csv (when the study ran
+  into out/studies/open_world);
+- on its data set with a heading random walk at 1x the limit in that table: the held-out
+  gain of the term as the diagnosis measured it (mean and spread over the held-out runs, the
+  t that decided), beside the gain runs simulated as the limit simulates them show at the
+  true size and at the fitted one (docs/diagnosis.md, section 8).
+
+Minutes on two idle cores (two diagnoses of 500 runs with their limits).
+Run: .venv/bin/python benchmarks/bench_heading_limits.py [--replicate 3]
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+SPEC = REPO / 'studies' / 'open_world.yaml'
+TABLE = REPO / 'out' / 'studies' / 'open_world' / 'table.csv'
+HEADING_TERMS = ('heading_random_walk', 'periodic_heading')
+
+
+def study_rows(replicate: int) -> dict[str, dict[str, str]]:
+    """Return the study table's rows of `replicate` by arm (empty when it has not run)."""
+    if not TABLE.is_file():
+        return {}
+    with TABLE.open(newline='') as stream:
+        return {row['arm']: row for row in csv.DictReader(stream)
+                if int(row['replicate']) == replicate}
+
+
+def null_limits(replicate: int, rows: dict[str, dict[str, str]]) -> None:
+    """Print the heading terms' limits on the replicate's null, now and in the table."""
+    from octoroach_model.diagnosis import diagnose
+    from octoroach_model.studies import replicate as study
+    from octoroach_model.studies.design import build_tasks, draw_robot
+    from octoroach_model.studies.spec import load_spec
+
+    spec = load_spec(SPEC)
+    task = next(task for task in build_tasks(spec)
+                if task.replicate == replicate and task.arm.kind == 'null')
+    draw = draw_robot(spec, replicate)
+    measured = study.simulate_data(spec, draw, task.runs_cell, {}, {})
+    report = diagnose(measured, study.task_settings(task, spec, draw.data_seed))
+    print(f'open_world replicate {replicate}, null data set: detection limits\n')
+    print('| term | limit now | in the study table |')
+    print('| --- | --- | --- |')
+    for candidate in report.extension_candidates:
+        if candidate.cause in HEADING_TERMS:
+            (parameter, limit), = candidate.detectable.items()
+            before = rows.get('none', {}).get(f'limit_{candidate.cause}', '') or 'not run'
+            print(f'| {candidate.cause} | {parameter} = {limit:.3g} | {before} |')
+    print()
+
+
+def held_out_gain(replicate: int, rows: dict[str, dict[str, str]]) -> None:
+    """Print the held-out gain measured and simulated on the 1x heading random walk."""
+    import numpy as np
+
+    from octoroach_model.diagnosis.causes import BY_NAME
+    from octoroach_model.diagnosis.diagnose import (
+        _baseline, _prepare, _score, _with_wobble, choose_wobble_hz, evaluate_candidate)
+    from octoroach_model.diagnosis.limits import limit_base, simulated_gains
+    from octoroach_model.diagnosis.modelfit import Simulator
+    from octoroach_model.studies import replicate as study
+    from octoroach_model.studies.design import build_tasks, draw_robot
+    from octoroach_model.studies.spec import load_spec
+
+    term = 'heading_random_walk'
+    null_row = rows.get('none')
+    if not null_row or not null_row.get(f'limit_{term}'):
+        print('(the held-out gain needs the limit of the study table: run studies/open_world.yaml '
+              'into out/studies/open_world first)')
+        return
+    spec = load_spec(SPEC)
+    task = next(task for task in build_tasks(spec)
+                if task.replicate == replicate and task.key.startswith(f'{term}@1x'))
+    draw = draw_robot(spec, replicate)
+    limits = {key: float(value) for key, value in null_row.items()
+              if key.startswith('limit_') and value}
+    effects = study.task_effects(task, spec, {**limits, 'status': study.OK},
+                                 draw.cycles / draw.stride_frequency_hz)
+    measured = study.simulate_data(spec, draw, task.runs_cell, effects, {})
+    settings = study.task_settings(task, spec, draw.data_seed)
+    halves = _prepare(measured, settings)
+    baseline = _baseline(halves, settings).model
+    halves = _with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
+    simulator = Simulator(halves.test, settings.seed)
+    evaluation = evaluate_candidate(halves, baseline, _score(simulator, baseline, halves,
+                                                             settings), term, settings)
+    held_out = halves.test.n
+    spread = evaluation.gain.standard_error * math.sqrt(held_out)
+    true_size = effects[term]['step_std_deg']
+    fitted_size = evaluation.estimates[term].size
+    print(f'{term} at 1x its limit (step_std_deg = {true_size:.3g}), {held_out} held-out runs\n')
+    print('| held-out gain | size, deg | mean, nats/run | spread, nats/run | t |')
+    print('| --- | --- | --- | --- | --- |')
+    print(f'| measured by the diagnosis | fitted {fitted_size:.3g} | {evaluation.gain.mean:.3f} | '
+          f'{spread:.2f} | {evaluation.gain.mean / spread * math.sqrt(held_out):.2f} |')
+    base = limit_base(simulator, baseline, halves.scales, settings.score_runs)
+    for label, size in (('true', true_size), ('fitted', fitted_size)):
+        gains, _ = simulated_gains(simulator, baseline, base, BY_NAME[term], size,
+                                   halves.scales, settings.score_runs,
+                                   dict(evaluation.model.effects[term]), settings.fit())
+        sd = float(np.std(gains, ddof=1))
+        print(f'| simulated as the limit does | {label} {size:.3g} | {gains.mean():.3f} | '
+              f'{sd:.2f} | {gains.mean() / sd * math.sqrt(held_out):.2f} |')
+
+
+def main() -> None:
+    """Print both tables for one replicate."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--replicate', type=int, default=3)
+    args = parser.parse_args()
+    rows = study_rows(args.replicate)
+    null_limits(args.replicate, rows)
+    held_out_gain(args.replicate, rows)
+
+
+if __name__ == '__main__':
+    main()
