@@ -16,26 +16,33 @@ from typing import Any
 import numpy as np
 
 from octoroach_model.errors import ParameterError
-from octoroach_model.model import check_effects, EFFECT_PARAMETERS, ModelParameters, simulate
-from octoroach_model.model.extensions import DRIFT, FAMILY_PARAMETERS, family_terms
+from octoroach_model.model import (
+    check_effects, DRAWS, EFFECT_NAMES, EFFECT_PARAMETERS, ModelParameters, nominal_sigmas,
+    simulate)
+from octoroach_model.model.extensions import DRIFT, FAMILY_NAMES, FAMILY_PARAMETERS, family_terms
+from octoroach_model.model.parameters import SIGMA_LIMIT
+from octoroach_model.model.simulate import DEFAULT_START_POSE
 from octoroach_model.paths import Paths
+from octoroach_model.recordings import marker_topic, pose_topic
+from octoroach_model.settings import check_fields, Setting, setting
 
-__all__ = ['EFFECT_PREFIX', 'EXTENSION_PREFIX', 'RunSettings', 'marker_topic', 'pose_topic']
+__all__ = ['ANGLE_DRAWS', 'EFFECT_PREFIX', 'EXTENSION_PREFIX', 'RunSettings', 'marker_topic',
+           'pose_topic']
 
 NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 FRAME = re.compile(r'^[A-Za-z0-9_/]+$')
 EFFECT_PREFIX = 'effect_params.'  # effect parameter = EFFECT_PREFIX + the cause's key
 EXTENSION_PREFIX = 'extension_params.'   # likewise for the extension family's keys
+# the model's random leg angles, wherever a model runs (simulator, simulate, validator, validate)
+ANGLE_DRAWS = Setting('the random leg angles: drawn anew at every stance, or once per run',
+                      choices=DRAWS)
 
 
-def pose_topic(subject: str, segment: str) -> str:
-    """Return the VICON topic of a subject's segment (vicon_bridge convention)."""
-    return f'/vicon/{subject}/{segment}'
-
-
-def marker_topic(subject: str) -> str:
-    """Return the run-marker topic of a subject."""
-    return f'/{subject}/run_start'
+def _sigma(touchdown: bool) -> Any:
+    """Return a field of an angle spread, its default Table III's (config/table2.yaml)."""
+    return setting(default_factory=lambda: nominal_sigmas()[0 if touchdown else 1],
+                   about=f'spread of the {"touchdown" if touchdown else "liftoff"} angles '
+                   '(eq. 11)', unit='rad', low=0.0, high=SIGMA_LIMIT, open_high=True)
 
 
 @dataclass(frozen=True)
@@ -44,27 +51,43 @@ class RunSettings:
     The settings of one run of every robot, taken when the run starts.
 
     Lengths in metres, angles in radians, rates in Hz; `effect_params` keep the causes'
-    own keys and units (`heading_std_deg`, `position_std_cm`, ...).
+    own keys and units (`heading_std_deg`, `position_std_cm`, ...). Each field with a
+    `settings.setting` is one of the simulator node's parameters (help, unit and range come
+    from here); the defaults of the model's own values are Table II's (config/table2.yaml).
     """
 
-    robots: int
-    subject: str
-    segment: str
-    world_frame: str
-    rate: float
-    pause_s: float
-    cycles: int
-    sigma1: float
-    sigma2: float
-    stride_frequency: float
-    draws: str
-    seed: int
-    start_pose: tuple[float, float, float]
-    effect: str
+    robots: int = setting(1, 'number of robots, each its own subject and topics', low=1,
+                          high=100)
+    subject: str = setting('octoroach', 'VICON subject name (robots > 1: SUBJECT_i)')
+    segment: str = setting('', 'VICON segment name; empty: the subject name')
+    world_frame: str = setting('vicon/world', 'header.frame_id of the poses')
+    rate: float = setting(default_factory=lambda: ModelParameters.nominal().sample_rate,
+                          about='publishing rate = model sample rate', unit='Hz', low=1.0,
+                          high=1000.0)
+    pause_s: float = setting(1.0, 'pause without poses between runs', unit='s', low=0.5,
+                             high=3600.0)
+    cycles: int = setting(10, 'gait cycles per run', low=1, high=1000)
+    sigma1: float = _sigma(touchdown=True)
+    sigma2: float = _sigma(touchdown=False)
+    stride_frequency: float = setting(
+        default_factory=lambda: ModelParameters.nominal().stride_frequency,
+        about='gait cycles per second', unit='Hz', low=0.0, high=20.0, open_low=True)
+    draws: str = setting(DRAWS[0], ANGLE_DRAWS)
+    seed: int = setting(-1, 'run k uses a seed derived from (seed, k); -1: fresh entropy',
+                        low=-1, high=2**31 - 1)
+    start_pose: tuple[float, float, float] = DEFAULT_START_POSE
+    effect: str = setting('none', 'model extension: a cause (docs/ros.md) added to every run',
+                          choices=('none', *EFFECT_NAMES))
     effect_params: Mapping[str, float] = field(default_factory=dict)
-    runs: int = 0
-    extension: str = 'none'
+    runs: int = setting(0, 'runs to publish, then exit (0: go on until stopped)', low=0,
+                        high=1_000_000)
+    extension: str = setting('none', 'an extension family beyond the table of causes '
+                             '(docs/extensions.md) added to the runs; run_order_drift needs '
+                             'runs >= 2', choices=('none', *FAMILY_NAMES))
     extension_params: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> RunSettings:

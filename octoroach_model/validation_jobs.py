@@ -15,15 +15,23 @@ call would go unseen.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 import os
 from pathlib import Path
 from typing import Any
 
 from octoroach_model.errors import ParameterError
+from octoroach_model.model import DRAWS
+from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.paths import Paths
+from octoroach_model.recordings import DEFAULT_GAP_S
+from octoroach_model.recordings.options import (
+    FORWARD_AXIS, GAP_S, ReadOptions, TOPIC, UP_AXIS)
+from octoroach_model.run_settings import ANGLE_DRAWS
+from octoroach_model.settings import check_fields, setting, settings_of
 from octoroach_model.validation import ValidationSettings
+from octoroach_model.validation.validate import NOMINAL_MODELS
 
 __all__ = ['Cancelled', 'Job', 'Progress', 'Workbench', 'diagnosis_settings',
            'run_diagnosis', 'run_validation', 'source_stamps']
@@ -41,33 +49,43 @@ class Cancelled(Exception):
 
 @dataclass(frozen=True)
 class Job:
-    """One call's inputs, taken from the parameter values when it starts."""
+    """
+    One call's inputs, taken from the parameter values when it starts.
+
+    Each field with a `settings.setting` is one of the validator's parameters (help, unit and
+    range come from here); `settings` holds the paper's constants.
+    """
 
     sources: tuple[str, ...]
-    topic: str | None
-    forward_axis: str
-    up_axis: str
-    gap_s: float
-    min_duration_s: float
-    nominal: str
-    draws: str
-    sigma1: float
-    sigma2: float
-    report_dir: str
-    settings: ValidationSettings
+    topic: str = setting('', TOPIC)
+    forward_axis: str = setting('x', FORWARD_AXIS)
+    up_axis: str = setting('z', UP_AXIS)
+    gap_s: float = setting(DEFAULT_GAP_S, GAP_S)
+    min_duration_s: float = setting(0.0, 'runs shorter than this are left out (0: none; all '
+                                    'runs are compared on their common duration)', unit='s',
+                                    low=0.0, high=3600.0)
+    nominal: str = setting('fit', 'nominal model: fitted to the runs (eq. 9) or Table II',
+                           choices=NOMINAL_MODELS)
+    draws: str = setting(DRAWS[0], ANGLE_DRAWS)
+    sigma1: float = setting(-1.0, 'evaluate at this touchdown spread; negative: search',
+                            unit='rad', low=-1.0, high=SIGMA_LIMIT, open_high=True)
+    sigma2: float = setting(-1.0, 'evaluate at this liftoff spread; negative: search',
+                            unit='rad', low=-1.0, high=SIGMA_LIMIT, open_high=True)
+    report_dir: str = setting('', '~/diagnose also writes each report (report.json, '
+                              'summary.md, plots) into a new folder here; empty: no files',
+                              read_only=True)
+    settings: ValidationSettings = field(default_factory=ValidationSettings)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> Job:
         """Make a job from parameter values; ParameterError where they do not fit together."""
-        from octoroach_model.recordings.options import ReadOptions
-
-        settings = ValidationSettings(
-            rho=values['rho'], epsilon=values['epsilon'], delta=values['delta'],
-            k=values['k'], gamma=values['gamma'], seed=values['seed'],
-            sigma1_max=values['sigma1_max'], sigma2_max=values['sigma2_max'],
-            grid_points=values['grid_points'], resolution_m=values['resolution_m'])
+        names = settings_of(ValidationSettings)
+        settings = ValidationSettings(**{name: values[name] for name in names})
         ReadOptions(forward_axis=values['forward_axis'], up_axis=values['up_axis'])  # checked
-        return cls(sources=tuple(values.get('bags', ())), topic=values['topic'] or None,
+        return cls(sources=tuple(values.get('bags', ())), topic=str(values['topic']),
                    forward_axis=str(values['forward_axis']), up_axis=str(values['up_axis']),
                    gap_s=float(values['gap_s']),
                    min_duration_s=float(values['min_duration_s']),
@@ -135,13 +153,13 @@ class Workbench:
         They are read as every program reads them (`recordings.load_measured`); `progress`
         hears how far the reading has got.
         """
-        from octoroach_model.recordings import load_measured, ReadOptions
+        from octoroach_model.recordings import load_measured
 
         job.require_sources()
         key = (job.sources, job.topic, job.forward_axis, job.up_axis, job.gap_s,
                job.min_duration_s, source_stamps(job.sources))
         if key != self._key or self._measured is None:
-            options = ReadOptions(topic=job.topic, forward_axis=job.forward_axis,
+            options = ReadOptions(topic=job.topic or None, forward_axis=job.forward_axis,
                                   up_axis=job.up_axis)
             self._measured = load_measured(
                 list(job.sources), gap_s=job.gap_s, options=options,

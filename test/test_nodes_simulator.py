@@ -257,7 +257,7 @@ def test_help_lists_every_parameter_with_range_and_unit_without_starting_ros(cap
 
 
 @pytest.mark.parametrize(('args', 'message'), [
-    (['--ros-args', '-p', 'sigma1:=5.0'], 'error: sigma1 = 5.0 rad is outside [0, 1]'),
+    (['--ros-args', '-p', 'sigma1:=5.0'], 'error: sigma1 = 5.0 rad is outside [0, 1.5)'),
     (['--ros-args', '-p', 'rate:=50'], 'error: rate must be a double'),
     (['--ros-args', '-p', 'rate'], "error: parameter rule 'rate' must read NAME:=VALUE"),
     (['--frobnicate'], 'error: unrecognized arguments: --frobnicate'),

@@ -367,7 +367,7 @@ def test_help_lists_parameters_services_and_topic_without_starting_ros(capsys):
 
     text = capsys.readouterr().out
     for word in ('bags', 'rho', 'epsilon', 'delta', 'gamma', 'grid_points', 'sigma1_max',
-                 'nominal', '[0.01, 0.99]', 'rad', '~/validate', '~/diagnose', '~/violation',
+                 'nominal', '(0, 1)', 'rad', '~/validate', '~/diagnose', '~/violation',
                  'DiagnosticArray'):
         assert word in text, word
 

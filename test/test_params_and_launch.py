@@ -129,7 +129,7 @@ def test_replay_params_file_loads_and_a_flag_beats_its_default(tmp_path):
 @pytest.mark.parametrize(('line', 'message'), [
     ('rate: 50', 'error: rate must be a double, got 50 (write doubles with a decimal point, '
                  'e.g. 50.0)'),
-    ('sigma1: 5.0', 'error: sigma1 = 5.0 rad is outside [0, 1]'),
+    ('sigma1: 5.0', 'error: sigma1 = 5.0 rad is outside [0, 1.5)'),
 ])
 def test_a_bad_value_in_a_params_file_is_one_error_line(tmp_path, line, message):
     bad = tmp_path / 'simulator.yaml'

@@ -372,7 +372,8 @@ def test_the_guarantee_states_the_interval_of_the_true_violation():
     ('gamma', 0.0, 'gamma must lie in'),
     ('seed', -1, 'seed must be non-negative'),
     ('grid_points', 1, 'grid_points must lie in'),
-    ('sigma1_max', 0.0, 'sigma1_max and sigma2_max'),
+    ('sigma1_max', 0.0, r'sigma1_max must lie in \(0, 1.5\) rad'),
+    ('sigma2_max', 1.5, r'sigma2_max must lie in \(0, 1.5\) rad'),
 ])
 def test_validation_settings_reject_bad_values_with_a_reason(field, value, reason):
     with pytest.raises(ParameterError, match=reason):

@@ -14,15 +14,13 @@ import os
 from pathlib import Path
 import sys
 import time
-from typing import Any, NoReturn, TYPE_CHECKING
+from typing import Any, NoReturn
 
 from octoroach_model.errors import (
     EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, OutputError)
 from octoroach_model.fileio import check_writable, is_empty_directory
-from octoroach_model.recordings.axes import FORWARD_AXES, UP_AXES
-
-if TYPE_CHECKING:
-    from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.settings import check_value, settings_of
 
 EXIT_ERROR = EXIT_DATA
 __all__ = ['EXIT_DATA', 'EXIT_ERROR', 'EXIT_INTERRUPTED', 'EXIT_OK', 'EXIT_OUTPUT',
@@ -165,6 +163,43 @@ def add_workers_argument(parser: argparse.ArgumentParser, what: str) -> None:
                         'per core); 0 runs everything in this process, one after another')
 
 
+def add_setting(parser: argparse.ArgumentParser | argparse._ArgumentGroup, record: Any,
+                name: str, **overrides: Any) -> argparse.Action:
+    """
+    Add the option of field `name` of settings record `record` (`settings.setting`).
+
+    Help, unit, range and default come from the field; the option's type only reads the value
+    (a number, a whole number, one of the choices): the range is the record's to check (or
+    `settings.check_value`'s), so an out-of-range value is a value that cannot be used (exit 1).
+    `overrides` are argparse's keywords where the program differs (a default of its own).
+    """
+    default, described = settings_of(record)[name]
+    unit = f' [{described.unit}]' if described.unit else ''
+    bounds = '' if described.choices else described.range_text()
+    keywords: dict[str, Any] = {
+        'default': default, 'dest': name,
+        'help': described.description + unit + (f'; {bounds}' if bounds else '')}
+    if described.choices:
+        keywords['choices'] = described.choices
+    elif isinstance(default, bool):
+        keywords['action'] = 'store_true'
+    elif isinstance(default, int):
+        keywords['type'] = whole_number_type(described.low)
+    elif isinstance(default, float):
+        keywords['type'] = finite_float
+    keywords.update(overrides)
+    return parser.add_argument(described.option or '--' + name.replace('_', '-'), **keywords)
+
+
+def whole_number_type(low: float | None) -> Callable[[str], int]:
+    """Return the argparse type of a whole number that must be at least `low`, if it can."""
+    if low is not None and low >= 1:
+        return positive_int
+    if low is not None and low >= 0:
+        return nonnegative_int
+    return _whole
+
+
 def add_input_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of the measured runs: bags, mocap files or data sets, how to split."""
     parser.add_argument('bags', nargs='+', type=Path, metavar='BAG',
@@ -173,14 +208,21 @@ def add_input_arguments(parser: argparse.ArgumentParser) -> None:
                         'headed CSV trajectory tables, .npz data sets, or folders of them '
                         '(docs/formats.md)')
     add_pose_arguments(parser)
-    parser.add_argument('--gap-s', type=finite_float, default=0.5,
-                        help='a pause longer than this (s) splits runs where there is no marker')
+    add_gap_argument(parser)
+
+
+def add_gap_argument(parser: argparse.ArgumentParser) -> None:
+    """Add --gap-s: the pause that splits runs where there is no run marker."""
+    from octoroach_model.recordings import DEFAULT_GAP_S
+    from octoroach_model.recordings.options import GAP_S
+
+    parser.add_argument('--gap-s', type=finite_float, default=DEFAULT_GAP_S, dest='gap_s',
+                        help=f'{GAP_S.description} [{GAP_S.unit}]; {GAP_S.range_text()}')
 
 
 def add_pose_arguments(parser: argparse.ArgumentParser) -> None:
     """Where the robot's pose is in an input (ReadOptions)."""
-    parser.add_argument('--topic', default=None,
-                        help='pose topic (default: the VICON one, or the only pose topic)')
+    add_setting(parser, ReadOptions, 'topic')
     parser.add_argument('--frame', default=None, metavar='CHILD_FRAME',
                         help='/tf bags: the child frame to follow (default: the only moving '
                         'one)')
@@ -193,17 +235,21 @@ def add_pose_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--accept-loose-fit', action='store_true',
                         help='fit the marker body even when its markers do not move as one '
                         'rigid body (typical residual above 5 mm); refused otherwise')
-    parser.add_argument('--forward-axis', choices=FORWARD_AXES, default='x',
-                        help="the body axis the robot walks along; heading = that axis's yaw")
-    parser.add_argument('--up-axis', choices=UP_AXES, default='z',
-                        help="the input world's up axis (y: OptiTrack Motive's default; -y: a "
-                        'camera frame); poses are turned so that it is z')
+    add_setting(parser, ReadOptions, 'forward_axis')
+    add_setting(parser, ReadOptions, 'up_axis')
+
+
+def check_gap(gap_s: float) -> None:
+    """Raise ParameterError when --gap-s lies outside its range (`recordings.options.GAP_S`)."""
+    from octoroach_model.recordings.options import GAP_S
+
+    check_value('gap_s', gap_s, GAP_S)
 
 
 def read_options(args: argparse.Namespace) -> ReadOptions:
-    """Return the ReadOptions of parsed pose arguments."""
-    from octoroach_model.recordings.options import ReadOptions
-
+    """Return the ReadOptions of parsed pose arguments (--gap-s checked where there is one)."""
+    if hasattr(args, 'gap_s'):
+        check_gap(args.gap_s)
     markers = tuple(name.strip() for name in (args.markers or '').split(',') if name.strip())
     return ReadOptions(topic=args.topic, frame=args.frame, subject=args.subject,
                        markers=markers, forward_axis=args.forward_axis, up_axis=args.up_axis,

@@ -6,8 +6,9 @@ import json
 from pathlib import Path
 
 from octoroach_model.commands.common import (
-    finite_float, new_output, nonnegative_int, OneLineParser, positive_int)
+    add_setting, finite_float, new_output, nonnegative_int, OneLineParser, positive_int)
 from octoroach_model.errors import ParameterError
+from octoroach_model.settings import check_value, settings_of
 
 
 def parse_effects(pairs: list[tuple[str, str]]) -> dict[str, dict[str, float]]:
@@ -69,10 +70,9 @@ class OrderedEffectAction(argparse.Action):
 
 
 def parser() -> argparse.ArgumentParser:
-    """Build the `simulate` command line."""
-    from octoroach_model.model import ModelParameters, nominal_sigmas
+    """Build the `simulate` command line (the model's options are RunSettings' fields)."""
+    from octoroach_model.run_settings import RunSettings
 
-    sigma1, sigma2 = nominal_sigmas()
     result = OneLineParser(
         prog='simulate', description='Write N runs of the model to a rosbag2 MCAP bag '
         '(VICON convention: TransformStamped on /vicon/octoroach/octoroach at 50 Hz, a run '
@@ -85,15 +85,8 @@ def parser() -> argparse.ArgumentParser:
                         help='seed of every random draw')
     result.add_argument('--out', type=Path, required=True, help='bag directory to create')
     result.add_argument('--cycles', type=finite_float, default=10.0, help='gait cycles per run')
-    result.add_argument('--sigma1', type=finite_float, default=sigma1,
-                        help='touchdown angle spread, rad')
-    result.add_argument('--sigma2', type=finite_float, default=sigma2,
-                        help='liftoff angle spread, rad')
-    result.add_argument('--draws', choices=('stance', 'run'), default='stance',
-                        help='new angles at every stance, or once per run')
-    result.add_argument('--stride-frequency', type=finite_float,
-                        default=ModelParameters.nominal().stride_frequency,
-                        help='gait cycles per second')
+    for name in ('sigma1', 'sigma2', 'draws', 'stride_frequency'):   # as the simulator's
+        add_setting(result, RunSettings, name)
     result.add_argument('--effect', action=OrderedEffectAction, dest='effect',
                         help='a cause from the table of causes (docs/causes.md); repeatable')
     result.add_argument('--effect-param', action=OrderedEffectAction, dest='effect_param',
@@ -119,12 +112,13 @@ def run(args: argparse.Namespace) -> int:
     from octoroach_model.model import ModelParameters, simulate
     from octoroach_model.fileio import atomic_directory
     from octoroach_model.recordings import save_dataset, write_paths_bag
+    from octoroach_model.run_settings import RunSettings
 
     new_output(args.out, '--out')
     if args.dataset:
         new_output(args.dataset, '--dataset')
-    if args.stride_frequency <= 0:
-        raise ParameterError(f'--stride-frequency must be positive, got {args.stride_frequency}')
+    check_value('stride_frequency', args.stride_frequency,
+                settings_of(RunSettings)['stride_frequency'][1])
     parameters = replace(ModelParameters.nominal(), stride_frequency=args.stride_frequency)
     effects = parse_effects(getattr(args, 'effect_pairs', None) or [])
     extensions = parse_extensions(getattr(args, 'extension_pairs', None) or [])

@@ -2,8 +2,11 @@
 What every node shares: parameters with ranges, the command line, spin and shutdown, QoS.
 
 Parameters are declared from `ParamSpec` tables, so the same table gives the ROS descriptors
-(description, FloatingPointRange / IntegerRange), the checks in the set-parameters callbacks and
-the `--help` text, and the three cannot drift apart. Message conversion is in `messages`.
+(description, FloatingPointRange / IntegerRange), the checks in the set-parameters callbacks,
+the `--help` text and the params files (`settings_yaml`), and they cannot drift apart. A
+parameter that is a field of a settings record is made from the field (`field_specs`), so the
+record's checks and the offline programs' options say the same. Message conversion is in
+`messages`.
 """
 from __future__ import annotations
 
@@ -20,6 +23,7 @@ import threading
 from typing import Any, NoReturn, TYPE_CHECKING
 
 from octoroach_model.errors import exit_code, EXIT_USAGE, OctoroachError, ParameterError
+from octoroach_model.settings import Setting, settings_of
 
 if TYPE_CHECKING:
     from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -33,6 +37,7 @@ VICON_QOS_DEPTH = 100
 
 ParamValue = bool | int | float | str | list[str]
 MAX_RANGE_WIDTH = 24  # longer choice lists go into the description column of --help
+INT64_MIN, INT64_MAX = -2**63, 2**63 - 1   # a ROS integer parameter's own range
 
 
 class UsageError(OctoroachError):
@@ -46,9 +51,10 @@ class ParamSpec:
     """
     One ROS parameter: default, description, unit and allowed values.
 
-    The type is the default's type (bool, int, float, str or list of str); `low`/`high` give an
-    inclusive range for numbers, `choices` the allowed strings. `preset` marks a default that
-    came from a command-line flag (`with_defaults`): it wins over --ros-args and params files.
+    The type is the default's type (bool, int, float, str or list of str); `low`/`high` give a
+    range for numbers (inclusive, or exclusive where `open_low`/`open_high`), `choices` the
+    allowed strings. `preset` marks a default that came from a command-line flag
+    (`with_defaults`): it wins over --ros-args and params files.
     """
 
     name: str
@@ -60,6 +66,21 @@ class ParamSpec:
     choices: tuple[str, ...] = ()
     read_only: bool = False
     preset: bool = False
+    open_low: bool = False
+    open_high: bool = False
+
+    @classmethod
+    def of(cls, name: str, default: ParamValue, described: Setting) -> ParamSpec:
+        """Make the parameter of a setting (`settings.Setting`) with its default."""
+        return cls(name, default, described.description, described.unit, described.low,
+                   described.high, described.choices, described.read_only,
+                   open_low=described.open_low, open_high=described.open_high)
+
+    @property
+    def setting(self) -> Setting:
+        """Return what the parameter allows as a `settings.Setting` (its range logic)."""
+        return Setting(self.description, self.unit, self.low, self.high, self.open_low,
+                       self.open_high, self.choices, self.read_only)
 
     @property
     def kind(self) -> str:
@@ -76,12 +97,8 @@ class ParamSpec:
         return 'string array'
 
     def range_text(self) -> str:
-        """Return the allowed values for humans: '[lo, hi]', 'a | b', or ''."""
-        if self.choices:
-            return ' | '.join(self.choices)
-        if self.low is not None and self.high is not None:
-            return f'[{_number(self.low)}, {_number(self.high)}]'
-        return ''
+        """Return the allowed values for humans: '[lo, hi]', '(0, 1)', 'a | b', or ''."""
+        return self.setting.range_text()
 
     def descriptor(self) -> ParameterDescriptor:
         """Build the ROS descriptor: type, description with unit, range, read-only flag."""
@@ -99,13 +116,15 @@ class ParamSpec:
                                          read_only=self.read_only)
         if self.choices:
             descriptor.additional_constraints = 'one of: ' + ', '.join(self.choices)
-        if self.low is not None and self.high is not None:
-            if self.kind == 'double':
-                descriptor.floating_point_range = [FloatingPointRange(
-                    from_value=float(self.low), to_value=float(self.high), step=0.0)]
-            elif self.kind == 'integer':
-                descriptor.integer_range = [IntegerRange(
-                    from_value=int(self.low), to_value=int(self.high), step=1)]
+        elif self.open_low or self.open_high:   # a ROS range is closed: the check does the rest
+            descriptor.additional_constraints = f'in {self.range_text()}, ends excluded'
+        if self.kind == 'double' and self.low is not None and self.high is not None:
+            descriptor.floating_point_range = [FloatingPointRange(
+                from_value=float(self.low), to_value=float(self.high), step=0.0)]
+        elif self.kind == 'integer' and (self.low is not None or self.high is not None):
+            descriptor.integer_range = [IntegerRange(
+                from_value=INT64_MIN if self.low is None else int(self.low),
+                to_value=INT64_MAX if self.high is None else int(self.high), step=1)]
         return descriptor
 
     def check(self, value: Any) -> str | None:
@@ -116,13 +135,31 @@ class ParamSpec:
                        if self.kind == 'double' else ''))
         if self.kind == 'double' and not math.isfinite(value):
             return f'{self.name} must be finite, got {value}'
-        if self.low is not None and self.high is not None and self.kind in ('double', 'integer'):
-            if not self.low <= value <= self.high:
-                unit = f' {self.unit}' if self.unit else ''
-                return f'{self.name} = {value}{unit} is outside {self.range_text()}'
+        if self.kind in ('double', 'integer') and not self.setting.allows(value):
+            unit = f' {self.unit}' if self.unit else ''
+            return f'{self.name} = {value}{unit} is outside {self.range_text()}'
         if self.choices and value not in self.choices:
             return f'{self.name} = {value!r} is not one of {", ".join(self.choices)}'
         return None
+
+
+def field_specs(record: type, names: Sequence[str], **defaults: ParamValue
+                ) -> list[ParamSpec]:
+    """
+    Return the parameters of the fields `names` of the settings record `record`, in order.
+
+    Help, unit, range and default come from the field (`settings.setting`); `defaults` give
+    a node's own default where it differs from the record's (the validator's sigma1 = -1:
+    search). A record field whose default is None (unset) is the empty string here.
+    """
+    found = settings_of(record)
+    specs = []
+    for name in names:
+        default, described = found[name]
+        value = defaults.get(name, '' if default is None else default)
+        specs.append(ParamSpec.of(name, list(value) if isinstance(value, tuple) else value,
+                                  described))
+    return specs
 
 
 def _has_kind(value: Any, kind: str) -> bool:
@@ -135,10 +172,6 @@ def _has_kind(value: Any, kind: str) -> bool:
     if kind == 'string':
         return isinstance(value, str)
     return isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value)
-
-
-def _number(value: float) -> str:
-    return f'{value:g}' if isinstance(value, float) else str(value)
 
 
 def with_defaults(specs: Sequence[ParamSpec], defaults: dict[str, Any] | None

@@ -27,6 +27,7 @@ from octoroach_model.fileio import check_writable
 from octoroach_model.nodes.common import (
     declare_parameters,
     fail,
+    field_specs,
     node_parser,
     ParamSpec,
     run_node,
@@ -70,7 +71,7 @@ def recorder_specs() -> list[ParamSpec]:
         DEFAULT_POSE_TOPIC,
         DEFAULT_RATE_HZ,
     )
-    from octoroach_model.recordings.axes import FORWARD_AXES, UP_AXES
+    from octoroach_model.recordings.options import GAP_S, ReadOptions
 
     return [
         ParamSpec('output', '', 'bag directory to create; empty: ./octoroach_YYYYmmdd_HHMMSS',
@@ -79,15 +80,10 @@ def recorder_specs() -> list[ParamSpec]:
                   'topics to record (names or fnmatch patterns)', read_only=True),
         ParamSpec('dataset', '', 'data set file (.npz) written on exit and by ~/export; '
                   'empty: none; must not exist at start', read_only=True),
-        ParamSpec('gap_s', float(DEFAULT_GAP_S), 'run split at longer pose gaps (no markers)',
-                  's', 0.01, 60.0),
+        ParamSpec.of('gap_s', float(DEFAULT_GAP_S), GAP_S),
         ParamSpec('export_rate_hz', float(DEFAULT_RATE_HZ), 'sample rate of the data set',
                   'Hz', 1.0, 1000.0),
-        ParamSpec('forward_axis', 'x', 'data set: the body axis the robot walks along; '
-                  "heading = that axis's yaw", choices=FORWARD_AXES),
-        ParamSpec('up_axis', 'z', "data set: the up axis of the recorded poses' world (y: "
-                  "OptiTrack Motive's default); poses are turned so that it is z",
-                  choices=UP_AXES),
+        *field_specs(ReadOptions, ('forward_axis', 'up_axis')),
         ParamSpec('flush_period_s', 1.0, 'bag file flushed this often', 's', 0.1, 10.0),
         ParamSpec('log_period_s', 5.0, 'progress logged this often', 's', 0.5, 3600.0),
         ParamSpec('qos_depth', 1000, 'history depth of the subscriptions', '', 1, 100_000,

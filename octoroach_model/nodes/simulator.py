@@ -22,8 +22,8 @@ from typing import Any
 
 from octoroach_model.errors import OctoroachError
 from octoroach_model.nodes.common import (
-    current_values, declare_parameters, fail, node_parser, ParamSpec, ParamValue, run_node,
-    set_parameters_callback, split_ros_args, UsageError, vicon_qos)
+    current_values, declare_parameters, fail, field_specs, node_parser, ParamSpec, ParamValue,
+    run_node, set_parameters_callback, split_ros_args, UsageError, vicon_qos)
 from octoroach_model.nodes.messages import (
     fill_transform, planar_rows, PlanarPose, run_marker, transform_message)
 from octoroach_model.run_settings import (
@@ -60,56 +60,36 @@ def _effect_unit(key: str) -> str:
 
 
 def simulator_specs() -> list[ParamSpec]:
-    """List the simulator's parameters; model defaults come from config/table2.yaml."""
-    from octoroach_model.model import (
-        DRAWS, EFFECT_NAMES, EFFECT_PARAMETERS, PARAMETER_RANGES, ModelParameters,
-        nominal_sigmas)
-    from octoroach_model.model.extensions import DRIFTED, FAMILY_NAMES
-    from octoroach_model.model.simulate import DEFAULT_START_POSE
+    """
+    List the simulator's parameters: RunSettings' fields, and the node's own.
 
-    nominal = ModelParameters.nominal()
-    sigma1, sigma2 = nominal_sigmas()
-    start_x, start_y, start_heading = (float(v) for v in DEFAULT_START_POSE)
+    The model's defaults come from config/table2.yaml (through RunSettings).
+    """
+    from octoroach_model.model import EFFECT_PARAMETERS, PARAMETER_RANGES
+    from octoroach_model.model.extensions import DRIFTED
+
+    start_x, start_y, start_heading = (float(v) for v in RunSettings().start_pose)
     specs = [
-        ParamSpec('robots', 1, 'number of robots, each its own subject and topics', '',
-                  1, 100),
-        ParamSpec('subject', 'octoroach', 'VICON subject name (robots > 1: SUBJECT_i)'),
-        ParamSpec('segment', '', 'VICON segment name; empty: the subject name'),
-        ParamSpec('world_frame', 'vicon/world', 'header.frame_id of the poses'),
-        ParamSpec('rate', float(nominal.sample_rate), 'publishing rate = model sample rate',
-                  'Hz', 1.0, 1000.0),
-        ParamSpec('pause_s', 1.0, 'pause without poses between runs', 's', 0.5, 3600.0),
-        ParamSpec('runs', 0, 'runs to publish, then exit (0: go on until stopped)', '',
-                  0, 1_000_000),
+        *field_specs(RunSettings, ('robots', 'subject', 'segment', 'world_frame', 'rate',
+                                   'pause_s', 'runs')),
         ParamSpec('wait_subscribers', 0, 'before the first run, wait until every pose and '
                   'marker topic has this many subscribers (1: start a recorder first, lose '
                   'nothing)', '', 0, 1000),
         ParamSpec('wait_timeout_s', 10.0, 'longest wait for wait_subscribers, then start',
                   's', 0.0, 3600.0),
-        ParamSpec('cycles', 10, 'gait cycles per run', '', 1, 1000),
-        ParamSpec('sigma1', sigma1, 'spread of the touchdown angles (eq. 11)', 'rad',
-                  0.0, 1.0),
-        ParamSpec('sigma2', sigma2, 'spread of the liftoff angles (eq. 11)', 'rad', 0.0, 1.0),
-        ParamSpec('stride_frequency', float(nominal.stride_frequency),
-                  'gait cycles per second', 'Hz', 0.1, 20.0),
-        ParamSpec('draws', DRAWS[0], 'new random angles at every stance, or once per run',
-                  choices=tuple(DRAWS)),
-        ParamSpec('seed', -1, 'run k uses a seed derived from (seed, k); -1: fresh entropy',
-                  '', -1, 2**31 - 1),
+        *field_specs(RunSettings, ('cycles', 'sigma1', 'sigma2', 'stride_frequency', 'draws',
+                                   'seed')),
         ParamSpec('start_x', start_x, 'x at the start of every run', 'm', -1000.0, 1000.0),
         ParamSpec('start_y', start_y, 'y at the start of every run', 'm', -1000.0, 1000.0),
         ParamSpec('start_heading', start_heading, 'heading at the start (pi/2: along +y)',
                   'rad', -2 * math.pi, 2 * math.pi),
-        ParamSpec('effect', 'none', 'model extension: a cause (docs/ros.md) added to every run',
-                  choices=('none', *EFFECT_NAMES)),
+        *field_specs(RunSettings, ('effect',)),
     ]
     for key, (low, high) in PARAMETER_RANGES.items():
         users = ', '.join(name for name, keys in EFFECT_PARAMETERS.items() if key in keys)
         specs.append(ParamSpec(f'{EFFECT_PREFIX}{key}', 0.0, f'parameter of {users}',
                                _effect_unit(key), float(low), float(high)))
-    specs.append(ParamSpec('extension', 'none', 'an extension family beyond the table of causes '
-                           '(docs/extensions.md) added to the runs; run_order_drift needs '
-                           'runs >= 2', choices=('none', *FAMILY_NAMES)))
+    specs.extend(field_specs(RunSettings, ('extension',)))
     specs.append(ParamSpec(f'{EXTENSION_PREFIX}parameter', DRIFTED[0],
                            'what run_order_drift moves over the session', choices=DRIFTED))
     for key, (default, unit, low, high, users) in extension_parameter_table().items():

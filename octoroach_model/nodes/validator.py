@@ -41,12 +41,13 @@ from octoroach_model.errors import OctoroachError, OutputError, ParameterError
 from octoroach_model.fileio import check_writable
 from octoroach_model.jsonio import dumps
 from octoroach_model.nodes.common import (
-    current_values, declare_parameters, fail, node_parser, ParamSpec, ParamValue,
+    current_values, declare_parameters, fail, field_specs, node_parser, ParamSpec, ParamValue,
     rejected_override, run_node, set_parameters_callback, split_ros_args, start_exit_code,
     UsageError)
 from octoroach_model.nodes.messages import (
     diagnosis_fields, diagnosis_status, guidance_array, status_fields, validation_status,
     violation_array)
+from octoroach_model.settings import settings_of
 from octoroach_model.validation_jobs import (
     Cancelled, Job, Progress, run_diagnosis, run_validation, Workbench)
 
@@ -109,52 +110,19 @@ SERVICE_QUEUE_DEPTH = 1000  # requests kept while the threads are busy: every ca
 
 
 def validator_specs() -> list[ParamSpec]:
-    """List every parameter but `bags` (declared apart: an empty list has no type)."""
-    from octoroach_model.model import DRAWS
-    from octoroach_model.recordings import DEFAULT_GAP_S
-    from octoroach_model.recordings.axes import FORWARD_AXES, UP_AXES
+    """
+    List every parameter but the string arrays (declared apart: an empty list has no type).
+
+    Those of a call are the fields of `validation_jobs.Job` and of `ValidationSettings` (their
+    help, unit, range and default); the live guidance's are the node's own.
+    """
     from octoroach_model.validation import ValidationSettings
 
-    d = ValidationSettings()
     return [
-        ParamSpec('topic', '', 'pose topic in the bags; empty: the VICON one found there'),
-        ParamSpec('forward_axis', 'x', 'the body axis the robot walks along; heading = that '
-                  "axis's yaw", choices=FORWARD_AXES),
-        ParamSpec('up_axis', 'z', "the up axis of the bags' world (y: OptiTrack Motive's "
-                  'default; -y: a camera frame); poses are turned so that it is z',
-                  choices=UP_AXES),
-        ParamSpec('gap_s', float(DEFAULT_GAP_S), 'a pause in the poses longer than this '
-                  'splits runs (bags without run markers)', 's', 0.05, 60.0),
-        ParamSpec('min_duration_s', 0.0, 'runs shorter than this are left out (0: none; all '
-                  'runs are compared on their common duration)', 's', 0.0, 3600.0),
-        ParamSpec('nominal', 'fit', 'nominal model: fitted to the runs (eq. 9) or Table II',
-                  choices=('fit', 'table2')),
-        ParamSpec('draws', DRAWS[0], 'model angles drawn at every stance or once per run',
-                  choices=tuple(DRAWS)),
-        ParamSpec('rho', d.rho, 'acceptance level: largest admissible violation probability',
-                  '', 0.01, 0.99),
-        ParamSpec('epsilon', d.epsilon, 'accuracy of the estimate (eq. 16)', '', 0.01, 0.99),
-        ParamSpec('delta', d.delta, 'confidence 1 - delta of the estimate (eq. 16)', '',
-                  0.01, 0.99),
-        ParamSpec('k', d.k, 'runs per multisample', '', 2, 1000),
-        ParamSpec('gamma', d.gamma, 'confidence level of the prediction region', '',
-                  0.5, 0.999),
-        ParamSpec('seed', d.seed, 'seed of the multisamples, model runs and diagnosis', '',
-                  0, 2**31 - 1),
-        ParamSpec('sigma1_max', d.sigma1_max, 'largest touchdown spread searched', 'rad',
-                  0.01, 1.5),
-        ParamSpec('sigma2_max', d.sigma2_max, 'largest liftoff spread searched', 'rad',
-                  0.01, 1.5),
-        ParamSpec('grid_points', d.grid_points, 'grid points per spread in the search', '',
-                  2, 101),
-        ParamSpec('resolution_m', d.resolution_m, 'narrowest half-width of a region '
-                  '(motion-capture resolution)', 'm', 0.0, 0.01),
-        ParamSpec('sigma1', -1.0, 'evaluate at this touchdown spread; negative: search',
-                  'rad', -1.0, 1.5),
-        ParamSpec('sigma2', -1.0, 'evaluate at this liftoff spread; negative: search', 'rad',
-                  -1.0, 1.5),
-        ParamSpec('report_dir', '', '~/diagnose also writes each report (report.json, '
-                  'summary.md, plots) into a new folder here; empty: no files', read_only=True),
+        *field_specs(Job, ('topic', 'forward_axis', 'up_axis', 'gap_s', 'min_duration_s',
+                           'nominal', 'draws')),
+        *field_specs(ValidationSettings, tuple(settings_of(ValidationSettings))),
+        *field_specs(Job, ('sigma1', 'sigma2', 'report_dir')),
         ParamSpec('question', '', 'live guidance on ~/guidance: a cause or extension term '
                   "(with question_size), validation (runs for the paper's validation), or "
                   'empty: none', choices=QUESTIONS),

@@ -12,6 +12,16 @@ from dataclasses import dataclass
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.recordings.axes import forward_angle_rad, FORWARD_AXES, UP_AXES
+from octoroach_model.settings import Setting, setting
+
+# Settings of reading that programs and nodes share (`settings`: one source for each)
+TOPIC = Setting('pose topic; empty or not given: the VICON one, or the only pose topic')
+FORWARD_AXIS = Setting("the body axis the robot walks along; heading = that axis's yaw",
+                       choices=FORWARD_AXES)
+UP_AXIS = Setting("the input world's up axis (y: OptiTrack Motive's default; -y: a camera "
+                  'frame); poses are turned so that it is z', choices=UP_AXES)
+GAP_S = Setting('a pause in the poses longer than this splits runs where there is no run '
+                'marker', unit='s', low=0.0, high=60.0, open_low=True)
 
 
 @dataclass(frozen=True)
@@ -36,12 +46,12 @@ class ReadOptions:
         (the fit's typical residual above `mocap.MAX_TYPICAL_RESIDUAL_M`); refused otherwise.
     """
 
-    topic: str | None = None
+    topic: str | None = setting(None, TOPIC)
     frame: str | None = None
     subject: str | None = None
     markers: tuple[str, ...] = ()
-    forward_axis: str = 'x'
-    up_axis: str = 'z'
+    forward_axis: str = setting('x', FORWARD_AXIS)
+    up_axis: str = setting('z', UP_AXIS)
     accept_loose_fit: bool = False
 
     def __post_init__(self) -> None:

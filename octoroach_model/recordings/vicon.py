@@ -27,9 +27,9 @@ TF_MESSAGE = 'tf2_msgs/msg/TFMessage'
 ODOMETRY = 'nav_msgs/msg/Odometry'
 
 
-def pose_topic(subject: str) -> str:
-    """Name the VICON pose topic of `subject` (vicon_bridge naming)."""
-    return f'/vicon/{subject}/{subject}'
+def pose_topic(subject: str, segment: str = '') -> str:
+    """Name the VICON pose topic of a subject's segment (vicon_bridge; default: the subject)."""
+    return f'/vicon/{subject}/{segment or subject}'
 
 
 def child_frame(subject: str) -> str:

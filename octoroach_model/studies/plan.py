@@ -33,12 +33,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import check_where, CONNECT_TIMEOUT_S, run_tasks, where_to_run
 from octoroach_model.studies.spec import (
-    Arm, diagnosis_min_runs, nominal_robot, parse_spec, robot_spec, RobotSpec, StudySpec)
+    Arm, nominal_robot, parse_spec, robot_spec, RobotSpec, StudySpec)
 from octoroach_model.studies.summary import wilson
 from octoroach_model.studies.table import cell, write_table
 from octoroach_model.studies.terms import main_parameter, null_value
@@ -121,8 +122,7 @@ def plan_runs(cause: str, size: float, *, power: float = 0.8,
     """
     started = time.perf_counter()
     say = progress or (lambda fraction, message: None)
-    fewest = diagnosis_min_runs()
-    min_runs = max(fewest, min_runs or fewest)
+    min_runs = max(MIN_RUNS, min_runs or MIN_RUNS)
     if method not in METHODS:
         raise ParameterError(f'method must be one of {", ".join(METHODS)}, got {method!r}')
     base = _base_spec(cause, size, robot, parameters, replicates, seed, diagnosis,

@@ -17,6 +17,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
 from octoroach_model.studies.terms import (
@@ -270,27 +271,18 @@ def robot_spec(values: Mapping[str, Any]) -> RobotSpec:
     return robot
 
 
-def diagnosis_min_runs() -> int:
-    """Return the fewest runs the diagnosis takes (its module's MIN_RUNS)."""
-    import importlib
-
-    return int(getattr(importlib.import_module('octoroach_model.diagnosis.diagnose'),
-                       'MIN_RUNS', 40))
-
-
 def _runs(value: Any) -> tuple[int, ...] | Draw:
-    fewest = diagnosis_min_runs()
     if isinstance(value, Mapping):
         draw = _draw(value, 'runs')
-        if min(draw.values) < fewest:
-            raise ParameterError(f'runs: the diagnosis needs at least {fewest} runs, '
+        if min(draw.values) < MIN_RUNS:
+            raise ParameterError(f'runs: the diagnosis needs at least {MIN_RUNS} runs, '
                                  f'got {min(draw.values):g}')
         return draw
     counts = value if isinstance(value, list) else [value]
     if not counts:
         raise ParameterError('runs: give at least one run count')
-    checked = tuple(_whole(count, 'runs', minimum=fewest,
-                           why=f'the diagnosis needs at least {fewest} runs')
+    checked = tuple(_whole(count, 'runs', minimum=MIN_RUNS,
+                           why=f'the diagnosis needs at least {MIN_RUNS} runs')
                     for count in counts)
     if len(set(checked)) != len(checked):
         raise ParameterError(f'runs: a run count is listed twice in {list(checked)}')

@@ -20,11 +20,14 @@ import numpy as np
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import fields_jsonable
 from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
+from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.paths import Paths
+from octoroach_model.settings import check_fields, setting
 from octoroach_model.validation.multisample import chernoff_sample_size, disjoint_multisamples
 from octoroach_model.validation.region import prediction_region, t_multiplier, violations
 
 Progress = Callable[[float, str], None]
+NOMINAL_MODELS = ('fit', 'table2')   # the nominal model: eq. 9 fitted to the runs, or Table II
 
 
 class ModelPlugin(Protocol):
@@ -54,39 +57,34 @@ class ValidationSettings:
     """
     The paper's constants (section V) and the search grid; sigmas in radians.
 
+    Each field's help and range (`settings.setting`) also make the `validate` options and
+    the validator node's parameters.
+
     resolution_m is the narrowest half-width a region may have (the motion capture's
     resolution): without it, runs that all start at one point would make any model fail there.
     """
 
-    rho: float = 0.35
-    epsilon: float = 0.15
-    delta: float = 0.27
-    k: int = 11
-    gamma: float = 0.95
-    seed: int = 0
-    sigma1_max: float = 0.4
-    sigma2_max: float = 0.4
-    grid_points: int = 17
-    resolution_m: float = 1e-4
+    rho: float = setting(0.35, 'acceptance level: the largest acceptable probability of '
+                         'violation (eq. 15)', low=0.0, high=1.0, open_low=True, open_high=True)
+    epsilon: float = setting(0.15, 'accuracy of the estimate of the violation probability '
+                             '(eq. 16)', low=0.0, high=1.0, open_low=True, open_high=True)
+    delta: float = setting(0.27, 'confidence 1 - delta of the estimate (eq. 16)', low=0.0,
+                           high=1.0, open_low=True, open_high=True)
+    k: int = setting(11, 'runs per multisample', low=2, high=1000)
+    gamma: float = setting(0.95, 'confidence level of the prediction region', low=0.0,
+                           high=1.0, open_low=True, open_high=True)
+    seed: int = setting(0, 'seed of the multisamples and the model runs (the validator node: '
+                        'of its diagnosis too)', low=0)
+    sigma1_max: float = setting(0.4, 'largest touchdown spread searched', unit='rad', low=0.0,
+                                high=SIGMA_LIMIT, open_low=True, open_high=True)
+    sigma2_max: float = setting(0.4, 'largest liftoff spread searched', unit='rad', low=0.0,
+                                high=SIGMA_LIMIT, open_low=True, open_high=True)
+    grid_points: int = setting(17, 'grid points per spread in the search (15)', low=2, high=101)
+    resolution_m: float = setting(1e-4, 'narrowest half-width of a region (the motion '
+                                  "capture's resolution)", unit='m', low=0.0, high=0.01)
 
     def __post_init__(self) -> None:
-        checks = [
-            (0 < self.rho < 1, f'rho must lie in (0, 1), got {self.rho}'),
-            (0 < self.epsilon < 1, f'epsilon must lie in (0, 1), got {self.epsilon}'),
-            (0 < self.delta < 1, f'delta must lie in (0, 1), got {self.delta}'),
-            (2 <= self.k <= 1000, f'k must lie in [2, 1000], got {self.k}'),
-            (0 < self.gamma < 1, f'gamma must lie in (0, 1), got {self.gamma}'),
-            (self.seed >= 0, f'seed must be non-negative, got {self.seed}'),
-            (0 < self.sigma1_max <= 1.5 and 0 < self.sigma2_max <= 1.5,
-             'sigma1_max and sigma2_max must lie in (0, 1.5] rad'),
-            (0 <= self.resolution_m <= 0.01, f'resolution_m must lie in [0, 0.01] m, '
-                                             f'got {self.resolution_m}'),
-            (2 <= self.grid_points <= 101, f'grid_points must lie in [2, 101], '
-                                           f'got {self.grid_points}'),
-        ]
-        for ok, reason in checks:
-            if not ok:
-                raise ParameterError(reason)
+        check_fields(self)
 
     @property
     def n(self) -> int:
@@ -312,7 +310,7 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
 
     settings = settings or ValidationSettings()
     measured, duration_note = common_duration(measured)
-    if nominal not in ('fit', 'table2'):
+    if nominal not in NOMINAL_MODELS:
         raise ParameterError(f"nominal must be 'fit' or 'table2', got {nominal!r}")
     if measured.n_paths < settings.runs_needed:
         left_out = f'; {duration_note}' if duration_note else ''

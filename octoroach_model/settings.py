@@ -1,0 +1,130 @@
+"""
+One source for each setting: the dataclass field, carrying its help, unit and range.
+
+A setting is declared once, as a field of the record that uses it (`ValidationSettings.rho`,
+`RunSettings.sigma1`, ...), made with `setting(...)`: its `Setting` rides in the field's
+metadata. Everything else is made from it: the record's own checks (`check_fields`), the
+options of the offline programs (`commands.common.add_setting`), the ROS parameters of the
+nodes with their descriptors (`nodes.common.field_specs`) and, through those, the params
+files config/NODE.yaml (`settings_yaml`). test_settings.py compares them all, so the help,
+unit and range a user reads are the ones in force, wherever they read them.
+
+A setting used by several records (the axes of the poses, the gap that splits runs, the wait
+for subscribers) is one `Setting` constant given to each field.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, Field, field, fields, MISSING
+from typing import Any
+
+from octoroach_model.errors import ParameterError
+
+__all__ = ['Setting', 'check_fields', 'check_value', 'setting', 'settings_of']
+
+METADATA_KEY = 'setting'
+
+
+@dataclass(frozen=True)
+class Setting:
+    """
+    What a user is told about one setting, and the values it allows.
+
+    `low`/`high` bound a number (inclusive, or exclusive where `open_low`/`open_high`; None:
+    unbounded on that side), `choices` list the allowed strings. `option` names the
+    command-line option where it is not --NAME-WITH-DASHES; `read_only` marks a ROS parameter
+    that can only be set when the node starts.
+    """
+
+    description: str
+    unit: str = ''
+    low: float | None = None
+    high: float | None = None
+    open_low: bool = False
+    open_high: bool = False
+    choices: tuple[str, ...] = ()
+    read_only: bool = False
+    option: str = ''
+
+    def range_text(self) -> str:
+        """Return the allowed values for humans: '[lo, hi]', '(0, 1)', '>= 0', 'a | b' or ''."""
+        if self.choices:
+            return ' | '.join(self.choices)
+        low = None if self.low is None else number_text(self.low)
+        high = None if self.high is None else number_text(self.high)
+        if low is not None and high is not None:
+            return f'{"(" if self.open_low else "["}{low}, {high}{")" if self.open_high else "]"}'
+        if low is not None:
+            return f'{">" if self.open_low else ">="} {low}'
+        if high is not None:
+            return f'{"<" if self.open_high else "<="} {high}'
+        return ''
+
+    def allows(self, value: Any) -> bool:
+        """Tell whether `value` lies in the range (numbers) or among the choices (strings)."""
+        if self.choices:
+            return value in self.choices
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            return True
+        if self.low is not None and (value <= self.low if self.open_low else value < self.low):
+            return False
+        return self.high is None or not (value >= self.high if self.open_high
+                                         else value > self.high)
+
+    def demand(self) -> str:
+        """Say what a value must be, after 'NAME must ': 'lie in (0, 1)', 'be non-negative'."""
+        if self.choices:
+            return 'be one of ' + ', '.join(repr(choice) for choice in self.choices)
+        if self.low == 0 and self.high is None:
+            return 'be positive' if self.open_low else 'be non-negative'
+        unit = f' {self.unit}' if self.unit else ''
+        return f'lie in {self.range_text()}{unit}'
+
+
+def number_text(value: float) -> str:
+    """Write a bound as people read it: 0.01, 1000, 2147483647."""
+    return f'{value:g}' if isinstance(value, float) else str(value)
+
+
+def setting(default: Any = MISSING, about: str | Setting = '', *,
+            default_factory: Any = MISSING, **details: Any) -> Any:
+    """
+    Make a dataclass field that carries its Setting (the one source of that setting).
+
+    `about` is the help text, or a shared `Setting` (then `details` must be empty); `details`
+    are the Setting's unit, low, high, open_low, open_high, choices, read_only and option.
+    """
+    described = about if isinstance(about, Setting) else Setting(about, **details)
+    if isinstance(about, Setting) and details:
+        raise TypeError('a shared Setting takes no further details')
+    return field(default=default, default_factory=default_factory,
+                 metadata={METADATA_KEY: described})
+
+
+def setting_of(item: Field[Any]) -> Setting | None:
+    """Return the Setting a field carries, or None."""
+    described = item.metadata.get(METADATA_KEY)
+    return described if isinstance(described, Setting) else None
+
+
+def settings_of(record: Any) -> dict[str, tuple[Any, Setting]]:
+    """Return {field name: (default, Setting)} of the fields of `record` that carry one."""
+    found: dict[str, tuple[Any, Setting]] = {}
+    for item in fields(record):
+        described = setting_of(item)
+        if described is None:
+            continue
+        default = item.default if item.default_factory is MISSING else item.default_factory()
+        found[item.name] = (default, described)
+    return found
+
+
+def check_fields(record: Any) -> None:
+    """Raise ParameterError with a one-line reason for the first field outside its range."""
+    for name, (_, described) in settings_of(record).items():
+        check_value(name, getattr(record, name), described)
+
+
+def check_value(name: str, value: Any, described: Setting) -> None:
+    """Raise ParameterError when `value` of setting `name` is not allowed: 'NAME must ...'."""
+    if not described.allows(value):
+        raise ParameterError(f'{name} must {described.demand()}, got {value!r}')

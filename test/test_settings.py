@@ -1,0 +1,174 @@
+"""
+One source for each setting: fields, node parameters, program options and params files agree.
+
+A setting is a field of a settings record (`octoroach_model.settings`); the nodes' parameters,
+the offline programs' options and config/NODE.yaml are made from it. These tests fail when
+one of them drifts: a params file edited by hand, a parameter or option written out again
+with a range of its own, a node parameter with no source.
+"""
+from __future__ import annotations
+
+import argparse
+import re
+
+import pytest
+
+from octoroach_model.commands import simulate, validate
+from octoroach_model.errors import ParameterError
+from octoroach_model.recordings.options import GAP_S, ReadOptions
+from octoroach_model.run_settings import RunSettings
+from octoroach_model.settings import Setting, settings_of
+from octoroach_model.settings_yaml import comment, node_specs, params_files
+from octoroach_model.validation import ValidationSettings
+from octoroach_model.validation_jobs import Job
+
+from ros_helpers import REPO
+
+# Where each node's parameters come from: records whose fields they are, shared settings, and
+# the parameters that are the node's alone (one ParamSpec, no option or record beside it).
+SOURCES: dict[str, tuple[tuple[type, ...], dict[str, Setting], tuple[str, ...]]] = {
+    'validator': ((Job, ValidationSettings), {}, (
+        'bags', 'data_dirs', 'question', 'question_size', 'question_power', 'planned_runs',
+        'guidance_period_s')),
+    'simulator': ((RunSettings,), {}, (
+        'wait_subscribers', 'wait_timeout_s', 'start_x', 'start_y', 'start_heading',
+        'effect_params.*', 'extension_params.*')),
+    'recorder': ((ReadOptions,), {'gap_s': GAP_S}, (
+        'output', 'topics', 'dataset', 'export_rate_hz', 'flush_period_s', 'log_period_s',
+        'qos_depth')),
+    'replay': ((), {}, ('bag', 'rate', 'loop', 'wait_subscribers', 'wait_timeout_s',
+                        'reliability', 'durability', 'qos_depth')),
+}
+
+
+def source_of(node: str, name: str) -> tuple[object, Setting] | None:
+    """Return (default, Setting) of a node parameter's field or shared setting; None: own."""
+    records, shared, _ = SOURCES[node]
+    for record in records:
+        found = settings_of(record)
+        if name in found:
+            return found[name]
+    return (None, shared[name]) if name in shared else None
+
+
+def same_setting(spec_setting: Setting, field_setting: Setting) -> bool:
+    """Tell whether two settings say the same (the command-line option name aside)."""
+    return spec_setting == Setting(**{**field_setting.__dict__, 'option': ''})
+
+
+@pytest.mark.parametrize('name', sorted(params_files()))
+def test_each_params_file_is_what_the_settings_write(name):
+    on_disk = (REPO / 'config' / name).read_text()
+    assert on_disk == params_files()[name], (
+        f'config/{name} differs from the settings: run python -m octoroach_model.settings_yaml')
+
+
+@pytest.mark.parametrize('node', sorted(SOURCES))
+def test_every_node_parameter_is_its_fields_or_the_nodes_own(node):
+    _, _, own = SOURCES[node]
+    for spec in node_specs()[node]():
+        source = source_of(node, spec.name)
+        if source is None:
+            pattern = spec.name.split('.')[0] + '.*'
+            assert spec.name in own or pattern in own, f'{node}.{spec.name} has no source'
+            continue
+        default, described = source
+        assert same_setting(spec.setting, described), (node, spec.name, spec, described)
+        if default is not None:
+            assert spec.default == ('' if default is None else default), (node, spec.name)
+
+
+def test_a_setting_shared_by_nodes_has_one_range():
+    """Same name and help on two nodes is one setting (sigma1 the spread, or the search's)."""
+    seen: dict[tuple[str, str], tuple[str, str]] = {}
+    for node in SOURCES:
+        for spec in node_specs()[node]():
+            text = spec.range_text()
+            first = seen.setdefault((spec.name, spec.description), (node, text))
+            assert first[1] == text, (spec.name, node, first)
+
+
+def options(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:
+    """Return {dest: action} of a parser's options."""
+    return {action.dest: action for action in parser._actions if action.option_strings}
+
+
+# Options of an offline program that share a name with a field but are the program's own:
+# simulate's --cycles may be fractional, its --seed seeds every draw of the one call, and its
+# --effect and --extension repeat, each with its parameters (the simulator node publishes
+# whole cycles, its seed -1 means fresh entropy for each run, and it adds one effect).
+PROGRAMS_OWN = {'cycles', 'seed', 'effect', 'extension'}
+
+
+@pytest.mark.parametrize('program, records', [
+    (validate, (ValidationSettings, Job, ReadOptions)),
+    (simulate, (RunSettings,)),
+])
+def test_every_option_of_a_setting_has_its_fields_range_and_default(program, records):
+    parser = program.parser()
+    found = options(parser)
+    checked = 0
+    for record in records:
+        for name, (default, described) in settings_of(record).items():
+            action = found.get(name)
+            if action is None or (program is simulate and name in PROGRAMS_OWN):
+                continue
+            checked += 1
+            assert described.description in action.help, (name, action.help)
+            if described.choices:
+                assert tuple(action.choices) == described.choices, name
+            else:
+                assert described.range_text() in action.help, (name, action.help)
+            if action.default is not None and default is not None:
+                assert action.default == default, name
+    assert checked >= 4
+
+
+def test_validate_takes_every_setting_of_the_validation():
+    found = options(validate.parser())
+    missing = [name for name in settings_of(ValidationSettings) if name not in found]
+    assert not missing, missing
+    assert {'resolution_m', 'min_duration_s', 'draws', 'nominal'} <= set(found)
+
+
+def test_the_gap_option_says_the_shared_range():
+    action = options(validate.parser())['gap_s']
+    assert GAP_S.range_text() in action.help
+
+
+def test_the_ros_docs_give_each_parameter_its_range():
+    text = (REPO / 'docs' / 'ros.md').read_text()
+    for node, specs in node_specs().items():
+        section = text[text.index(f'Parameters of `{node}`'):]
+        section = section[:section.index('\n\n', section.index('| --- |'))]
+        for spec in specs():
+            if spec.choices or not spec.range_text():
+                continue
+            row = re.search(rf'^\| `{re.escape(spec.name)}` \| [^|]* \| ([^|]*) \|', section,
+                            re.MULTILINE)
+            assert row is not None, (node, spec.name)
+            assert row.group(1).strip() == spec.range_text(), (node, spec.name)
+
+
+@pytest.mark.parametrize('name', ['rho', 'epsilon', 'delta', 'gamma'])
+def test_a_probability_excludes_both_ends_everywhere(name):
+    described = settings_of(ValidationSettings)[name][1]
+    assert described.range_text() == '(0, 1)'
+    for end in (0.0, 1.0):
+        with pytest.raises(ParameterError, match=rf'{name} must lie in \(0, 1\)'):
+            ValidationSettings(**{name: end})
+    spec = next(spec for spec in node_specs()['validator']() if spec.name == name)
+    assert spec.check(1.0) == f'{name} = 1.0 is outside (0, 1)'
+    assert spec.check(0.999) is None
+    assert 'ends excluded' in comment(spec) or '(0, 1)' in comment(spec)
+
+
+def test_a_descriptor_is_closed_and_says_its_ends_are_excluded():
+    pytest.importorskip('rcl_interfaces')
+    spec = next(spec for spec in node_specs()['validator']() if spec.name == 'rho')
+    descriptor = spec.descriptor()
+    bounds = descriptor.floating_point_range[0]
+    assert (bounds.from_value, bounds.to_value) == (0.0, 1.0)
+    assert 'ends excluded' in descriptor.additional_constraints
+    seed = next(spec for spec in node_specs()['validator']() if spec.name == 'seed')
+    assert seed.descriptor().integer_range[0].from_value == 0
