@@ -112,7 +112,7 @@ def validator_specs() -> list[ParamSpec]:
     """List every parameter but `bags` (declared apart: an empty list has no type)."""
     from octoroach_model.model import DRAWS
     from octoroach_model.recordings import DEFAULT_GAP_S
-    from octoroach_model.recordings.axes import FORWARD_AXES, UP_AXES
+    from octoroach_model.recordings.conventions.axes import FORWARD_AXES, UP_AXES
     from octoroach_model.validation import ValidationSettings
 
     d = ValidationSettings()
