@@ -148,7 +148,7 @@ def _write(kind: str, bag: Path, n_runs: int, n_samples: int,
 
 def _convert(source: str, tiny: str, folder: str, result: multiprocessing.Queue) -> None:
     """Child process: convert `tiny` (warm-up), then `source`; send (seconds, RSS growth)."""
-    from octoroach_model.recordings.convert import convert_to_bag
+    from octoroach_model.recordings.standard_bag.from_inputs import convert_to_bag
 
     convert_to_bag([tiny], Path(folder) / 'tiny_out')
     baseline = _peak_rss_mb()

@@ -104,7 +104,7 @@ def session(runs: int, new_runs: int, listener: Listener, folder: Path, term: st
             size: float) -> dict[str, Any]:
     """Grow a bag to `runs` runs, start the validator on it, then add runs one at a time."""
     import octoroach_model as om
-    from octoroach_model.recordings.pose_writer import PoseBagWriter
+    from octoroach_model.recordings.standard_bag.pose_writer import PoseBagWriter
     from octoroach_model.studies.terms import term_values
 
     effects = {term: term_values(term, size, {}, 5.0)}

@@ -30,10 +30,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from octoroach_model.recordings.c3d_file import iter_c3d_pose_chunks  # noqa: E402
+from octoroach_model.recordings.mocap.c3d_file import iter_c3d_pose_chunks  # noqa: E402
+from octoroach_model.recordings.mocap.vicon_csv import iter_csv_pose_chunks  # noqa: E402
 from octoroach_model.recordings.options import ReadOptions  # noqa: E402
-from octoroach_model.recordings.runs import _StreamSplitter, RunSet  # noqa: E402
-from octoroach_model.recordings.vicon_csv import iter_csv_pose_chunks  # noqa: E402
+from octoroach_model.recordings.runs.run_set import _StreamSplitter, RunSet  # noqa: E402
 
 RATE_HZ = 50
 PAUSE_FRAMES = 50  # 1 s untracked between trials

@@ -3,9 +3,9 @@ Measure how fast a bag is read: poses a second, decoded in blocks against messag
 
 Reads the reference bag (`bags/reference`, 500 runs, 125,500 TransformStamped poses and 500
 run markers; or `--bag`) both ways in the same process: with the pose messages decoded in
-blocks over whole MCAP chunks (`recordings.pose_blocks`, the default) and with every message
-decoded by rosbags' CDR deserializer (`bags.BLOCK_DECODING = False`, the path before). Three
-stages, each from the bag on:
+blocks over whole MCAP chunks (`recordings.bagio.pose_blocks`, the default) and with every
+message decoded by rosbags' CDR deserializer (`bag_streams.BLOCK_DECODING = False`, the path
+before). Three stages, each from the bag on:
 
 - pose streams: the bag's poses as every program gets them (`iter_pose_samples`: decoded,
   turned to the z-up world, headings, the clock chosen);
@@ -40,13 +40,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import octoroach_model as om  # noqa: E402
-from octoroach_model.recordings import bags  # noqa: E402
 from octoroach_model.recordings import (  # noqa: E402
     iter_pose_samples,
     load_measured,
     read_runs,
     write_paths_bag,
 )
+from octoroach_model.recordings.poses import bag_streams  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 REFERENCE = REPO / 'bags' / 'reference'
@@ -89,11 +89,11 @@ def _both_ways(work: Callable[[], Any], repeat: int) -> tuple[tuple[float, Any],
     """Time `work` with pose messages decoded in blocks, then message by message."""
     timed = []
     for blocks in (True, False):
-        bags.BLOCK_DECODING = blocks
+        bag_streams.BLOCK_DECODING = blocks
         try:
             timed.append(_cpu_seconds(work, repeat))
         finally:
-            bags.BLOCK_DECODING = True
+            bag_streams.BLOCK_DECODING = True
     return tuple(timed)
 
 

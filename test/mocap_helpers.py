@@ -16,8 +16,8 @@ import ezc3d
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from octoroach_model.recordings.bags import PoseChunk
-from octoroach_model.recordings.runs import _StreamSplitter, RunSet
+from octoroach_model.recordings.conventions.chunks import PoseChunk
+from octoroach_model.recordings.runs.run_set import _StreamSplitter, RunSet
 
 # A marker plate on the robot, metres in the body frame (x forward, z up): not symmetric, so
 # every pose is distinct, and not flat, like real markers on posts.

@@ -165,7 +165,7 @@ def test_the_exit_code_table_is_the_same_in_readme_and_in_every_program():
 
 @pytest.mark.parametrize('command', ['simulate', 'convert'])
 def test_a_bag_written_by_simulate_or_convert_is_whole_or_absent(tmp_path, monkeypatch, command):
-    from octoroach_model.recordings import pose_writer
+    from octoroach_model.recordings.standard_bag import pose_writer
 
     source = tmp_path / 'source'
     om.write_paths_bag(source, om.simulate(3, seed=1, cycles=3))

@@ -40,9 +40,15 @@ from driver_bags import named_pose_bag
 from mocap_helpers import body_rotations, write_c3d, write_vicon_csv
 import octoroach_model as om
 from octoroach_model.errors import BagError
-from octoroach_model.recordings import BagReader, read_runs, save_dataset, write_paths_bag
-from octoroach_model.recordings.repair import repair_bag
-from octoroach_model.recordings.sources import bag_files, expand_sources
+from octoroach_model.recordings import (
+    bag_files,
+    BagReader,
+    expand_sources,
+    read_runs,
+    save_dataset,
+    write_paths_bag,
+)
+from octoroach_model.recordings.bagio.repair import repair_bag
 from trajectory_writers import (
     planar_pose,
     write_euroc,

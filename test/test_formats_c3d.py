@@ -20,14 +20,14 @@ import octoroach_model as om
 from octoroach_model.errors import BagError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import read_runs, write_paths_bag
-from octoroach_model.recordings.axes import headings_from_rotations
-from octoroach_model.recordings.c3d_file import iter_c3d_pose_chunks
-from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.recordings.rigid import (
+from octoroach_model.recordings.conventions.axes import headings_from_rotations
+from octoroach_model.recordings.mocap.c3d_file import iter_c3d_pose_chunks
+from octoroach_model.recordings.mocap.rigid import (
     fit_rigid,
     layout_from_frames,
     layout_spans_a_plane,
 )
+from octoroach_model.recordings.options import ReadOptions
 
 RATE_HZ = 50.0
 SEED = 21

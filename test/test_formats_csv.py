@@ -18,8 +18,8 @@ import octoroach_model as om
 from octoroach_model.errors import BagError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import read_runs, write_paths_bag
+from octoroach_model.recordings.mocap.vicon_csv import iter_csv_pose_chunks, read_csv_sections
 from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.recordings.vicon_csv import iter_csv_pose_chunks, read_csv_sections
 
 RATE_HZ = 50.0
 SEED = 12

@@ -19,8 +19,8 @@ from octoroach_model import recordings, simulate  # noqa: E402
 from octoroach_model.nodes import recorder as recorder_node  # noqa: E402
 from octoroach_model.nodes import replay as replay_node  # noqa: E402
 from octoroach_model.nodes.simulator import RunSettings, simulator_specs  # noqa: E402
-from octoroach_model.recordings.reader import BagReader  # noqa: E402
-from octoroach_model.recordings.recording import Recording  # noqa: E402
+from octoroach_model.recordings.bagio.reader import BagReader  # noqa: E402
+from octoroach_model.recordings.bagio.recording import Recording  # noqa: E402
 from ros_helpers import call_trigger, NodeSet, wait_until  # noqa: E402
 
 # RIHS01 type hashes of Jazzy's messages (what rclpy reports for its publishers)

@@ -21,13 +21,13 @@ from octoroach_model.cli import validate_main
 from octoroach_model.errors import ParameterError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import bag_topics, read_runs, ReadOptions
-from octoroach_model.recordings.axes import (
+from octoroach_model.recordings.conventions.axes import (
     QUATERNION_NORM_TOLERANCE,
     to_z_up,
     UP_ROTATIONS,
 )
-from octoroach_model.recordings.c3d_file import iter_c3d_pose_chunks
-from octoroach_model.recordings.convert import convert_to_bag
+from octoroach_model.recordings.mocap.c3d_file import iter_c3d_pose_chunks
+from octoroach_model.recordings.standard_bag.from_inputs import convert_to_bag
 from trajectory_writers import EPOCH_S, planar_pose, write_tum
 
 TOLERANCE = 1e-6

@@ -2,7 +2,7 @@
 Pose messages decoded in blocks over whole MCAP chunks read exactly as message by message.
 
 Every bag here is read twice into pose streams: with the pose topics decoded in blocks
-(`recordings.pose_blocks`, the default) and with every message through rosbags' CDR
+(`recordings.bagio.pose_blocks`, the default) and with every message through rosbags' CDR
 deserializer. The chunks (every array bit for bit) and the notes must be the same, for the
 package's own bag, bags of other writers and types, bags whose frames change, compressed,
 cut and damaged bags, and the reference bag. Where the layout is not fixed (a sequence before
@@ -28,10 +28,10 @@ from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 import octoroach_model as om
 from octoroach_model.errors import BagError, DataError
 from octoroach_model.recordings import BagReader, ReadOptions, write_paths_bag
-from octoroach_model.recordings.bags import iter_bag_pose_chunks
-from octoroach_model.recordings.fixed_cdr import FixedLayout
-from octoroach_model.recordings.mcap_records import file_records
-from octoroach_model.recordings.pose_blocks import PoseBlock
+from octoroach_model.recordings.bagio.fixed_cdr import FixedLayout
+from octoroach_model.recordings.bagio.mcap_records import file_records
+from octoroach_model.recordings.bagio.pose_blocks import PoseBlock
+from octoroach_model.recordings.poses.bag_streams import iter_bag_pose_chunks
 
 REPO = Path(__file__).resolve().parents[1]
 START_NS = 1_700_000_000 * 10**9
@@ -256,7 +256,7 @@ def blocks_read(path: Path) -> int:
     """Count the messages of a bag's pose topics that came decoded in blocks."""
     reader = BagReader(path)
     topics = reader.topics()
-    from octoroach_model.recordings.bags import choose_streams
+    from octoroach_model.recordings.poses.bag_streams import choose_streams
 
     plan = choose_streams(reader, topics, ReadOptions())
     return sum(len(item) for item in reader.pose_messages(list(plan.pose_topics),

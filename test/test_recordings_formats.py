@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Callable
 import math
 from pathlib import Path
-import sys
 
 import numpy as np
 import pytest
@@ -33,7 +32,8 @@ from octoroach_model.recordings import (
     ReadOptions,
     write_paths_bag,
 )
-from octoroach_model.recordings.convert import convert_to_bag
+from octoroach_model.recordings.mocap import c3d_file
+from octoroach_model.recordings.standard_bag.from_inputs import convert_to_bag
 
 RATE_HZ = 50.0
 START_NS = 1_700_000_000 * 10**9
@@ -401,15 +401,19 @@ def test_every_reader_accepts_the_formats_directly(tmp_path: Path, truth: Paths)
     assert len(measured.info['inputs']) == 2
 
 
-@pytest.mark.parametrize('suffix, module, what', [
-    ('.csv', 'vicon_csv', 'Vicon CSV exports'), ('.c3d', 'c3d_file', 'C3D files')])
-def test_mocap_files_go_to_their_reader_or_say_it_is_missing(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, suffix: str, module: str,
-        what: str) -> None:
-    monkeypatch.setitem(sys.modules, f'octoroach_model.recordings.{module}', None)
-    path = tmp_path / f'take{suffix}'
+def test_mocap_files_go_to_their_reader(tmp_path: Path) -> None:
+    path = tmp_path / 'take.csv'
     path.write_text('Objects\n')
-    with pytest.raises(BagError, match=f'{what} cannot be read'):
+    with pytest.raises(BagError, match='not a Vicon CSV export header'):
+        list(iter_pose_samples(path))
+
+
+def test_c3d_files_without_the_c3d_package_say_it_is_missing(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(c3d_file, 'c3d', None)
+    path = tmp_path / 'take.c3d'
+    path.write_text('Objects\n')
+    with pytest.raises(BagError, match='C3D files cannot be read by this installation'):
         list(iter_pose_samples(path))
 
 

@@ -14,7 +14,7 @@ from octoroach_model import simulate
 from octoroach_model.cli import repair_main
 from octoroach_model.errors import OutputError
 from octoroach_model.recordings import BagReader, read_runs, write_paths_bag
-from octoroach_model.recordings.repair import repair_bag
+from octoroach_model.recordings.bagio.repair import repair_bag
 
 
 @pytest.fixture(scope='module')
@@ -177,7 +177,7 @@ def test_a_repair_killed_midway_is_run_again(whole: Path, tmp_path: Path) -> Non
 
 def test_a_repair_to_a_new_path_killed_midway_leaves_no_path_behind(
         whole: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from octoroach_model.recordings import repair
+    from octoroach_model.recordings.bagio import repair
 
     bag = killed_copy(whole, tmp_path / 'in')
 

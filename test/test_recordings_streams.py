@@ -19,7 +19,7 @@ from octoroach_model.cli import convert_main, diagnose_main, validate_main
 from octoroach_model.errors import BagError, DataError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import bag_topics, read_runs, ReadOptions
-from octoroach_model.recordings.convert import convert_to_bag
+from octoroach_model.recordings.standard_bag.from_inputs import convert_to_bag
 from octoroach_model.validation_jobs import Job, Workbench
 
 START_NS = 1_700_000_000 * 10**9

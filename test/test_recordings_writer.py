@@ -31,7 +31,7 @@ from octoroach_model.recordings import (
     replay_profile,
     write_paths_bag,
 )
-from octoroach_model.recordings.qos import dump_profiles, INFINITE_NS, load_profiles
+from octoroach_model.recordings.bagio.qos import dump_profiles, INFINITE_NS, load_profiles
 
 # RIHS01 of geometry_msgs/msg/TransformStamped, as rclpy reports it on Jazzy
 TRANSFORM_HASH = 'RIHS01_0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206'

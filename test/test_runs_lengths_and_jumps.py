@@ -14,7 +14,7 @@ import pytest
 
 import octoroach_model as om
 from octoroach_model.recordings import load_measured, write_paths_bag
-from octoroach_model.recordings.runs import JUMP_LIMIT_M, reachable
+from octoroach_model.recordings.runs.run_set import JUMP_LIMIT_M, reachable
 from octoroach_model.validation import validate_measured, ValidationSettings
 from octoroach_model.validation.validate import common_duration
 

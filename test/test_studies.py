@@ -17,7 +17,7 @@ import yaml
 
 import octoroach_model as om
 from octoroach_model.errors import DataError, ParameterError
-from octoroach_model.recordings.runs import RunSet
+from octoroach_model.recordings.runs.run_set import RunSet
 from octoroach_model.studies.damage import cut_runs_short, damage_paths, drop_frames
 from octoroach_model.studies.design import build_tasks, draw_robot, draw_signs
 from octoroach_model.studies.plan import _coarse_grid, _next_counts, fit_power_curve

@@ -140,11 +140,11 @@ def say_warnings(notes: Any) -> None:
     """
     Print the notes a user must see on stderr, as `note:` lines.
 
-    Those are runs given twice (`recordings.duplicates`) and an up axis that looks wrong
-    (`recordings.streams`); every other note is in the program's JSON or report.
+    Those are runs given twice (`recordings.runs.duplicates`) and an up axis that looks wrong
+    (`recordings.poses.streams`); every other note is in the program's JSON or report.
     """
-    from octoroach_model.recordings.duplicates import REPEATED_RUNS
-    from octoroach_model.recordings.streams import UP_AXIS_NOTE
+    from octoroach_model.recordings.runs.duplicates import REPEATED_RUNS
+    from octoroach_model.recordings.poses.streams import UP_AXIS_NOTE
 
     for note in notes:
         if REPEATED_RUNS in note or UP_AXIS_NOTE in note:

@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     """Convert, optionally save the data set, print a JSON summary."""
     from octoroach_model.errors import ParameterError
     from octoroach_model.recordings import load_measured, save_dataset
-    from octoroach_model.recordings.convert import convert_to_bag
+    from octoroach_model.recordings.standard_bag.from_inputs import convert_to_bag
 
     new_output(args.out, '--out')
     if args.dataset is not None:

@@ -26,7 +26,7 @@ def parser() -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     """Repair and print what was kept."""
     from octoroach_model.errors import BagError
-    from octoroach_model.recordings.repair import repair_bag
+    from octoroach_model.recordings.bagio.repair import repair_bag
 
     if not args.bag.exists():
         raise BagError(f'{args.bag}: no such bag (directory or .mcap file)')

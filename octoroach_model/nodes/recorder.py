@@ -98,21 +98,25 @@ def default_output() -> str:
 
 def qos_profile_of(profile: Any) -> Any:
     """Turn an rclpy QoSProfile (as discovery reports it) into the bag's QosProfile."""
-    from octoroach_model.recordings.qos import (
+    from octoroach_model.recordings.bagio.qos import (
+        Durability,
         DURABILITY,
+        History,
         HISTORY,
+        Liveliness,
         LIVELINESS,
         QosProfile,
+        Reliability,
         RELIABILITY,
     )
 
     return QosProfile(
-        history=HISTORY.get(int(profile.history), 'unknown'), depth=int(profile.depth),
-        reliability=RELIABILITY.get(int(profile.reliability), 'unknown'),
-        durability=DURABILITY.get(int(profile.durability), 'unknown'),
+        history=HISTORY.get(int(profile.history), History.UNKNOWN), depth=int(profile.depth),
+        reliability=RELIABILITY.get(int(profile.reliability), Reliability.UNKNOWN),
+        durability=DURABILITY.get(int(profile.durability), Durability.UNKNOWN),
         deadline_ns=int(profile.deadline.nanoseconds),
         lifespan_ns=int(profile.lifespan.nanoseconds),
-        liveliness=LIVELINESS.get(int(profile.liveliness), 'unknown'),
+        liveliness=LIVELINESS.get(int(profile.liveliness), Liveliness.UNKNOWN),
         liveliness_lease_duration_ns=int(profile.liveliness_lease_duration.nanoseconds),
         avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions))
 
@@ -184,7 +188,7 @@ class Recorder(Node):
         values = declare_parameters(self, self._specs)
         self.add_on_set_parameters_callback(set_parameters_callback(self, self._specs))
         self._patterns = [self._resolve(topic) for topic in values['topics']]
-        from octoroach_model.recordings.recording import Recording, REORDER_WINDOW_S
+        from octoroach_model.recordings.bagio.recording import Recording, REORDER_WINDOW_S
 
         output = Path(values['output'] or default_output())
         self._own_dataset: FileIdentity | None = None   # the file this recorder wrote

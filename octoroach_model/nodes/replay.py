@@ -87,12 +87,14 @@ def rclpy_qos(profile: Any) -> Any:
     """Turn the bag layer's QosProfile (keep_last, reliability, durability) into rclpy's."""
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+    from octoroach_model.recordings.bagio.qos import Durability, Reliability
+
     return QoSProfile(
         depth=int(profile.depth),
-        reliability=ReliabilityPolicy.BEST_EFFORT if profile.reliability == 'best_effort'
-        else ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if profile.durability == 'transient_local'
-        else DurabilityPolicy.VOLATILE)
+        reliability=ReliabilityPolicy.BEST_EFFORT
+        if profile.reliability is Reliability.BEST_EFFORT else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL
+        if profile.durability is Durability.TRANSIENT_LOCAL else DurabilityPolicy.VOLATILE)
 
 
 try:  # the node class needs rclpy; --help does not
@@ -126,13 +128,14 @@ class Replay(Node):
     def _make_publishers(self, values: dict[str, Any]) -> dict[str, Any]:
         """One publisher per recorded topic of a known type, with its recorded QoS."""
         from octoroach_model.recordings import BagReader, QosOverride, replay_profile
+        from octoroach_model.recordings.bagio.bag_files import Storage
 
         reader = BagReader(self._source)
-        if reader.storage == 'ros1':
+        if reader.storage is Storage.ROS1:
             raise BagError(f'{self._source}: a ROS 1 bag; `convert` it to a rosbag2 bag first')
         topics = reader.topics()
-        override = QosOverride(str(values['reliability']), str(values['durability']),
-                               int(values['qos_depth']))
+        override = QosOverride.of_names(str(values['reliability']), str(values['durability']),
+                                        int(values['qos_depth']))
         publishers: dict[str, Any] = {}
         self.qos: dict[str, Any] = {}
         for topic, info in sorted(topics.items()):

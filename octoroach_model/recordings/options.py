@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from octoroach_model.errors import ParameterError
-from octoroach_model.recordings.axes import forward_angle_rad, FORWARD_AXES, UP_AXES
+from octoroach_model.recordings.conventions.axes import forward_angle_rad, FORWARD_AXES, UP_AXES
 from octoroach_model.settings import Setting, setting
 
 # Settings of reading that programs and nodes share (`settings`: one source for each)

@@ -19,24 +19,27 @@ from enum import Enum
 import os
 from pathlib import Path
 import re
-from typing import NamedTuple, Union
+from typing import Union
 
 from octoroach_model.errors import BagError
 from octoroach_model.limits import MAX_FOLDER_DEPTH
-from octoroach_model.recordings.safe_yaml import load_yaml_file
+from octoroach_model.recordings.bagio.bag_files import (
+    is_bag_directory,
+    METADATA_FILE,
+    PathLike,
+    ROS1_SUFFIX,
+    ROS2_SUFFIXES,
+)
+from octoroach_model.recordings.mocap.tables import detect_table
 
-PathLike = Union[str, 'os.PathLike[str]']
 Sources = Union[PathLike, Iterable[PathLike]]
 
-ROS2_SUFFIXES = ('.mcap', '.db3')
-ROS1_SUFFIX = '.bag'
 MOCAP_SUFFIXES = ('.csv', '.c3d', '.tsv')
 # text files that are read in a folder only when their content is a format read here
 TEXT_SUFFIXES = ('.txt',)
 POSE_INPUT_SUFFIXES = (*ROS2_SUFFIXES, ROS1_SUFFIX, *MOCAP_SUFFIXES, *TEXT_SUFFIXES)
 DATASET_SUFFIX = '.npz'
 MEASURED_SUFFIXES = (*POSE_INPUT_SUFFIXES, DATASET_SUFFIX)
-METADATA_FILE = 'metadata.yaml'
 # What the package reads, for the error an unknown file gets (docs/formats.md has the table)
 READ_FORMATS = (
     'rosbag2 bags (MCAP or sqlite3 folders, .mcap files)', 'ROS 1 .bag files',
@@ -60,25 +63,6 @@ class InputKind(Enum):
     TABLE = 'trajectory table'
     DATASET = 'multisample data set'
     UNKNOWN = 'none of the formats read here'
-
-
-class BagFiles(NamedTuple):
-    """The storage files of one rosbag2 source, in recording order, and what was odd."""
-
-    name: str
-    storage: str  # 'mcap' or 'sqlite3'
-    files: tuple[Path, ...]
-    notes: tuple[str, ...]
-    directory: Path | None  # the bag directory; None for a bare .mcap file
-    custom_data: dict[str, str] | None = None  # metadata.yaml's custom_data
-
-
-def is_bag_directory(path: Path) -> bool:
-    """Tell a rosbag2 directory: metadata.yaml, or storage files named after it."""
-    if (path / METADATA_FILE).is_file():
-        return True
-    files = [p for p in path.iterdir() if p.is_file() and p.suffix in ROS2_SUFFIXES]
-    return bool(files) and all(p.name.startswith(path.name) for p in files)
 
 
 def expand_sources(sources: Sources, *,
@@ -230,8 +214,6 @@ def text_kind(text: str, cut: bool = False) -> InputKind:
     cells = [cell.strip() for cell in re.split('[,;\t]', first)]
     if cells[0] in VICON_SECTIONS and not any(cells[1:]):
         return InputKind.VICON_CSV
-    from octoroach_model.recordings.tables import detect_table
-
     if detect_table(lines) is not None:
         return InputKind.TABLE
     return InputKind.UNKNOWN
@@ -246,77 +228,3 @@ def unknown_input_message(path: Path) -> str:
     what = 'an empty file' if size == 0 else 'its first bytes fit none of its formats'
     return f'{path}: not a file this package reads ({what}); it reads ' + \
         '; '.join(READ_FORMATS) + ' (docs/formats.md)'
-
-
-def bag_files(source: PathLike) -> BagFiles:
-    """List the storage files of a rosbag2 bag directory (or file), metadata.yaml first."""
-    path = Path(source)
-    if not path.exists():
-        raise BagError(f'{path}: no such file or directory')
-    if path.is_file():
-        storage = 'sqlite3' if path.suffix == '.db3' else 'mcap'
-        return BagFiles(str(path), storage, (path,), (), None)
-    notes: list[str] = []
-    listed = _files_in_metadata(path, notes)
-    if listed is not None:
-        return BagFiles(str(path), listed[0], tuple(listed[1]), tuple(notes), path, listed[2])
-    found = sorted(p for p in path.glob('*.mcap') if p.is_file())
-    if not found:
-        if any(path.glob('*.db3')):
-            raise BagError(f'{path}: sqlite3 bag without metadata.yaml; recreate it with '
-                           '`ros2 bag reindex` first')
-        raise BagError(f'{path}: empty directory (no metadata.yaml and no .mcap file)')
-    if not (path / METADATA_FILE).exists():
-        notes.append(f'{path}: no metadata.yaml (recorder not closed?); read '
-                     f'{len(found)} .mcap file(s) directly; `repair` makes the bag complete')
-    return BagFiles(str(path), 'mcap', tuple(found), tuple(notes), path)
-
-
-def _inside(directory: Path, name: str) -> bool:
-    """Tell a relative_file_paths entry that stays inside `directory` (links resolved)."""
-    if not name or Path(name).is_absolute():
-        return False
-    try:
-        return (directory / name).resolve().is_relative_to(directory.resolve())
-    except (OSError, RuntimeError, ValueError):
-        return False
-
-
-def _files_in_metadata(path: Path, notes: list[str]
-                       ) -> tuple[str, list[Path], dict[str, str] | None] | None:
-    """(storage, files, custom data) of metadata.yaml, or None when missing or useless."""
-    metadata_path = path / METADATA_FILE
-    if not metadata_path.is_file():
-        return None
-    try:
-        info = load_yaml_file(metadata_path)['rosbag2_bagfile_information']
-        storage = str(info.get('storage_identifier') or 'mcap')
-        relative = [str(name) for name in info.get('relative_file_paths') or []]
-        custom = info.get('custom_data')
-        custom = {str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) \
-            else None
-    except BagError as exc:
-        notes.append(f'{exc}; read the .mcap files directly')
-        return None
-    except (KeyError, TypeError, AttributeError) as exc:
-        notes.append(f'{metadata_path}: unreadable ({type(exc).__name__}); '
-                     'read the .mcap files directly')
-        return None
-    if storage not in ('mcap', 'sqlite3'):
-        raise BagError(f'{path}: storage {storage!r} is not supported, only mcap and sqlite3')
-    outside = [name for name in relative if not _inside(path, name)]
-    if outside:
-        raise BagError(f'{metadata_path}: relative_file_paths names a file outside the bag '
-                       f'directory ({outside[0]!r}); only files inside it are read')
-    files = [path / name for name in relative]
-    present = [p for p in files if p.is_file()]
-    if len(present) < len(files):
-        missing = ', '.join(p.name for p in files if not p.is_file())
-        notes.append(f'{path}: files listed in metadata.yaml are missing: {missing}')
-    compressed = [p.name for p in present if p.suffix not in ROS2_SUFFIXES]
-    if compressed:
-        raise BagError(f'{path}: file-compressed bags are not supported ({compressed[0]}); '
-                       'decompress them with `ros2 bag convert` first')
-    if not present:
-        return None if storage == 'mcap' else (storage, [], custom)
-    return storage, present, custom

@@ -72,7 +72,7 @@ class LooksSpec:
 def load_looks(path: str | Path) -> LooksSpec:
     """Read a looks spec: a study spec with a `looks:` mapping (every, planned_runs, questions)."""
     from octoroach_model.diagnosis.causes import CANDIDATES
-    from octoroach_model.recordings.safe_yaml import load_yaml_file
+    from octoroach_model.recordings.bagio.safe_yaml import load_yaml_file
 
     path = Path(path)
     data = load_yaml_file(path)

@@ -1,8 +1,8 @@
 """
 What the motion-capture file readers share: units, subject names, markers, pose chunks.
 
-The Vicon CSV reader (`vicon_csv.py`), the C3D reader (`c3d_file.py`), the Qualisys TSV
-reader (`qualisys.py`) and the trajectory tables (`tables.py`) turn frames of a capture into
+The Vicon CSV reader (`vicon_csv`), the C3D reader (`c3d_file`), the Qualisys TSV
+reader (`qualisys`) and the trajectory tables (`tables`) turn frames of a capture into
 `PoseChunk` streams. This module holds the facts they have in common:
 
 - units: lengths in mm, cm or m and angles in deg or rad, converted to SI;
@@ -22,21 +22,26 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from octoroach_model.errors import BagError
 from octoroach_model.limits import MAX_BODY_MARKERS, MAX_CSV_LINE
-from octoroach_model.recordings.axes import axes_words, headings_from_rotations, to_z_up
-from octoroach_model.recordings.chunks import PoseChunk
-from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.recordings.rigid import (
+from octoroach_model.recordings.conventions.axes import (
+    axes_words,
+    headings_from_rotations,
+    to_z_up,
+)
+from octoroach_model.recordings.conventions.chunks import PoseChunk
+from octoroach_model.recordings.mocap.rigid import (
     fit_rigid,
     layout_from_frames,
     layout_spans_a_plane,
     MIN_MARKERS,
 )
+from octoroach_model.recordings.options import ReadOptions
 
 # Unit words as motion-capture exports write them, and their value in SI units.
 LENGTH_UNITS = {'mm': 1e-3, 'millimeters': 1e-3, 'millimetres': 1e-3, 'cm': 1e-2, 'm': 1.0,
@@ -54,6 +59,15 @@ RIGIDITY_FRAMES = 20
 # marker counts as not seen, so no arithmetic on it overflows.
 MAX_COORDINATE_M = 1e4
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class PoseInput:
+    """What a file reader is made for: the file, how to find the pose in it, where notes go."""
+
+    path: Path
+    options: ReadOptions
+    notes: list[str]
 
 
 def text_lines(stream: Any, where: str, what: str) -> Iterator[str]:

@@ -32,9 +32,9 @@ import yaml
 
 from octoroach_model.errors import BagError, DataError, OutputError
 from octoroach_model.fileio import is_empty_directory, write_text_atomic
-from octoroach_model.recordings.msgtypes import standard_definition, TypeDefinition
-from octoroach_model.recordings.qos import dump_profiles, load_profiles, QosProfile
-from octoroach_model.recordings.sources import METADATA_FILE, PathLike
+from octoroach_model.recordings.bagio.bag_files import METADATA_FILE, PathLike, Storage
+from octoroach_model.recordings.bagio.msgtypes import standard_definition, TypeDefinition
+from octoroach_model.recordings.bagio.qos import dump_profiles, load_profiles, QosProfile
 
 ROS_DISTRO = 'jazzy'
 METADATA_VERSION = 9
@@ -66,7 +66,7 @@ class FileRecord:
 
 
 def metadata_document(files: Sequence[FileRecord], topics: Sequence[TopicRecord], *,
-                      storage: str = 'mcap',
+                      storage: Storage = Storage.MCAP,
                       custom_data: Mapping[str, str] | None = None) -> dict[str, Any]:
     """Build metadata.yaml's content (inside ``rosbag2_bagfile_information``), Jazzy's form."""
     counted = [record for record in files if record.message_count]
@@ -74,7 +74,7 @@ def metadata_document(files: Sequence[FileRecord], topics: Sequence[TopicRecord]
     end = max((record.start_ns + record.duration_ns for record in counted), default=0)
     return {
         'version': METADATA_VERSION,
-        'storage_identifier': storage,
+        'storage_identifier': storage.value,
         'duration': {'nanoseconds': max(0, end - start)},
         'starting_time': {'nanoseconds_since_epoch': start},
         'message_count': sum(record.message_count for record in files),

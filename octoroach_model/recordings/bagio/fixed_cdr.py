@@ -22,7 +22,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from rosbags.interfaces import Nodetype
 
-from octoroach_model.recordings.pose_messages import PoseLayout
+from octoroach_model.recordings.bagio.pose_messages import PoseLayout
 
 # An MCAP message record: opcode (1), record length (8), channel id (2), sequence (4), log
 # time (8), publish time (8), then the message's bytes

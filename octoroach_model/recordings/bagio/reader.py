@@ -33,13 +33,13 @@ from mcap.stream_reader import breakup_chunk, CRCValidationError
 
 from octoroach_model.errors import BagError
 from octoroach_model.limits import MAX_CHUNK_BYTES, size_words
-from octoroach_model.recordings.mcap_records import file_records
-from octoroach_model.recordings.msgtypes import BagTypes
-from octoroach_model.recordings.pose_blocks import BlockSplitter, PoseBlock, WantedChannel
-from octoroach_model.recordings.pose_messages import PoseLayout
-from octoroach_model.recordings.qos import load_profiles, QosProfile
-from octoroach_model.recordings.ros1 import Ros1Bag
-from octoroach_model.recordings.sources import bag_files, PathLike, ROS1_SUFFIX
+from octoroach_model.recordings.bagio.bag_files import bag_files, PathLike, ROS1_SUFFIX, Storage
+from octoroach_model.recordings.bagio.mcap_records import file_records
+from octoroach_model.recordings.bagio.msgtypes import BagTypes
+from octoroach_model.recordings.bagio.pose_blocks import BlockSplitter, PoseBlock, WantedChannel
+from octoroach_model.recordings.bagio.pose_messages import PoseLayout
+from octoroach_model.recordings.bagio.qos import load_profiles, QosProfile
+from octoroach_model.recordings.bagio.ros1 import Ros1Bag
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Connection
@@ -286,7 +286,7 @@ class BagReader:
         self._channel_index: dict[tuple[int, int], int] = {}
         self._topics: dict[str, TopicInfo] | None = None
         if self.path.is_file() and is_ros1_bag(self.path):
-            self.storage = 'ros1'
+            self.storage: Storage = Storage.ROS1
             self.files: tuple[Path, ...] = (self.path,)
             self.directory: Path | None = None
         else:
@@ -297,7 +297,7 @@ class BagReader:
             if cut:
                 self.truncated = True
                 self.notes.append(f'{self.name}: repaired after a truncation ({cut})')
-            if self.storage == 'sqlite3' and self.directory is None:
+            if self.storage is Storage.SQLITE3 and self.directory is None:
                 raise BagError(f'{self.path}: a .db3 file is read through its bag directory '
                                '(the folder with metadata.yaml)')
         self.types = BagTypes()
@@ -309,7 +309,7 @@ class BagReader:
     def topics(self) -> dict[str, TopicInfo]:
         """Topic name -> TopicInfo over all files (MCAP summary, or a walk when damaged)."""
         if self._topics is None:
-            self._topics = (self._mcap_topics() if self.storage == 'mcap'
+            self._topics = (self._mcap_topics() if self.storage is Storage.MCAP
                             else self._rosbags_topics())
         return self._topics
 
@@ -372,7 +372,7 @@ class BagReader:
 
     def messages(self, topics: Collection[str] | None = None) -> Iterator[BagMessage]:
         """Messages of `topics` (None: all), MCAP in file order, others in time order."""
-        if self.storage == 'mcap':
+        if self.storage is Storage.MCAP:
             for item in self._mcap_messages(topics, {}):
                 assert isinstance(item, BagMessage)  # no blocks without layouts
                 yield item
@@ -388,7 +388,7 @@ class BagReader:
         come as one `PoseBlock`, already decoded; every other message comes as from
         `messages`. Other storages give their messages one by one.
         """
-        if self.storage == 'mcap':
+        if self.storage is Storage.MCAP:
             yield from self._mcap_messages(topics, layouts)
         else:
             yield from self._rosbags_messages(topics)
@@ -471,9 +471,9 @@ class BagReader:
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import get_typestore, Stores
 
-        default = get_typestore(Stores.ROS1_NOETIC if self.storage == 'ros1'
+        default = get_typestore(Stores.ROS1_NOETIC if self.storage is Storage.ROS1
                                 else Stores.ROS2_JAZZY)
-        target = self.path if self.storage == 'ros1' else self.directory
+        target = self.path if self.storage is Storage.ROS1 else self.directory
         assert target is not None  # __init__ refused a sqlite3 bag without its directory
         return AnyReader([Path(target)], default_typestore=default)
 
@@ -485,12 +485,12 @@ class BagReader:
 
         try:
             with self._any_reader() as reader:
-                self._rosbags_types = (reader.typestore, self.storage == 'ros1')
+                self._rosbags_types = (reader.typestore, self.storage is Storage.ROS1)
                 return work(reader)
         except (AnyReaderError, Ros1Error, Ros2Error, OSError) as error:
             reason = str(error) or type(error).__name__
             hint = ('; `rosbag reindex` repairs an unindexed ROS 1 bag'
-                    if 'index' in reason.lower() and self.storage == 'ros1' else '')
+                    if 'index' in reason.lower() and self.storage is Storage.ROS1 else '')
             raise BagError(f'{self.name}: cannot read the bag: {reason}{hint}') from None
 
     def _ros1_types(self, connections: list[Any]) -> Any:
@@ -534,7 +534,7 @@ class BagReader:
                                  data, selected[connection.id])
 
     def _rosbags_topics(self) -> dict[str, TopicInfo]:
-        if self.storage == 'ros1':
+        if self.storage is Storage.ROS1:
             return self._ros1_topics()
 
         def listing(reader: Any) -> dict[str, TopicInfo]:
@@ -550,7 +550,7 @@ class BagReader:
         key = (-1, connection.id)
         if key not in self._channel_index:
             fmt = getattr(connection.msgdef.format, 'name', 'NONE')
-            encoding = {'MSG': 'ros1msg' if self.storage == 'ros1' else 'ros2msg',
+            encoding = {'MSG': 'ros1msg' if self.storage is Storage.ROS1 else 'ros2msg',
                         'IDL': 'ros2idl'}.get(fmt, '')
             serialization = getattr(connection.ext, 'serialization_format', 'ros1')
             self._channel(-1, key[1], ChannelInfo(
@@ -563,13 +563,13 @@ class BagReader:
         from rosbags.rosbag1 import ReaderError as Ros1Error
         from rosbags.rosbag2 import ReaderError as Ros2Error
 
-        if self.storage == 'ros1':
+        if self.storage is Storage.ROS1:
             yield from self._ros1_messages(topics)
             return
         wanted = None if topics is None else set(topics)
         try:
             with self._any_reader() as reader:
-                self._rosbags_types = (reader.typestore, self.storage == 'ros1')
+                self._rosbags_types = (reader.typestore, self.storage is Storage.ROS1)
                 selected = [c for c in reader.connections if wanted is None or c.topic in wanted]
                 indexes = {id(c): self._connection_channel(c) for c in selected}
                 if not selected:

@@ -3,7 +3,7 @@ The record every reader yields: a block of consecutive samples of one pose strea
 
 Readers (bags, motion-capture files, trajectory tables) turn their input into `PoseChunk`s;
 `streams.watch_streams` looks at each stream as it passes (clock, axes, rate), and the run
-splitter and `convert` consume them. Positions are already in the z-up world (`axes`).
+splitter and `from_inputs` consume them. Positions are already in the z-up world (`axes`).
 """
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+
+DEFAULT_CHUNK_SIZE = 10_000  # samples per chunk
 
 
 class PoseChunk(NamedTuple):

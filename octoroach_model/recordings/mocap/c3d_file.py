@@ -12,7 +12,7 @@ converted in bounded memory (one chunk of frames at a time). The mapping (docs/f
   labels belong to the only name in SUBJECTS:NAMES, if there is one. The body is
   `ReadOptions.markers` if given (``Subject:Marker`` or bare names), else every marker of the
   subject (`ReadOptions.subject`, or the only subject); it needs 3, moving as one rigid body
-  (`mocap.MarkerBody`).
+  (`shared.MarkerBody`).
 - Units: POINT:UNITS (mm, cm or m) converted to metres; no unit means mm, with a note.
 - Gaps: a point with a negative residual (or NaN) was not seen. A frame is fitted on the
   body markers it has; with fewer than 3 (or all on one line) it is a dropped frame.
@@ -32,12 +32,11 @@ from contextlib import contextmanager
 from pathlib import Path
 import warnings
 
-import c3d
 import numpy as np
 
 from octoroach_model.errors import BagError
-from octoroach_model.recordings.bags import PoseChunk
-from octoroach_model.recordings.mocap import (
+from octoroach_model.recordings.conventions.chunks import PoseChunk
+from octoroach_model.recordings.mocap.shared import (
     axis_words,
     check_rate,
     complete_frames,
@@ -47,6 +46,7 @@ from octoroach_model.recordings.mocap import (
     length_words,
     MarkerBody,
     pose_chunk,
+    PoseInput,
     select_body_markers,
     split_label,
     stamps_ns,
@@ -54,7 +54,12 @@ from octoroach_model.recordings.mocap import (
 )
 from octoroach_model.recordings.options import ReadOptions
 
-__all__ = ['iter_c3d_pose_chunks']
+try:
+    import c3d
+except ImportError:  # not in package.xml: a ROS install may lack it, and then only C3D fails
+    c3d = None
+
+__all__ = ['C3dReader', 'iter_c3d_pose_chunks']
 
 MODEL_OUTPUT_PARAMETERS = ('ANGLES', 'FORCES', 'MOMENTS', 'POWERS', 'SCALARS', 'REACTIONS')
 # Points a model computed from the markers (Nexus' Plug-in Gait joint centres, segment
@@ -133,6 +138,14 @@ def _layout_rows(where: str, layout: Mapping[str, Sequence[float]],
     return np.array(rows)
 
 
+class C3dReader(PoseInput):
+    """A C3D file's pose streams (`iter_c3d_pose_chunks`), for `POSE_READERS`."""
+
+    def pose_chunks(self, chunk_size: int) -> Iterator[PoseChunk]:
+        """Yield the file's pose streams, chunk by chunk."""
+        return iter_c3d_pose_chunks(self.path, self.options, self.notes, chunk_size)
+
+
 def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
                          chunk_size: int = 10_000, *,
                          layout: Mapping[str, Sequence[float]] | None = None,
@@ -145,6 +158,9 @@ def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
     chunk whose `is_last` is True. What was converted, dropped or assumed goes to `notes`.
     Raises BagError with a one-line reason for a file that cannot be read or is ambiguous.
     """
+    if c3d is None:
+        raise BagError('C3D files cannot be read by this installation (the c3d package is '
+                       'missing: pip install c3d)')
     path = Path(path)
     where = str(path)
     chunk_size = max(1, int(chunk_size))

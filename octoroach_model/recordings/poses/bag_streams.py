@@ -1,14 +1,5 @@
 """
-Pose streams from any input: ROS 2 and ROS 1 bags here, files by their readers.
-
-`iter_pose_samples` turns each source into pose streams, delivered chunk by chunk
-(`PoseChunk`), never holding an input in memory. Inputs (`sources.input_kind`):
-
-- rosbag2 bags (MCAP or sqlite3) and ROS 1 bags, read by `reader.BagReader`;
-- Vicon CSV exports, C3D files, Qualisys TSV exports and trajectory tables (TUM, EuRoC/ASL,
-  CSV with a header), read by `vicon_csv`, `c3d_file`, `qualisys` and `tables`.
-
-Every source's chunks pass `streams.watch_streams` (the clock, the up axis, the density).
+Pose streams of ROS 2 and ROS 1 bags: which streams are the robot, and their samples.
 
 Which streams of a bag are the robot: `choose_streams`, the one place that decides, for every
 program. In order:
@@ -37,22 +28,18 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
-import importlib
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from octoroach_model.errors import BagError, ParameterError
-from octoroach_model.recordings.axes import axes_words, Orientations, to_z_up
-from octoroach_model.recordings.chunks import PoseChunk
-from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.recordings.pose_blocks import PoseBlock
-from octoroach_model.recordings.pose_messages import (
+from octoroach_model.errors import BagError
+from octoroach_model.recordings.bagio.bag_files import PathLike, Storage
+from octoroach_model.recordings.bagio.pose_blocks import PoseBlock
+from octoroach_model.recordings.bagio.pose_messages import (
     frame_getter,
     full_pose_getter,
-    FullPose,
     list_layout,
     ListKind,
     ListLayout,
@@ -61,17 +48,17 @@ from octoroach_model.recordings.pose_messages import (
     PoseLayout,
     stamp_getter,
 )
-from octoroach_model.recordings.reader import BagMessage, BagReader, describe_topics, TopicInfo
-from octoroach_model.recordings.sources import (
-    expand_sources,
-    input_kind,
-    InputKind,
-    PathLike,
-    Sources,
-    unknown_input_message,
+from octoroach_model.recordings.bagio.reader import (
+    BagMessage,
+    BagReader,
+    describe_topics,
+    TopicInfo,
 )
-from octoroach_model.recordings.streams import Progress, ReadProgress, watch_streams
-from octoroach_model.recordings.vicon import (
+from octoroach_model.recordings.conventions import quaternions
+from octoroach_model.recordings.conventions.axes import axes_words, Orientations, to_z_up
+from octoroach_model.recordings.conventions.chunks import DEFAULT_CHUNK_SIZE, PoseChunk
+from octoroach_model.recordings.conventions.quaternions import FullPose
+from octoroach_model.recordings.conventions.topics import (
     DEFAULT_POSE_TOPIC,
     marker_topic,
     MARKER_TYPE,
@@ -80,12 +67,10 @@ from octoroach_model.recordings.vicon import (
     subject_of,
     TRANSFORM_STAMPED,
 )
+from octoroach_model.recordings.options import ReadOptions
 
-__all__ = ['DEFAULT_CHUNK_SIZE', 'PoseChunk', 'PoseStream', 'bag_topics', 'choose_streams',
-           'iter_bag_pose_chunks', 'iter_pose_samples', 'iter_source_pose_chunks',
-           'read_options']
+__all__ = ['BagPoseReader', 'PoseStream', 'choose_streams', 'iter_bag_pose_chunks']
 
-DEFAULT_CHUNK_SIZE = 10_000
 # Whether pose topics of MCAP bags are decoded in blocks (`pose_blocks`); False reads every
 # message through rosbags' deserializer, as before, to the same chunks
 # (benchmarks/bench_reading.py compares the two)
@@ -98,83 +83,21 @@ MOVING_RAD = 1e-3
 # not lower it)
 RATE_INTERVALS = 4096
 _PLAIN_TYPES = (TRANSFORM_STAMPED, POSE_STAMPED)
-Quaternion = tuple[float, float, float, float]  # qx, qy, qz, qw
-# The reader of each kind of file: module, function, what the format is called
-_FILE_READERS = {
-    InputKind.VICON_CSV: ('vicon_csv', 'iter_csv_pose_chunks', 'Vicon CSV exports'),
-    InputKind.C3D: ('c3d_file', 'iter_c3d_pose_chunks', 'C3D files'),
-    InputKind.QUALISYS_TSV: ('qualisys', 'iter_tsv_pose_chunks', 'Qualisys TSV exports'),
-    InputKind.TABLE: ('tables', 'iter_table_pose_chunks', 'trajectory tables'),
-}
 # The most candidates an error lists
 _LISTED = 12
 
 
-def read_options(options: ReadOptions | None = None, topic: str | None = None) -> ReadOptions:
-    """`options`, with `topic` (the older keyword) filled in; both naming topics must agree."""
-    if options is None:
-        return ReadOptions(topic=topic)
-    if topic is not None and options.topic not in (None, topic):
-        raise ParameterError(f'two pose topics given: {topic} and {options.topic}')
-    if topic is not None and options.topic is None:
-        return replace(options, topic=topic)
-    return options
+@dataclass(frozen=True)
+class BagPoseReader:
+    """A bag's pose streams (`iter_bag_pose_chunks`), for `POSE_READERS`."""
 
+    path: Path
+    options: ReadOptions
+    notes: list[str]
 
-def iter_pose_samples(sources: Sources, *, topic: str | None = None,
-                      notes: list[str] | None = None, chunk_size: int = DEFAULT_CHUNK_SIZE,
-                      options: ReadOptions | None = None, gap_s: float | None = None,
-                      progress: Progress | None = None) -> Iterator[PoseChunk]:
-    """
-    Pose samples of every source, chunk by chunk, without holding an input in memory.
-
-    `sources`: bags, motion-capture files, trajectory tables, or folders of them. Which
-    stream: see the module docstring. Every stream ends with one chunk whose `is_last` is
-    True. What was converted, skipped or damaged is appended to `notes` in plain words. With
-    `gap_s`, a stream too sparse to form runs is refused; `progress(fraction, message)` hears
-    how far the reading has got.
-    """
-    notes = notes if notes is not None else []
-    options = read_options(options, topic)
-    paths = expand_sources(sources)
-    tracker = ReadProgress(progress, paths)
-    for index, path in enumerate(paths):
-        yield from tracker.follow(index, path, iter_source_pose_chunks(
-            path, options, notes, max(1, int(chunk_size)), gap_s=gap_s))
-
-
-def iter_source_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
-                            chunk_size: int = DEFAULT_CHUNK_SIZE, *,
-                            gap_s: float | None = None) -> Iterator[PoseChunk]:
-    """Yield the pose streams of one source, by its kind, through `streams.watch_streams`."""
-    kind = input_kind(path)
-    if kind is InputKind.DATASET:
-        raise BagError(f'{path}: a multisample data set holds runs, not pose streams '
-                       '(load_measured reads it)')
-    if kind is InputKind.UNKNOWN:
-        raise BagError(unknown_input_message(path))
-    if kind is InputKind.BAG:
-        chunks = iter_bag_pose_chunks(path, options, notes, chunk_size)
-    else:
-        reader = _file_reader(*_FILE_READERS[kind])
-        chunks = reader(path, options, notes, chunk_size)
-    yield from watch_streams(chunks, options, notes, from_files=kind is not InputKind.BAG,
-                             gap_s=gap_s)
-
-
-def _file_reader(module: str, function: str, what: str) -> Callable[..., Iterator[PoseChunk]]:
-    """Import the reader of a file format when first needed."""
-    try:
-        return getattr(importlib.import_module(f'octoroach_model.recordings.{module}'),
-                       function)
-    except (ImportError, AttributeError):
-        raise BagError(f'{what} cannot be read by this installation (module '
-                       f'octoroach_model.recordings.{module} is missing)') from None
-
-
-def bag_topics(source: PathLike) -> dict[str, TopicInfo]:
-    """Topics of a bag (directory, .mcap or .bag file): type, count, recorded QoS."""
-    return BagReader(source).topics()
+    def pose_chunks(self, chunk_size: int) -> Iterator[PoseChunk]:
+        """Yield the bag's pose streams, chunk by chunk."""
+        return iter_bag_pose_chunks(self.path, self.options, self.notes, chunk_size)
 
 
 # --------------------------------------------------------------------------------------------
@@ -374,11 +297,11 @@ class _Seen:
     rate: _Rate = field(default_factory=_Rate)
     low: list[float] = field(default_factory=lambda: [math.inf] * 3)
     high: list[float] = field(default_factory=lambda: [-math.inf] * 3)
-    first_q: Quaternion | None = None
+    first_q: quaternions.Quaternion | None = None
     turned_rad: float = 0.0
 
     def add(self, stamp_ns: int, position: tuple[float, float, float],
-            q: Quaternion) -> None:
+            q: quaternions.Quaternion) -> None:
         self.count += 1
         self.rate.add(stamp_ns)
         for axis, value in enumerate(position):
@@ -386,14 +309,14 @@ class _Seen:
                 self.low[axis] = value
             if value > self.high[axis]:
                 self.high[axis] = value
-        norm = math.sqrt(sum(c * c for c in q))
+        norm = quaternions.norm(q)
         if not (math.isfinite(norm) and norm > 0):
             return
         if self.first_q is None:
             self.first_q = (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm)
             return
-        dot = abs(sum(a * b for a, b in zip(self.first_q, q))) / norm
-        self.turned_rad = max(self.turned_rad, 2.0 * math.acos(min(1.0, dot)))
+        self.turned_rad = max(self.turned_rad,
+                              quaternions.angle_between_rad(self.first_q, q, norm))
 
     @property
     def moves(self) -> bool:
@@ -501,31 +424,11 @@ def _static_chain(frame: str, static: dict[str, tuple[str, FullPose]],
         if current not in static:
             return None
         parent, link = static[current]
-        pose = _compose(link, pose)
+        pose = quaternions.compose(link, pose)
         if parent in moving:
             return parent, pose
         current = parent
     return None
-
-
-def _quaternion_product(a: Quaternion, b: Quaternion) -> Quaternion:
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
-
-
-def _rotate(q: Quaternion, v: tuple[float, float, float]) -> tuple[float, float, float]:
-    x, y, z, _ = _quaternion_product(_quaternion_product(q, (*v, 0.0)),
-                                     (-q[0], -q[1], -q[2], q[3]))
-    return x, y, z
-
-
-def _compose(outer: FullPose, inner: FullPose) -> FullPose:
-    """Pose `inner` (in the frame of `outer`) expressed in the parent of `outer`."""
-    moved = _rotate(outer[3:], inner[:3])
-    return (outer[0] + moved[0], outer[1] + moved[1], outer[2] + moved[2],
-            *_quaternion_product(outer[3:], inner[3:]))
 
 
 def _marker_topics(name: str, topics: dict[str, TopicInfo], subjects: dict[str, str | None],
@@ -639,7 +542,7 @@ def iter_bag_pose_chunks(path: PathLike, options: ReadOptions, notes: list[str],
     topics = reader.topics()
     name = reader.name
     if not topics:
-        if reader.storage == 'mcap':
+        if reader.storage is Storage.MCAP:
             raise BagError(f'{name}: truncated MCAP, cut before any topic was recorded')
         raise BagError(f'{name}: the bag has no topics')
     plan = choose_streams(reader, topics, options)
@@ -663,7 +566,7 @@ def iter_bag_pose_chunks(path: PathLike, options: ReadOptions, notes: list[str],
     if len(subjects) > 1:
         notes.append(f'{name}: {len(subjects)} pose streams, read as {len(subjects)} robots '
                      f'(VICON subjects): {", ".join(sorted(subjects))}')
-    if reader.storage == 'ros1':
+    if reader.storage is Storage.ROS1:
         notes.append(f'{name}: ROS 1 bag (rosbag format 2.0), read with rosbags')
     if options.forward_axis != 'x' or options.up_axis != 'z':
         notes.append(f'{name}: forward axis {options.forward_axis}, up axis '
@@ -786,7 +689,8 @@ def _list_handler(choices: list[_ListChoice], buffers: dict[str, _Buffer]) -> Ha
                     message_stamp = outer(decoded)
                 stamp = message_stamp
             if choice.static is not None:
-                x, y, z, qx, qy, qz, qw = _compose((x, y, z, qx, qy, qz, qw), choice.static)
+                x, y, z, qx, qy, qz, qw = quaternions.compose(
+                    (x, y, z, qx, qy, qz, qw), choice.static)
             counter.sequence += 1
             counter.samples += 1
             buffer.integers += (counter.sequence, stamp or message.log_time_ns,

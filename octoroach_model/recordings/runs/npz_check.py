@@ -19,7 +19,12 @@ import numpy as np
 
 from octoroach_model.errors import DataError
 from octoroach_model.limits import (
-    MAX_DATASET_BYTES, MAX_DATASET_EXPANSION, MAX_DATASET_INFO_BYTES, MIB, size_words)
+    MAX_DATASET_BYTES,
+    MAX_DATASET_EXPANSION,
+    MAX_DATASET_INFO_BYTES,
+    MIB,
+    size_words,
+)
 
 __all__ = ['check_arrays']
 

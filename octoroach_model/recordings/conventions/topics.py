@@ -1,5 +1,5 @@
 """
-The VICON convention of the package: topic and frame names, message types, heading.
+The VICON convention of the package: topic and frame names, message types.
 
 - pose topic of subject S: ``/vicon/S/S``, `geometry_msgs/msg/TransformStamped` (PoseStamped
   is read too), header frame ``vicon/world``, child frame ``vicon/S/S``; metres; the child
@@ -9,8 +9,6 @@ The VICON convention of the package: topic and frame names, message types, headi
 """
 from __future__ import annotations
 
-import numpy as np
-from numpy.typing import ArrayLike
 
 DEFAULT_SUBJECT = 'octoroach'
 DEFAULT_POSE_TOPIC = '/vicon/octoroach/octoroach'
@@ -48,33 +46,3 @@ def subject_of(name: str) -> str | None:
     if len(parts) == 3 and parts[0] == 'vicon' and parts[1] == parts[2] and parts[1]:
         return parts[1]
     return None
-
-
-def heading_to_quaternion(heading: np.ndarray) -> tuple[np.ndarray, ...]:
-    """(x, y, z, w) of the unit quaternion that turns the world frame by `heading` about z."""
-    half = 0.5 * np.asarray(heading, dtype=float)
-    zeros = np.zeros_like(half)
-    with np.errstate(invalid='ignore'):  # a non-finite heading gives a NaN quaternion
-        return zeros, zeros.copy(), np.sin(half), np.cos(half)
-
-
-def quaternion_to_heading(qx: ArrayLike, qy: ArrayLike, qz: ArrayLike,
-                          qw: ArrayLike) -> np.ndarray:
-    """
-    Yaw in (-pi, pi] of any quaternion; non-unit ones are normalised first.
-
-    A zero or non-finite quaternion gives NaN, so that sample is dropped downstream.
-    """
-    x, y, z, w = (np.asarray(q, dtype=float) for q in (qx, qy, qz, qw))
-    with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
-        norm = np.sqrt(x * x + y * y + z * z + w * w)
-        usable = np.isfinite(norm) & (norm > 0.0)
-        norm = np.where(usable, norm, 1.0)
-        x, y, z, w = x / norm, y / norm, z / norm, w / norm
-        yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return np.where(usable, yaw, np.nan)
-
-
-def wrap_angle(angle: np.ndarray) -> np.ndarray:
-    """Angles folded into (-pi, pi]."""
-    return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)

@@ -26,9 +26,9 @@ from mcap.records import Channel, Chunk, Message, Schema
 from mcap.stream_reader import breakup_chunk
 import numpy as np
 
-from octoroach_model.recordings.fixed_cdr import DATA_AT, FixedLayout, PoseArrays, Unfixed
-from octoroach_model.recordings.mcap_records import chunk_segments, MessageRun
-from octoroach_model.recordings.pose_messages import pose_getter, PoseLayout, Sample
+from octoroach_model.recordings.bagio.fixed_cdr import DATA_AT, FixedLayout, PoseArrays, Unfixed
+from octoroach_model.recordings.bagio.mcap_records import chunk_segments, MessageRun
+from octoroach_model.recordings.bagio.pose_messages import pose_getter, PoseLayout, Sample
 
 # Messages checked against rosbags in each chunk, per layout: first, last and this many more
 SAMPLE_RANDOM = 3

@@ -29,6 +29,8 @@ from typing import Any, Callable, NamedTuple
 
 from rosbags.interfaces import Nodetype
 
+from octoroach_model.recordings.conventions.quaternions import FullPose
+
 POSITION_TYPES = frozenset({'geometry_msgs/msg/Point', 'geometry_msgs/msg/Vector3',
                             'geometry_msgs/msg/Point32'})
 ORIENTATION_TYPE = 'geometry_msgs/msg/Quaternion'
@@ -162,7 +164,6 @@ def list_layout(msgtype: str, fielddefs: FieldDefs) -> ListLayout | None:
 
 # stamp ns, x, y, z, qx, qy, qz, qw
 Sample = tuple[int, float, float, float, float, float, float, float]
-FullPose = tuple[float, float, float, float, float, float, float]  # x, y, z, qx, qy, qz, qw
 
 
 def stamp_getter(path: str) -> Callable[[Any], int]:

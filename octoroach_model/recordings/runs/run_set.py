@@ -33,17 +33,13 @@ import numpy as np
 
 from octoroach_model.errors import DataError
 from octoroach_model.paths import HEADING, Paths
-from octoroach_model.recordings.bags import (
-    expand_sources,
-    iter_pose_samples,
-    PoseChunk,
-    Sources,
-)
-from octoroach_model.recordings.dataset import is_dataset_file, load_dataset
-from octoroach_model.recordings.duplicates import repeated_runs_note
+from octoroach_model.recordings.conventions.chunks import PoseChunk
 from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.recordings.sources import MEASURED_SUFFIXES
-from octoroach_model.recordings.streams import median_of_five, Progress
+from octoroach_model.recordings.poses.readers import iter_pose_samples
+from octoroach_model.recordings.poses.streams import median_of_five, Progress
+from octoroach_model.recordings.runs.dataset import is_dataset_file, load_dataset
+from octoroach_model.recordings.runs.duplicates import repeated_runs_note
+from octoroach_model.recordings.sources import expand_sources, MEASURED_SUFFIXES, Sources
 
 DEFAULT_GAP_S = 0.5
 DEFAULT_RATE_HZ = 50.0

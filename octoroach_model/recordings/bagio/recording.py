@@ -13,10 +13,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from octoroach_model.recordings.msgtypes import standard_definition
-from octoroach_model.recordings.qos import QosProfile
-from octoroach_model.recordings.sources import PathLike
-from octoroach_model.recordings.writer import BagWriter
+from octoroach_model.recordings.bagio.bag_files import PathLike
+from octoroach_model.recordings.bagio.msgtypes import standard_definition
+from octoroach_model.recordings.bagio.qos import QosProfile
+from octoroach_model.recordings.bagio.writer import BagWriter
 
 REORDER_WINDOW_S = 0.2
 

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from octoroach_model.recordings.rigid import rotation_from_quaternion
+from octoroach_model.recordings.conventions.quaternions import lengths, rotation_from_quaternion
 
 # The axes an option may name, as unit vectors of the frame they belong to.
 AXIS_VECTORS: dict[str, tuple[float, float, float]] = {
@@ -104,8 +104,7 @@ class Orientations:
                             forward_axis: str) -> np.ndarray:
         """(n,) headings of (n, 4) quaternions x, y, z, w; NaN (counted) where not a rotation."""
         q = np.asarray(xyzw, dtype=float).reshape(-1, 4)
-        with np.errstate(invalid='ignore', over='ignore'):
-            norm = np.sqrt((q * q).sum(axis=1))
+        norm = lengths(q)
         finite = np.isfinite(norm)
         zero = finite & (norm == 0.0)
         unit = finite & (np.abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE)
@@ -165,3 +164,8 @@ def forward_angle_rad(forward_axis: str) -> float:
     if z:
         raise ValueError(f'forward axis {forward_axis} is not in the body x-y plane')
     return math.atan2(y, x)
+
+
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Angles folded into (-pi, pi]."""
+    return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)

@@ -25,7 +25,7 @@ then one row per frame.
 
 3D: the body is `ReadOptions.markers` or every marker, trajectories of type ``Virtual``
 (computed from a 6DOF body, not measured) left out unless named; its pose is the rigid fit of
-`mocap.MarkerBody`. 6D: the body is `ReadOptions.subject`, or the only one. Time: frame f at
+`shared.MarkerBody`. 6D: the body is `ReadOptions.subject`, or the only one. Time: frame f at
 FREQUENCY r is (f - first frame) / r; with ``EXT``, the Time column. The world is turned to z
 up (`ReadOptions.up_axis`; QTM's default is z up). One file is one stream (``tsv:<name>``).
 """
@@ -40,9 +40,9 @@ import re
 import numpy as np
 
 from octoroach_model.errors import BagError
-from octoroach_model.recordings.axes import Orientations, to_z_up
-from octoroach_model.recordings.chunks import PoseChunk
-from octoroach_model.recordings.mocap import (
+from octoroach_model.recordings.conventions.axes import Orientations, to_z_up
+from octoroach_model.recordings.conventions.chunks import PoseChunk
+from octoroach_model.recordings.mocap.shared import (
     axis_words,
     check_rate,
     choose_subject,
@@ -51,6 +51,7 @@ from octoroach_model.recordings.mocap import (
     LAYOUT_FRAMES,
     MarkerBody,
     pose_chunk,
+    PoseInput,
     seen_markers,
     select_body_markers,
     stamps_ns,
@@ -59,7 +60,7 @@ from octoroach_model.recordings.mocap import (
 )
 from octoroach_model.recordings.options import ReadOptions
 
-__all__ = ['TsvHeader', 'iter_tsv_pose_chunks', 'read_tsv_header']
+__all__ = ['QualisysTsvReader', 'TsvHeader', 'iter_tsv_pose_chunks', 'read_tsv_header']
 
 MM = 1e-3
 MAX_FRAME = 1 << 40  # frame numbers beyond this are damage (a year at 10 kHz is 2**38)
@@ -127,6 +128,14 @@ def _rate(where: str, header: TsvHeader) -> float | None:
         return check_rate(float(text), f'{where}: FREQUENCY')
     except ValueError:
         raise BagError(f'{where}: FREQUENCY must be a number of Hz or EXT') from None
+
+
+class QualisysTsvReader(PoseInput):
+    """A Qualisys TSV export's pose streams (`iter_tsv_pose_chunks`), for `POSE_READERS`."""
+
+    def pose_chunks(self, chunk_size: int) -> Iterator[PoseChunk]:
+        """Yield the file's pose streams, chunk by chunk."""
+        return iter_tsv_pose_chunks(self.path, self.options, self.notes, chunk_size)
 
 
 def iter_tsv_pose_chunks(path: Path, options: ReadOptions, notes: list[str],

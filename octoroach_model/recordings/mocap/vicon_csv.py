@@ -40,9 +40,14 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from octoroach_model.errors import BagError
-from octoroach_model.recordings.axes import headings_from_rotations, Orientations, to_z_up
-from octoroach_model.recordings.chunks import PoseChunk
-from octoroach_model.recordings.mocap import (
+from octoroach_model.recordings.conventions.axes import (
+    headings_from_rotations,
+    Orientations,
+    to_z_up,
+)
+from octoroach_model.recordings.conventions.chunks import PoseChunk
+from octoroach_model.recordings.mocap.rigid import rotation_from_euler_xyz, rotation_from_helical
+from octoroach_model.recordings.mocap.shared import (
     ANGLE_UNITS,
     axis_words,
     check_rate,
@@ -53,6 +58,7 @@ from octoroach_model.recordings.mocap import (
     length_words,
     MarkerBody,
     pose_chunk,
+    PoseInput,
     seen_markers,
     select_body_markers,
     split_label,
@@ -62,9 +68,8 @@ from octoroach_model.recordings.mocap import (
     unit_scale,
 )
 from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.recordings.rigid import rotation_from_euler_xyz, rotation_from_helical
 
-__all__ = ['CsvSection', 'iter_csv_pose_chunks', 'read_csv_sections']
+__all__ = ['ViconCsvReader', 'CsvSection', 'iter_csv_pose_chunks', 'read_csv_sections']
 
 POSE_SECTIONS = ('Objects', 'Segments')
 MARKER_SECTION = 'Trajectories'
@@ -229,6 +234,14 @@ def _is_pose_group(group: _Group) -> bool:
 
 def _is_marker_group(group: _Group) -> bool:
     return {'X', 'Y', 'Z'} <= set(group.columns)
+
+
+class ViconCsvReader(PoseInput):
+    """A Vicon CSV export's pose streams (`iter_csv_pose_chunks`), for `POSE_READERS`."""
+
+    def pose_chunks(self, chunk_size: int) -> Iterator[PoseChunk]:
+        """Yield the file's pose streams, chunk by chunk."""
+        return iter_csv_pose_chunks(self.path, self.options, self.notes, chunk_size)
 
 
 def iter_csv_pose_chunks(path: Path, options: ReadOptions, notes: list[str],

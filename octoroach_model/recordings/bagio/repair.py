@@ -26,12 +26,18 @@ from mcap.records import Channel, Message, Schema
 
 from octoroach_model.errors import BagError, OutputError
 from octoroach_model.fileio import atomic_directory, PARTIAL_SUFFIX
-from octoroach_model.recordings.qos import load_profiles
-from octoroach_model.recordings.reader import FileDamage, iter_mcap_records, TRUNCATION_KEY
-from octoroach_model.recordings.safe_yaml import load_yaml_file
-from octoroach_model.recordings.sources import (
-    bag_files, BagFiles, METADATA_FILE, PathLike, ROS1_SUFFIX)
-from octoroach_model.recordings.writer import (
+from octoroach_model.recordings.bagio.bag_files import (
+    bag_files,
+    BagFiles,
+    METADATA_FILE,
+    PathLike,
+    ROS1_SUFFIX,
+    Storage,
+)
+from octoroach_model.recordings.bagio.qos import load_profiles
+from octoroach_model.recordings.bagio.reader import FileDamage, iter_mcap_records, TRUNCATION_KEY
+from octoroach_model.recordings.bagio.safe_yaml import load_yaml_file
+from octoroach_model.recordings.bagio.writer import (
     FileRecord,
     McapFileWriter,
     metadata_document,
@@ -83,7 +89,7 @@ def repair_bag(source: PathLike, out: PathLike | None = None) -> RepairReport:
     if out is None and path.is_dir():
         _undo_killed_repair(path, undone)   # a repair killed here: start from the bag as it was
     bag = bag_files(path)
-    if bag.storage != 'mcap':
+    if bag.storage is not Storage.MCAP:
         raise BagError(f'{path}: a {bag.storage} bag; `ros2 bag reindex` repairs those')
     notes = list(bag.notes) + undone
     in_place = out is None and bag.directory is not None

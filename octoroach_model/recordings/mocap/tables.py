@@ -37,21 +37,26 @@ import re
 import numpy as np
 
 from octoroach_model.errors import BagError
-from octoroach_model.recordings.axes import forward_angle_rad, Orientations, to_z_up
-from octoroach_model.recordings.chunks import PoseChunk
-from octoroach_model.recordings.mocap import (
+from octoroach_model.recordings.conventions.axes import (
+    forward_angle_rad,
+    Orientations,
+    to_z_up,
+    wrap_angle,
+)
+from octoroach_model.recordings.conventions.chunks import PoseChunk
+from octoroach_model.recordings.mocap.shared import (
     ANGLE_UNITS,
     axis_words,
     last_chunk,
     LENGTH_UNITS,
     pose_chunk,
+    PoseInput,
     stream_fraction,
     text_lines,
 )
 from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.recordings.vicon import wrap_angle
 
-__all__ = ['COLUMN_NAMES', 'TableLayout', 'detect_table', 'iter_table_pose_chunks']
+__all__ = ['TableReader', 'COLUMN_NAMES', 'TableLayout', 'detect_table', 'iter_table_pose_chunks']
 
 # The names a column may have (compared in lower case, the unit taken off), by role
 COLUMN_NAMES: dict[str, tuple[str, ...]] = {
@@ -259,6 +264,14 @@ def _describe(layout: TableLayout, used: int) -> str:
     return (f'{layout.dialect} separated by {delimiter}: time {names["t"]} in '
             f'{layout.time_unit}, position {position} in {layout.length_unit}, '
             f'{orientation}' + (f'; {ignored} other column(s) ignored' if ignored > 0 else ''))
+
+
+class TableReader(PoseInput):
+    """A trajectory table's pose streams (`iter_table_pose_chunks`), for `POSE_READERS`."""
+
+    def pose_chunks(self, chunk_size: int) -> Iterator[PoseChunk]:
+        """Yield the file's pose streams, chunk by chunk."""
+        return iter_table_pose_chunks(self.path, self.options, self.notes, chunk_size)
 
 
 def iter_table_pose_chunks(path: Path, options: ReadOptions, notes: list[str],

@@ -3,9 +3,9 @@ Rigid bodies in motion capture: rotations as Vicon writes them, and the pose fro
 
 Pure numpy, vectorised over frames, for the Vicon CSV and C3D readers:
 
-- `rotation_from_helical`, `rotation_from_euler_xyz`, `rotation_from_quaternion`: the three
-  ways a Vicon export states an object's orientation, as (n, 3, 3) rotation matrices that
-  turn body coordinates into world coordinates;
+- `rotation_from_helical`, `rotation_from_euler_xyz` (and `quaternions.rotation_from_quaternion`):
+  the three ways a Vicon export states an object's orientation, as (n, 3, 3) rotation matrices
+  that turn body coordinates into world coordinates;
 - `fit_rigid`: the least-squares rotation and translation that carry a body's reference
   marker layout onto the markers seen in each frame (Kabsch / Umeyama without scale), with
   missing markers left out frame by frame;
@@ -19,6 +19,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+
 
 MIN_MARKERS = 3
 # The markers seen in a frame must span a plane: the second singular value of their centred
@@ -88,19 +89,6 @@ def rotation_from_euler_xyz(angles_rad: np.ndarray) -> np.ndarray:
     angles = np.asarray(angles_rad, dtype=float).reshape(-1, 3)
     return (_axis_rotation(angles[:, 0], 0) @ _axis_rotation(angles[:, 1], 1)
             @ _axis_rotation(angles[:, 2], 2))
-
-
-def rotation_from_quaternion(xyzw: np.ndarray) -> np.ndarray:
-    """Rotations of quaternions (x, y, z, w), normalised first; a zero one gives NaN."""
-    q = np.asarray(xyzw, dtype=float).reshape(-1, 4)
-    with np.errstate(invalid='ignore', divide='ignore'):
-        q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    x, y, z, w = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
 
 
 def fit_rigid(layout: np.ndarray, markers: np.ndarray) -> RigidFit:

@@ -26,7 +26,7 @@ from octoroach_model.errors import DataError, OutputError
 from octoroach_model.fileio import atomic_file
 from octoroach_model.jsonio import jsonable
 from octoroach_model.paths import Paths
-from octoroach_model.recordings.npz_check import check_arrays
+from octoroach_model.recordings.runs.npz_check import check_arrays
 
 FORMAT_NAME = 'octoroach_model.dataset'
 FORMAT_VERSION = 1

@@ -16,25 +16,25 @@ import numpy as np
 
 from octoroach_model.errors import BagError, DataError
 from octoroach_model.paths import HEADING, Paths, X, Y
-from octoroach_model.recordings.msgtypes import jazzy_types
-from octoroach_model.recordings.qos import QosProfile
-from octoroach_model.recordings.sources import PathLike
-from octoroach_model.recordings.vicon import (
+from octoroach_model.recordings.bagio.bag_files import PathLike
+from octoroach_model.recordings.bagio.msgtypes import jazzy_types
+from octoroach_model.recordings.bagio.qos import History, QosProfile
+from octoroach_model.recordings.bagio.writer import BagWriter
+from octoroach_model.recordings.conventions.quaternions import heading_to_quaternion
+from octoroach_model.recordings.conventions.topics import (
     DEFAULT_CHILD_FRAME,
     DEFAULT_MARKER_TOPIC,
     DEFAULT_POSE_TOPIC,
     DEFAULT_START_TIME_NS,
     DEFAULT_WORLD_FRAME,
-    heading_to_quaternion,
     MARKER_TYPE,
     POSE_TYPES,
     TRANSFORM_STAMPED,
 )
-from octoroach_model.recordings.writer import BagWriter
 
 # The simulator's publishers as a recorder sees them over DDS discovery (which does not carry
 # history or depth): reliable, volatile, default (infinite) durations.
-RECORDED_VICON_QOS = QosProfile(history='unknown', depth=0)
+RECORDED_VICON_QOS = QosProfile(history=History.UNKNOWN, depth=0)
 
 
 @dataclass

@@ -1,5 +1,5 @@
 """
-Convert: any pose input into the package's standard bag.
+Any pose input rewritten as the package's standard bag (`convert_to_bag`).
 
 The standard bag is what `simulate` writes: `TransformStamped` on ``/vicon/S/S`` (frame
 ``vicon/world`` -> ``vicon/S/S``, metres, the heading as the yaw of a unit quaternion) with a
@@ -7,7 +7,7 @@ The standard bag is what `simulate` writes: `TransformStamped` on ``/vicon/S/S``
 stream is copied as it is (stamps, log times, arrival order; non-finite poses are dropped); the
 input's own run markers are kept, and where it has none a marker is put wherever a run starts
 by the reader's rule (the first sample, and every jump in the stamps longer than `gap_s`).
-Which streams an input holds is decided as for every other program (`bags.choose_streams`);
+Which streams an input holds is decided as for every other program (`bag_streams.choose_streams`);
 a bag of several robots (VICON subjects ``/vicon/S/S``) is written as several subjects, each
 on its own topic. Poses come in the z-up world, so the bag is z up (REP 103). Conversion
 streams: one chunk of samples at a time is in memory.
@@ -24,12 +24,9 @@ import numpy as np
 
 from octoroach_model.errors import BagError, DataError, OutputError
 from octoroach_model.fileio import atomic_directory
-from octoroach_model.recordings.bags import DEFAULT_CHUNK_SIZE, iter_source_pose_chunks, PoseChunk
-from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.recordings.pose_writer import PoseBagWriter
-from octoroach_model.recordings.sources import expand_sources, PathLike
-from octoroach_model.recordings.streams import Progress, ReadProgress
-from octoroach_model.recordings.vicon import (
+from octoroach_model.recordings.bagio.bag_files import PathLike
+from octoroach_model.recordings.conventions.chunks import DEFAULT_CHUNK_SIZE, PoseChunk
+from octoroach_model.recordings.conventions.topics import (
     child_frame,
     DEFAULT_SUBJECT,
     DEFAULT_WORLD_FRAME,
@@ -37,8 +34,13 @@ from octoroach_model.recordings.vicon import (
     pose_topic,
     subject_of,
 )
+from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.recordings.poses.readers import iter_source_pose_chunks
+from octoroach_model.recordings.poses.streams import Progress, ReadProgress
+from octoroach_model.recordings.sources import expand_sources
+from octoroach_model.recordings.standard_bag.pose_writer import PoseBagWriter
 
-DEFAULT_GAP_S = 0.5  # as the run splitter's default (runs.DEFAULT_GAP_S)
+DEFAULT_GAP_S = 0.5  # as the run splitter's default (run_set.DEFAULT_GAP_S)
 
 
 class ConvertReport(NamedTuple):

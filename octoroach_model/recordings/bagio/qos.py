@@ -9,12 +9,14 @@ MCAP channel's metadata (the same list as YAML text). Jazzy writes policies by n
 before) and Foxy-era "infinite" values such as ``{sec: 2147483647, nsec: 4294967295}``; both are
 read and normalised here, as rosbag2 does.
 
-Plain data only (no rclpy): the nodes turn a `QosProfile` into an rclpy one.
+Plain data only (no rclpy): the nodes turn a `QosProfile` into an rclpy one. Policies are
+enums whose values are rosbag2's names, so that YAML and JSON carry the names as before.
 """
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
+from enum import StrEnum
 from typing import Any
 
 import yaml
@@ -26,32 +28,81 @@ INFINITE_NS = 2**63 - 1  # RMW_DURATION_INFINITE
 # (Cyclone's Foxy value equals RMW_DURATION_INFINITE already.)
 _FOXY_INFINITE = {(2**31 - 1, 2**32 - 1), (2**31 - 1, 2**31 - 1)}
 
-# rmw's numbering (rclpy's enums share it) -> the names rosbag2 writes since version 9
-HISTORY = {0: 'system_default', 1: 'keep_last', 2: 'keep_all', 3: 'unknown'}
-RELIABILITY = {0: 'system_default', 1: 'reliable', 2: 'best_effort', 3: 'unknown',
-               4: 'best_available'}
-DURABILITY = {0: 'system_default', 1: 'transient_local', 2: 'volatile', 3: 'unknown',
-              4: 'best_available'}
-LIVELINESS = {0: 'system_default', 1: 'automatic', 3: 'manual_by_topic', 4: 'unknown',
-              5: 'best_available'}
-_POLICIES = {'history': HISTORY, 'reliability': RELIABILITY, 'durability': DURABILITY,
-             'liveliness': LIVELINESS}
+
+class History(StrEnum):
+    """Which samples a publisher keeps for late readers (rosbag2's names)."""
+
+    SYSTEM_DEFAULT = 'system_default'
+    KEEP_LAST = 'keep_last'
+    KEEP_ALL = 'keep_all'
+    UNKNOWN = 'unknown'
+
+
+class Reliability(StrEnum):
+    """Whether every sample is delivered (rosbag2's names)."""
+
+    SYSTEM_DEFAULT = 'system_default'
+    RELIABLE = 'reliable'
+    BEST_EFFORT = 'best_effort'
+    UNKNOWN = 'unknown'
+    BEST_AVAILABLE = 'best_available'
+
+
+class Durability(StrEnum):
+    """Whether late subscribers get samples published before they joined (rosbag2's names)."""
+
+    SYSTEM_DEFAULT = 'system_default'
+    TRANSIENT_LOCAL = 'transient_local'
+    VOLATILE = 'volatile'
+    UNKNOWN = 'unknown'
+    BEST_AVAILABLE = 'best_available'
+
+
+class Liveliness(StrEnum):
+    """How a publisher shows it is alive (rosbag2's names)."""
+
+    SYSTEM_DEFAULT = 'system_default'
+    AUTOMATIC = 'automatic'
+    MANUAL_BY_TOPIC = 'manual_by_topic'
+    UNKNOWN = 'unknown'
+    BEST_AVAILABLE = 'best_available'
+
+
+# rmw's numbering (rclpy's enums share it) -> the policies rosbag2 names since version 9
+HISTORY = {0: History.SYSTEM_DEFAULT, 1: History.KEEP_LAST, 2: History.KEEP_ALL,
+           3: History.UNKNOWN}
+RELIABILITY = {0: Reliability.SYSTEM_DEFAULT, 1: Reliability.RELIABLE,
+               2: Reliability.BEST_EFFORT, 3: Reliability.UNKNOWN,
+               4: Reliability.BEST_AVAILABLE}
+DURABILITY = {0: Durability.SYSTEM_DEFAULT, 1: Durability.TRANSIENT_LOCAL,
+              2: Durability.VOLATILE, 3: Durability.UNKNOWN, 4: Durability.BEST_AVAILABLE}
+LIVELINESS = {0: Liveliness.SYSTEM_DEFAULT, 1: Liveliness.AUTOMATIC,
+              3: Liveliness.MANUAL_BY_TOPIC, 4: Liveliness.UNKNOWN,
+              5: Liveliness.BEST_AVAILABLE}
+_POLICIES: dict[str, tuple[type[StrEnum], dict[int, Any]]] = {
+    'history': (History, HISTORY), 'reliability': (Reliability, RELIABILITY),
+    'durability': (Durability, DURABILITY), 'liveliness': (Liveliness, LIVELINESS)}
 _DURATIONS = ('deadline', 'lifespan', 'liveliness_lease_duration')
 
 
 @dataclass(frozen=True)
 class QosProfile:
-    """One offered QoS profile; policies by rosbag2's names, durations in ns."""
+    """One offered QoS profile; policies as enums (or their names), durations in ns."""
 
-    history: str = 'keep_last'
+    history: History = History.KEEP_LAST
     depth: int = 10
-    reliability: str = 'reliable'
-    durability: str = 'volatile'
+    reliability: Reliability = Reliability.RELIABLE
+    durability: Durability = Durability.VOLATILE
     deadline_ns: int = INFINITE_NS
     lifespan_ns: int = INFINITE_NS
-    liveliness: str = 'automatic'
+    liveliness: Liveliness = Liveliness.AUTOMATIC
     liveliness_lease_duration_ns: int = INFINITE_NS
     avoid_ros_namespace_conventions: bool = False
+
+    def __post_init__(self) -> None:
+        """Turn policies given by name into their enums (ValueError for an unknown name)."""
+        for key, (kind, _) in _POLICIES.items():
+            object.__setattr__(self, key, kind(getattr(self, key)))
 
     def to_rosbag2(self) -> dict[str, Any]:
         """Give the mapping rosbag2 Jazzy writes (metadata version 9), keys in its order."""
@@ -60,13 +111,13 @@ class QosProfile:
             return {'sec': sec, 'nsec': nsec}
 
         return {
-            'history': self.history,
+            'history': self.history.value,
             'depth': int(self.depth),
-            'reliability': self.reliability,
-            'durability': self.durability,
+            'reliability': self.reliability.value,
+            'durability': self.durability.value,
             'deadline': span(self.deadline_ns),
             'lifespan': span(self.lifespan_ns),
-            'liveliness': self.liveliness,
+            'liveliness': self.liveliness.value,
             'liveliness_lease_duration': span(self.liveliness_lease_duration_ns),
             'avoid_ros_namespace_conventions': bool(self.avoid_ros_namespace_conventions),
         }
@@ -76,10 +127,12 @@ class QosProfile:
         """Read a profile from metadata.yaml or channel metadata, of any metadata version."""
         try:
             values: dict[str, Any] = {}
-            for key, names in _POLICIES.items():
+            for key, (kind, numbers) in _POLICIES.items():
                 value = entry[key]
-                values[key] = names.get(value, 'unknown') if isinstance(value, int) \
+                name = numbers.get(value, 'unknown') if isinstance(value, int) \
                     else str(value).lower()
+                values[key] = kind(name) if name in kind.__members__.values() \
+                    else kind('unknown')
             for key in _DURATIONS:
                 sec, nsec = int(entry[key]['sec']), int(entry[key]['nsec'])
                 infinite = (sec, nsec) in _FOXY_INFINITE or sec * 10**9 + nsec >= INFINITE_NS
@@ -94,7 +147,7 @@ class QosProfile:
     @property
     def keeps_last(self) -> bool:
         """Tell whether the depth means something (history keep_last and depth > 0)."""
-        return self.history == 'keep_last' and self.depth > 0
+        return self.history is History.KEEP_LAST and self.depth > 0
 
 
 def dump_profiles(profiles: Iterable[QosProfile]) -> str:
@@ -111,7 +164,7 @@ def load_profiles(value: str | Sequence[Mapping[str, Any]] | None) -> tuple[QosP
         return ()
     entries: Any = value  # YAML text parses to anything: checked below
     if isinstance(value, str):
-        from octoroach_model.recordings.safe_yaml import load_yaml_text
+        from octoroach_model.recordings.bagio.safe_yaml import load_yaml_text
 
         entries = load_yaml_text(value, 'offered_qos_profiles')
         if not entries:
@@ -123,11 +176,17 @@ def load_profiles(value: str | Sequence[Mapping[str, Any]] | None) -> tuple[QosP
 
 @dataclass(frozen=True)
 class QosOverride:
-    """What a user forces on a replay; empty / 0 keeps what the bag recorded."""
+    """What a user forces on a replay; None / 0 keeps what the bag recorded."""
 
-    reliability: str = ''
-    durability: str = ''
+    reliability: Reliability | None = None
+    durability: Durability | None = None
     depth: int = 0
+
+    @classmethod
+    def of_names(cls, reliability: str, durability: str, depth: int) -> QosOverride:
+        """Read an override from a node's parameters: policy names, '' for as recorded."""
+        return cls(Reliability(reliability) if reliability else None,
+                   Durability(durability) if durability else None, depth)
 
 
 def replay_profile(offered: Sequence[QosProfile], override: QosOverride = QosOverride(),
@@ -145,23 +204,25 @@ def replay_profile(offered: Sequence[QosProfile], override: QosOverride = QosOve
     """
     note = ''
     if not offered:
-        chosen = QosProfile(history='keep_last', depth=fallback_depth)
+        chosen = QosProfile(history=History.KEEP_LAST, depth=fallback_depth)
         note = 'no recorded QoS: reliable, volatile'
     else:
         reliabilities = {profile.reliability for profile in offered}
         durabilities = {profile.durability for profile in offered}
-        reliability = 'best_effort' if 'best_effort' in reliabilities else 'reliable'
-        durability = 'transient_local' if durabilities == {'transient_local'} else 'volatile'
+        reliability = Reliability.BEST_EFFORT if Reliability.BEST_EFFORT in reliabilities \
+            else Reliability.RELIABLE
+        durability = Durability.TRANSIENT_LOCAL \
+            if durabilities == {Durability.TRANSIENT_LOCAL} else Durability.VOLATILE
         if len(reliabilities) > 1 or len(durabilities) > 1:
             note = (f'publishers offered {"/".join(sorted(reliabilities))} and '
                     f'{"/".join(sorted(durabilities))}: {reliability}, {durability}')
         depths = [profile.depth for profile in offered if profile.keeps_last]
         depth = max(depths) if depths else fallback_depth
-        chosen = QosProfile(history='keep_last', depth=depth, reliability=reliability,
+        chosen = QosProfile(history=History.KEEP_LAST, depth=depth, reliability=reliability,
                             durability=durability)
-    if override.reliability:
+    if override.reliability is not None:
         chosen = replace(chosen, reliability=override.reliability)
-    if override.durability:
+    if override.durability is not None:
         chosen = replace(chosen, durability=override.durability)
     if override.depth:
         chosen = replace(chosen, depth=int(override.depth))

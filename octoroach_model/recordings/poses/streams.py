@@ -35,8 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from octoroach_model.errors import DataError
-from octoroach_model.recordings.axes import input_axis_of
-from octoroach_model.recordings.chunks import PoseChunk
+from octoroach_model.recordings.conventions.axes import input_axis_of
+from octoroach_model.recordings.conventions.chunks import PoseChunk
 from octoroach_model.recordings.options import ReadOptions
 
 Progress = Callable[[float, str], None]
