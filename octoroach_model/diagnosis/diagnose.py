@@ -36,7 +36,6 @@ from octoroach_model.diagnosis.decide import decision_z, judge, SizeVerdict
 from octoroach_model.diagnosis.descriptions import describe
 from octoroach_model.diagnosis.discrepancies import (
     critical_z, discrepancies, statistic_values, STATISTICS)
-from octoroach_model.diagnosis.executors import executor_for, single_threaded
 from octoroach_model.diagnosis.features import heading_amplitudes, INDEX
 from octoroach_model.diagnosis.limits import detection_limit, Limit, limit_base
 from octoroach_model.diagnosis.misfit import locate
@@ -58,6 +57,7 @@ from octoroach_model.model import ModelParameters
 from octoroach_model.model.extensions import family_form
 from octoroach_model.paths import Paths
 from octoroach_model.validation import chernoff_sample_size, ValidationSettings
+from octoroach_model.workers import executor_for, single_threaded
 
 Progress = Callable[[float, str], None]
 MIN_RUNS = 40

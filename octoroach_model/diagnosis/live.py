@@ -241,7 +241,7 @@ def fit_held(measured: Paths, question: Question, settings: DiagnosisSettings,
     False leaves the expected t out (NaN). A plain function: a process pool runs it while
     looks go on with the previous baseline.
     """
-    from octoroach_model.diagnosis.executors import single_threaded
+    from octoroach_model.workers import single_threaded
     from octoroach_model.diagnosis.modelfit import fit_causes
 
     check_runs(measured)
@@ -294,7 +294,7 @@ def decide(measured: Paths, held: Held, question: Question, settings: DiagnosisS
     gains (PowerModel.t_values) where a look before computed them; `warm`, the extended
     model an earlier look fitted against the same baseline (`evaluate`).
     """
-    from octoroach_model.diagnosis.executors import single_threaded
+    from octoroach_model.workers import single_threaded
 
     check_runs(measured)
     cause = BY_NAME[question.term]

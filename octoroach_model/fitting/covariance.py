@@ -24,6 +24,7 @@ def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: np.ndarra
     the sway target), `mean` the fit's simulated runs (with the sway matched), `seed` that
     of the resamples.
     """
+    assert fit.jacobian is not None, 'a fit by least squares has its Jacobian'
     pseudo_inverse = np.linalg.pinv(fit.jacobian)
     sway = mean.sway
     assert sway is not None, 'the covariance is of a fit with the sway matched'
