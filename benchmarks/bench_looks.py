@@ -23,7 +23,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def main(argv: list[str] | None = None) -> int:
-    from octoroach_model.diagnosis.executors import executor_for
+    from octoroach_model.workers import executor_for
     from octoroach_model.studies.looks import (
         append_row, load_looks, looks_task, read_rows, summarize, table_text)
 

@@ -25,8 +25,9 @@ def main(argv: list[str] | None = None) -> int:
     """Fit each robot both ways and print the angle errors."""
     import octoroach_model as om
     from octoroach_model.diagnosis.modelfit import RunData
-    from octoroach_model.validation.fit import MeanPathSettings, fit_nominal, mean_start_pose
-    from octoroach_model.validation.gait import stride_frequency_estimate
+    from octoroach_model.fitting import (
+        fit_nominal, MeanPathSettings, mean_start_pose, NominalFitSettings)
+    from octoroach_model.fitting.gait import stride_frequency_estimate
 
     nominal = om.ModelParameters.nominal()
     direction = om.model.nominal_sigmas()
@@ -43,12 +44,12 @@ def main(argv: list[str] | None = None) -> int:
                            parameters=truth)
         start = mean_start_pose(runs)
         data = RunData(runs, stride_frequency_estimate(runs.poses[..., 2], runs.t), start[2])
-        deterministic = fit_nominal(runs, heading_weight_m=nominal.hip_distance,
-                                    align_gait=True, start_pose=start)
-        mean = fit_nominal(runs, deterministic.parameters, multistart=False, start_pose=start,
-                           target=data.target, refine=True, tolerance=1e-6,
-                           mean=MeanPathSettings(sigmas, 300, 5, sway=data.sway,
-                                                 scales=data.scales))
+        deterministic = fit_nominal(runs, settings=NominalFitSettings(
+            heading_weight_m=nominal.hip_distance, align_gait=True), start_pose=start)
+        mean = fit_nominal(runs, deterministic.parameters, NominalFitSettings(
+            multistart=False, refine=True, tolerance=1e-6,
+            mean=MeanPathSettings(sigmas, 300, 5, sway=data.sway, scales=data.scales)),
+            start_pose=start, target=data.target)
         errors = [np.max(np.abs(np.degrees(np.subtract(fit.parameters.touchdown_angles,
                                                        angles))))
                   for fit in (deterministic, mean)]

@@ -119,7 +119,7 @@ def compare(cases: list[str], workers: int, fresh: bool) -> None:
 
 def evidence(case: str, counts: list[int], replicates: int, workers: int) -> None:
     """Diagnose `replicates` new data sets at each count in full; print the named shares."""
-    from octoroach_model.diagnosis.executors import executor_for
+    from octoroach_model.workers import executor_for
     from octoroach_model.studies.design import build_tasks
     from octoroach_model.studies.plan import _base_spec, _with_runs
     from octoroach_model.studies.replicate import run_task
@@ -150,7 +150,7 @@ def calibrate(workers: int, checks: int) -> None:
     while its size and the number of checks stay the same.
     """
     from octoroach_model.diagnosis.decide import decision_z
-    from octoroach_model.diagnosis.executors import executor_for
+    from octoroach_model.workers import executor_for
     from octoroach_model.diagnosis.live import Question
     from octoroach_model.diagnosis.power import calibration_group
     from octoroach_model.studies.plan import _base_spec

@@ -18,7 +18,7 @@ __version__ = '0.1.0'
 # The heavier layers load on first use, so `import octoroach_model` stays quick.
 _LAZY = {
     'validate': 'octoroach_model.validation', 'ValidationSettings': 'octoroach_model.validation',
-    'FourBarModel': 'octoroach_model.validation', 'fit_nominal': 'octoroach_model.validation',
+    'FourBarModel': 'octoroach_model.validation', 'fit_nominal': 'octoroach_model.fitting',
     'diagnose': 'octoroach_model.diagnosis', 'DiagnosisSettings': 'octoroach_model.diagnosis',
     'write_report': 'octoroach_model.diagnosis', 'load_measured': 'octoroach_model.recordings',
     'read_runs': 'octoroach_model.recordings', 'write_paths_bag': 'octoroach_model.recordings',

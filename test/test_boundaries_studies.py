@@ -26,7 +26,7 @@ import yaml
 from octoroach_model.errors import OutputError, ParameterError
 from octoroach_model.fileio import folder_lock
 from octoroach_model.studies import run_study
-from octoroach_model.studies.execute import dask_client
+from octoroach_model.workers import dask_client
 
 REPO = Path(__file__).resolve().parents[1]
 DASK = Path(sys.executable).with_name('dask')

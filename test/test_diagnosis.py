@@ -337,7 +337,7 @@ def test_a_moments_size_counts_the_error_of_its_simulated_slope(cause, size):
     from octoroach_model.diagnosis.causes import BY_NAME
     from octoroach_model.diagnosis.modelfit import (
         FitSettings, fit_moment, FittedModel, moments_se_u, RunData, Simulator)
-    from octoroach_model.validation.fit import mean_start_pose
+    from octoroach_model.fitting import mean_start_pose
 
     measured = om.simulate(200, seed=SEED, cycles=6,
                            effects={cause: {main_parameter(cause): size}})

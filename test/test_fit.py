@@ -15,8 +15,8 @@ import pytest
 
 import octoroach_model as om
 from octoroach_model.errors import DataError
-from octoroach_model.validation import fit_nominal
-from octoroach_model.validation.fit import mean_start_pose, stride_frequency_guess
+from octoroach_model.fitting import fit_nominal, mean_start_pose
+from octoroach_model.fitting.nominal import stride_frequency_guess
 
 NOMINAL = om.ModelParameters.nominal()
 TOUCHDOWN_OFFSETS_DEG = (2.0, -3.0, 1.5, -2.0)

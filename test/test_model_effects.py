@@ -141,7 +141,7 @@ def test_speed_decay_is_the_plain_model_at_warped_times(fraction, draws):
 @pytest.mark.parametrize('fraction', [0.4, 0.1, -0.3])
 def test_a_decaying_run_shows_strides_at_the_mean_gait_rate(fraction):
     from octoroach_model.model.effects import mean_gait_rate
-    from octoroach_model.validation.gait import heading_sway
+    from octoroach_model.fitting.gait import heading_sway
 
     effects = {'speed_decay': {'fraction': fraction}}
     runs = om.simulate(1, seed=0, cycles=12, effects=effects, **DETERMINISTIC)

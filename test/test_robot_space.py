@@ -27,7 +27,8 @@ import numpy as np
 
 import octoroach_model as om
 from octoroach_model.diagnosis import diagnose, DiagnosisSettings, write_report
-from octoroach_model.validation import fit_nominal, validate, ValidationSettings
+from octoroach_model.fitting import fit_nominal
+from octoroach_model.validation import validate, ValidationSettings
 
 PROFILES = {
     'quick': {'examples': 6, 'max_runs': 90, 'max_samples': 1200},

@@ -3,18 +3,16 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Iterator
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import Executor
 from contextlib import contextmanager
 from dataclasses import replace
-import multiprocessing
-import os
 from pathlib import Path
-import signal
 import sys
 
 from octoroach_model.commands.common import (
     add_input_arguments, add_workers_argument, new_output, nonnegative_int, OneLineParser,
     progress_printer, read_options, reading_progress, say_repeated_runs)
+from octoroach_model.workers import default_workers, process_pool
 
 
 def parser() -> argparse.ArgumentParser:
@@ -34,20 +32,6 @@ def parser() -> argparse.ArgumentParser:
     return result
 
 
-# Worker processes leave Ctrl-C to this process: a terminal sends SIGINT to the whole
-# process group, and a worker interrupted while it waits for work prints a traceback of its
-# own. This process stops the pool on its KeyboardInterrupt.
-_workers_ignore_sigint = False
-
-
-def _ignore_sigint_in_worker() -> None:
-    if _workers_ignore_sigint:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-os.register_at_fork(after_in_child=_ignore_sigint_in_worker)
-
-
 @contextmanager
 def worker_pool(workers: int) -> Iterator[Executor | None]:
     """
@@ -55,27 +39,17 @@ def worker_pool(workers: int) -> Iterator[Executor | None]:
 
     The same meaning as `study --workers`; the pool's processes ignore SIGINT.
     """
-    global _workers_ignore_sigint
     if workers == 0:
         yield None
         return
-    from octoroach_model.diagnosis.executors import one_blas_thread
-
-    _workers_ignore_sigint = True
-    pool = ProcessPoolExecutor(max_workers=workers, initializer=one_blas_thread,
-                               mp_context=multiprocessing.get_context('fork'))
-    try:
+    with process_pool(workers, command=True) as pool:
         yield pool
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
-        _workers_ignore_sigint = False
 
 
 def run(args: argparse.Namespace) -> int:
     """Diagnose and write the report; prints where it is."""
     from octoroach_model.diagnosis import DiagnosisSettings, diagnose, write_report
     from octoroach_model.recordings import load_measured
-    from octoroach_model.studies.execute import default_workers
 
     new_output(args.out, '--out', directory_ok=True)
     measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s,

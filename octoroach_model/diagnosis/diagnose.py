@@ -32,11 +32,10 @@ from scipy import stats
 from octoroach_model.diagnosis.causes import (
     BY_NAME, CANDIDATES, Cause, CAUSES, FAMILIES, MIXTURE_FRACTION, periodic_limit_hz,
     RunScale)
-from octoroach_model.diagnosis.decide import decision_z, judge
+from octoroach_model.diagnosis.decide import decision_z, judge, SizeVerdict
 from octoroach_model.diagnosis.descriptions import describe
 from octoroach_model.diagnosis.discrepancies import (
     critical_z, discrepancies, statistic_values, STATISTICS)
-from octoroach_model.diagnosis.executors import executor_for, single_threaded
 from octoroach_model.diagnosis.features import heading_amplitudes, INDEX
 from octoroach_model.diagnosis.limits import detection_limit, Limit, limit_base
 from octoroach_model.diagnosis.misfit import locate
@@ -45,18 +44,20 @@ from octoroach_model.diagnosis.modelfit import (
     fit_mixture, fit_moment, fit_spread, fit_trend,
     FitSettings, FittedModel, GeometryUncertainty, MIXTURE_EVIDENCE_NATS, RunData, Simulator,
     SizeEstimate, spread_error, spread_statistic)
-from octoroach_model.diagnosis.report import (
-    CandidateResult, DiagnosisReport, NamedCause, NamedExtension, Rival, RunLengths,
-    ScoreSummary, StepResult)
+from octoroach_model.diagnosis.records import (
+    CandidateResult, DecisionRules, DiagnosisReport, LimitMethod, ModelSummary, NamedCause,
+    NamedExtension, PaperValidation, Rival, RunLengths, ScoreSummary, StepResult)
 from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, position_points_cm, score_model, Scores)
 from octoroach_model.errors import DataError
+from octoroach_model.fitting import fit_nominal, mean_start_pose, NominalFitSettings
+from octoroach_model.fitting.gait import stride_frequency_estimate
+from octoroach_model.fitting.target import average_target
 from octoroach_model.model import ModelParameters
 from octoroach_model.model.extensions import family_form
 from octoroach_model.paths import Paths
 from octoroach_model.validation import chernoff_sample_size, ValidationSettings
-from octoroach_model.validation.fit import average_target, fit_nominal, mean_start_pose
-from octoroach_model.validation.gait import stride_frequency_estimate
+from octoroach_model.workers import executor_for, single_threaded
 
 Progress = Callable[[float, str], None]
 MIN_RUNS = 40
@@ -231,7 +232,9 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         gain=_gain_summary(baseline_scores, current_scores, halves),
         extended_discrepancies=tuple(final_rows), adequate=not unexplained,
         unexplained=tuple(unexplained), misfit=misfit,
-        adequacy_bound_z=bound, settings=settings,
+        adequacy_bound_z=bound, decision=DecisionRules(
+            settings.alpha, settings.decision_alpha, settings.min_gain,
+            settings.adequacy_alpha, bound),
         notes=tuple(measured.info.get('notes', ())) + (
             (resolution_note,) if resolution_note else ()) + dropped,
         elapsed_s=round(time.monotonic() - started, 2))
@@ -407,9 +410,9 @@ def _baseline(halves: _Halves, settings: DiagnosisSettings,
     initial = ModelParameters.nominal()
     initial = replace(initial, stride_frequency=train.stride_frequency)
     aligned = average_target(train.paths, start_pose, train.stride_frequency, align_gait=True)
-    quick = fit_nominal(train.paths, initial, heading_weight_m=settings.heading_weight_m,
-                        align_gait=True, start_pose=start_pose, target=aligned,
-                        tolerance=1e-6)
+    quick = fit_nominal(train.paths, initial, NominalFitSettings(
+        heading_weight_m=settings.heading_weight_m, align_gait=True, tolerance=1e-6),
+        start_pose=start_pose, target=aligned)
     starts = [FittedModel(parameters, start_pose, 1.0, {})
               for parameters in swapped_pairs(quick.parameters)]
     fit = settings.fit()
@@ -553,14 +556,43 @@ def _step_result(step: int, evaluated: list[Evaluation], halves: _Halves,
         significant = evaluation.gain.p_value < level
         material = evaluation.gain.mean >= settings.min_gain
         named_here = verdict.clears_floor and significant and material
-        results.append(CandidateResult.of(evaluation, verdict, step, significant, named_here,
-                                          _excess_share(evaluation, halves)))
+        results.append(candidate_result(evaluation, verdict, step, significant, named_here,
+                                        _excess_share(evaluation, halves)))
         if named_here:
             eligible.append(evaluation)
     chosen = max(eligible, key=lambda e: e.gain.mean) if eligible else None
     rival = _rival(chosen, eligible, settings.alpha) if chosen else None
     return (StepResult(step, tuple(results), chosen.cause if chosen else None, z, level, rival),
             chosen)
+
+
+def candidate_result(evaluation: Evaluation, verdict: SizeVerdict, step: int,
+                     significant: bool, named_here: bool, relative: float) -> CandidateResult:
+    """
+    Return one candidate of a step as the report shows it, before its whole-decision limit.
+
+    Its fitted values (an extension's in its family's form), gain and evidence, the size's
+    verdict; run_mixture's limit is of the spread it adds, stated as the yaw rate of
+    MIXTURE_FRACTION's runs.
+    """
+    cause = BY_NAME[evaluation.cause]
+    values = dict(evaluation.model.effects[evaluation.cause])
+    if cause.is_extension:
+        values = family_form(evaluation.cause, values)[1]
+    limit = verdict.limit
+    if cause.kind == 'mixture' and limit is not None:
+        limit /= math.sqrt(MIXTURE_FRACTION * (1 - MIXTURE_FRACTION))
+    gain = evaluation.gain
+    return CandidateResult(
+        cause=evaluation.cause, parameters=values, gain=gain.mean,
+        gain_se=gain.standard_error, p_value=gain.p_value, relative=relative,
+        gain_cm=evaluation.gain_cm, interval={cause.parameter: list(verdict.interval)},
+        standard_error=verdict.standard_error, lower_bound=verdict.lower_bound,
+        floor=verdict.floor, detectable={cause.parameter: limit},
+        detectable_method=LimitMethod.SIZE_BOUND, detectable_power={},
+        clears_floor=verdict.clears_floor, significant=significant, named_here=named_here,
+        step=step, statistic=cause.statistic_name, family=cause.family,
+        screened=evaluation.screened)
 
 
 def _rival(chosen: Evaluation, eligible: list[Evaluation], alpha: float) -> Rival | None:
@@ -814,32 +846,18 @@ def _gain_summary(baseline: Scores, extended: Scores, halves: _Halves) -> ScoreS
     return ScoreSummary.of(baseline, extended, halves.ideal)
 
 
-def _model_summary(model: FittedModel, validation: dict | None) -> dict:
-    """
-    Summarise a model as the report shows it.
-
-    `sigma1`, `sigma2`, `violation` and `accepted` are the
-    paper's validation (the widest admissible spreads, search 15) when it ran, else the fitted
-    spreads (`sigma_source` says which); the fitted spreads are always there too.
-    """
-    summary = {'fitted_sigma1': model.sigmas[0], 'fitted_sigma2': model.sigmas[1],
-               'sigma_scale': model.sigma_scale, 'effects': model.effects}
-    if validation and 'violation' in validation:
-        summary.update({key: validation[key] for key in ('sigma1', 'sigma2', 'violation',
-                                                         'accepted', 'n', 'k', 'rho')})
-        summary['sigma_source'] = "paper's validation: widest admissible spreads (search 15)"
-        summary['validation'] = validation
-    else:
-        summary.update(sigma1=model.sigmas[0], sigma2=model.sigmas[1])
-        reason = f": {validation['note']})" if validation else ')'
-        summary['sigma_source'] = "fitted spreads (the paper's validation did not run" + reason
-    return summary
+def _model_summary(model: FittedModel, validation: PaperValidation | str | None
+                   ) -> ModelSummary:
+    """Summarise a model as the report shows it, with its validation or why that did not run."""
+    return ModelSummary(model.sigmas[0], model.sigmas[1], model.sigma_scale, model.effects,
+                        validation if isinstance(validation, PaperValidation) else None,
+                        validation if isinstance(validation, str) else None)
 
 
 def paper_validation(measured: Paths, model: FittedModel, settings: ValidationSettings
-                     ) -> dict:
+                     ) -> PaperValidation | str:
     """
-    Run the paper's search (15) for `model` on the measured runs.
+    Run the paper's search (15) for `model` on the measured runs (or say why it cannot run).
 
     Geometry, start and causes count; the runs are compared on
     the common duration most of the runs reach (runs that end far earlier are left out and said
@@ -854,14 +872,11 @@ def paper_validation(measured: Paths, model: FittedModel, settings: ValidationSe
     if kept.n_paths < settings.runs_needed:
         k = kept.n_paths // n
         if k < 2:
-            return {'note': f'{kept.n_paths} runs: too few for n = {n} multisamples of 2 runs'}
+            return f'{kept.n_paths} runs: too few for n = {n} multisamples of 2 runs'
         settings = replace(settings, k=k)
         notes.append(f'k lowered to {k}: {kept.n_paths} runs < n x k')
     plugin = FourBarModel(model.parameters, model.start_pose, 'stance', model.effects)
-    result = validate(kept, settings, plugin).to_json()
-    summary = {key: result[key] for key in ('sigma1', 'sigma2', 'violation', 'n', 'k', 'rho',
-                                            'accepted', 'duration_s', 'grid')}
-    summary['paths_used'] = result['paths_used']
-    if notes:
-        summary['notes'] = notes
-    return summary
+    result = validate(kept, settings, plugin)
+    return PaperValidation(result.sigma1, result.sigma2, result.violation, result.n, result.k,
+                           result.rho, result.accepted, result.duration_s, result.grid,
+                           result.paths_used, tuple(notes))

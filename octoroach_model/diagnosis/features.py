@@ -53,9 +53,9 @@ import warnings
 
 import numpy as np
 
-from octoroach_model.paths import Paths
-from octoroach_model.validation.gait import (
+from octoroach_model.fitting.gait import (
     heading_sway, lateral_sway, valid_mask, windowed_sway)
+from octoroach_model.paths import Paths
 
 FEATURES = ('start_heading', 'start_x', 'start_y', 'log_noise', 'slip_angle',
             'stride_frequency', 'progress_ratio', 'heading_rate', 'increment_var',

@@ -53,9 +53,9 @@ from octoroach_model.diagnosis.power import Calibration, gain_sample, PowerModel
 from octoroach_model.diagnosis.scoring import PairedGain, Scores
 from octoroach_model.diagnosis.sequential import Boundary, PLANNED_RUNS, two_sided_z
 from octoroach_model.errors import DataError, ParameterError
+from octoroach_model.fitting import mean_start_pose
+from octoroach_model.fitting.gait import stride_frequency_estimate
 from octoroach_model.paths import Paths
-from octoroach_model.validation.fit import mean_start_pose
-from octoroach_model.validation.gait import stride_frequency_estimate
 
 REFIT_GROWTH = 2.0          # the baseline is fitted again when the calibration half doubles
 INTERVAL_ALPHA = 0.05       # the confidence sequence holds at every look with 95 %
@@ -241,7 +241,7 @@ def fit_held(measured: Paths, question: Question, settings: DiagnosisSettings,
     False leaves the expected t out (NaN). A plain function: a process pool runs it while
     looks go on with the previous baseline.
     """
-    from octoroach_model.diagnosis.executors import single_threaded
+    from octoroach_model.workers import single_threaded
     from octoroach_model.diagnosis.modelfit import fit_causes
 
     check_runs(measured)
@@ -294,7 +294,7 @@ def decide(measured: Paths, held: Held, question: Question, settings: DiagnosisS
     gains (PowerModel.t_values) where a look before computed them; `warm`, the extended
     model an earlier look fitted against the same baseline (`evaluate`).
     """
-    from octoroach_model.diagnosis.executors import single_threaded
+    from octoroach_model.workers import single_threaded
 
     check_runs(measured)
     cause = BY_NAME[question.term]

@@ -7,7 +7,7 @@ rounds (block coordinate descent), each round:
 1. the geometry, with the sizes of path causes (lateral_slip, speed_decay) free: the mean of
    simulated runs (every cause included) against the data's average path, and their mean
    sway within a stride against the data's (unbiased for the stochastic model, and, as model
-   and data are averaged alike, whatever the causes; validation/fit.py);
+   and data are averaged alike, whatever the causes; fitting/nominal.py);
 2. the spread scale s, (sigma1, sigma2) = s x Table III, from the within-run variance of the
    per-cycle heading change (start errors and steady turning leave it alone);
 3. each moments cause from its variance-like statistic (causes.py), the others held.
@@ -28,13 +28,17 @@ import numpy as np
 
 from octoroach_model.diagnosis.causes import BY_NAME, Cause, MIXTURE_FRACTION
 from octoroach_model.diagnosis.features import INDEX, run_features
+from octoroach_model.fitting.covariance import path_covariance
+from octoroach_model.fitting.gait import stride_frequency_estimate
+from octoroach_model.fitting.lines import bootstrap_se, paired_relative_se, read_line
+from octoroach_model.fitting.nominal import (
+    fit_nominal, FreeEffect, MeanPathSettings, NominalFitSettings)
+from octoroach_model.fitting.target import (
+    average_target, AverageTarget, ResidualScales, SwayTarget)
 from octoroach_model.model import model_poses, ModelParameters, nominal_sigmas, RandomStreams
 from octoroach_model.model.effects import mean_gait_rate
 from octoroach_model.model.extensions import TERM_BY_NAME
 from octoroach_model.paths import Paths
-from octoroach_model.validation.fit import (
-    average_target, AverageTarget, fit_nominal, FreeEffect, MeanPathSettings, residual_vector,
-    ResidualScales, simulated_runs, SwayTarget)
 
 Effects = Mapping[str, Mapping[str, float]]
 
@@ -448,8 +452,6 @@ def before_change(data: RunData, model: FittedModel) -> FittedModel | None:
     (None where that part holds fewer than 1.5 cycles), the leg length scaled by the old over
     the new frequency (a stride covers about leg x sweep), the speed factor and time kept.
     """
-    from octoroach_model.validation.gait import stride_frequency_estimate
-
     t = data.paths.t
     early = t < float(model.effects['change_point']['time_s'])
     if early.sum() < 8:
@@ -503,13 +505,14 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
     mean = MeanPathSettings(model.sigmas, settings.mean_path_runs,
                             int(np.random.SeedSequence([settings.seed, 5]).generate_state(1)[0]),
                             sway=data.sway, scales=data.scales)
-    fit = fit_nominal(data.paths, initial=model.parameters, heading_weight_m=(
-        settings.heading_weight_m), effects=held, free=free, multistart=False,
-        align_gait=False, mean=mean, start_pose=model.start_pose, target=data.target,
-        refine=True, tolerance=settings.tolerance)
+    fit = fit_nominal(data.paths, model.parameters, NominalFitSettings(
+        heading_weight_m=settings.heading_weight_m, effects=held, free=free, multistart=False,
+        mean=mean, refine=True, tolerance=settings.tolerance),
+        start_pose=model.start_pose, target=data.target)
     fitted = replace(model, parameters=fit.parameters, effects={
         name: dict(fit.effects.get(name, values)) for name, values in model.effects.items()})
-    data_part, model_part = path_covariance(fit, data, mean, settings, parts=True)
+    data_part, model_part = path_covariance(fit, data.target, data.features[:, SWAY_COLUMNS],
+                                            mean, settings.seed)
     covariance = data_part + model_part
     errors = np.sqrt(np.diag(covariance))
     simulated = np.sqrt(np.maximum(np.diag(model_part), 0.0))
@@ -543,53 +546,6 @@ def _other_errors(free, errors: np.ndarray, cause: str) -> dict[str, float]:
     """Return the standard errors of a path cause's parameters other than its main one."""
     return {item.parameter: float(errors[6 + offset]) for offset, item in enumerate(free)
             if item.cause == cause and item.parameter != BY_NAME[cause].parameter}
-
-
-def path_covariance(fit, data: RunData, mean: MeanPathSettings, settings: FitSettings,
-                    n_boot: int = 60, parts: bool = False) -> Any:
-    """
-    Return the covariance of the fit's vector.
-
-    Two sources of error added: the measured runs
-    (bootstrap) and the simulated runs (bootstrap of their antithetic pairs); each resample's
-    solution is one Gauss-Newton step from the fit. With `parts`, the two apart (measured,
-    simulated): only the first shrinks with more runs (diagnosis/power.py).
-    """
-    pseudo_inverse = np.linalg.pinv(fit.jacobian)
-    target = data.target
-    data_sway = data.features[:, SWAY_COLUMNS]
-    sway = mean.sway
-    assert sway is not None, 'the diagnosis fits the geometry with the sway matched'
-    full = simulated_runs(fit.parameters, fit.start_pose, sway.t, fit.effects, mean)
-    model_sway = sway.of_runs(full, fit.parameters.stride_frequency)
-    runs = full[:, :len(target.t)]
-
-    def vector(xy, turn, sway):
-        return residual_vector(xy, turn, sway, fit.heading_weight_m, mean.scales)
-
-    rng = np.random.default_rng([settings.seed, 17])
-    base = vector(target.average, target.turn, np.nanmean(data_sway, axis=0))
-    data_steps = []
-    for _ in range(n_boot):
-        pick = rng.integers(0, data.n, data.n)
-        resampled = target.resampled(pick)
-        change = vector(resampled.average, resampled.turn,
-                        np.nanmean(data_sway[pick], axis=0)) - base
-        data_steps.append(pseudo_inverse @ change)
-    half = mean.runs // 2
-    pairs = 0.5 * (runs[:half] + runs[half:2 * half])          # antithetic pair means
-    pair_sway = 0.5 * (model_sway[:half] + model_sway[half:2 * half])
-    centre = vector(pairs[..., :2].mean(axis=0), pairs[..., 2].mean(axis=0),
-                    pair_sway.mean(axis=0))
-    model_steps = []
-    for _ in range(n_boot):
-        pick = rng.integers(0, half, half)
-        change = vector(pairs[pick, :, :2].mean(axis=0), pairs[pick, :, 2].mean(axis=0),
-                        pair_sway[pick].mean(axis=0)) - centre
-        model_steps.append(pseudo_inverse @ change)
-    measured = np.atleast_2d(np.cov(np.array(data_steps), rowvar=False))
-    simulated = np.atleast_2d(np.cov(np.array(model_steps), rowvar=False))
-    return (measured, simulated) if parts else measured + simulated
 
 
 def path_start(simulator: Simulator, model: FittedModel, cause: Cause,
@@ -724,12 +680,12 @@ def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings,
 
     points = {0.0: statistic(0.0), 1.0: statistic(1.0)}
     for _ in range(2):
-        scale = math.sqrt(max(_read_line(points, target), 0.0))
+        scale = math.sqrt(max(read_line(points, target), 0.0))
         scale = min(scale, 4.0)
         if not points or min(abs(scale ** 2 - u) for u in points) < 0.02 * max(scale ** 2, 1e-3):
             break
         points[scale ** 2] = statistic(scale)
-    return min(math.sqrt(max(_read_line(points, target), 0.0)), 4.0)
+    return min(math.sqrt(max(read_line(points, target), 0.0)), 4.0)
 
 
 def spread_error(simulator: Simulator, model: FittedModel, settings: FitSettings) -> float:
@@ -752,25 +708,6 @@ def spread_error(simulator: Simulator, model: FittedModel, settings: FitSettings
     se_u = math.hypot(float(np.std(data, ddof=1)) / math.sqrt(len(data)),
                       float(np.std(fitted, ddof=1)) / math.sqrt(len(fitted))) / slope
     return se_u / (2.0 * scale)
-
-
-def _read_line(points: dict[float, float], target: float) -> float:
-    """
-    Return u where the piecewise-linear line through (u, S) points reaches `target`.
-
-    Extrapolated beyond the ends; points made monotone by a running maximum.
-    """
-    us = np.array(sorted(points))
-    values = np.maximum.accumulate(np.array([points[u] for u in us]))
-    if len(us) == 1 or values[-1] <= values[0]:
-        return float(us[0])
-    index = int(np.clip(np.searchsorted(values, target) - 1, 0, len(us) - 2))
-    while index < len(us) - 2 and values[index + 1] <= values[index]:
-        index += 1
-    u0, u1, s0, s1 = us[index], us[index + 1], values[index], values[index + 1]
-    if s1 <= s0:
-        return float(u0)
-    return float(u0 + (target - s0) * (u1 - u0) / (s1 - s0))
 
 
 @dataclass(frozen=True)
@@ -797,7 +734,7 @@ class _LineStart:
         rng = np.random.default_rng([settings.seed, stream])
         features = simulator.data.features
         data_value = statistic(features)
-        data_se = _bootstrap_se(statistic, features, rng, n_boot)
+        data_se = bootstrap_se(statistic, features, rng, n_boot)
         without = {name: values for name, values in model.effects.items()
                    if name != cause.name}
         zero = simulator.features(model, settings.moment_runs, MOMENTS, without)
@@ -817,7 +754,7 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
     data_value, data_se, without = line.data_value, line.data_se, line.without
     zero_features = line.zero
     intercept = statistic(zero_features)
-    intercept_se = _bootstrap_se(statistic, zero_features, rng, n_boot)
+    intercept_se = bootstrap_se(statistic, zero_features, rng, n_boot)
     reference = cause.reference
 
     relative: list[float] = []
@@ -827,10 +764,10 @@ def fit_moment(simulator: Simulator, model: FittedModel, cause: Cause,
         effects = {**without, cause.name: at_size(cause, size, None, data)}
         features = simulator.features(model, settings.moment_runs, MOMENTS, effects)
         value = statistic(features)
-        spread = _bootstrap_se(statistic, features, rng, n_boot // 2)
+        spread = bootstrap_se(statistic, features, rng, n_boot // 2)
         relative.append(spread * math.sqrt(features.shape[0] / data.n) / max(value, 1e-300))
-        slope_errors.append(_paired_relative_se(statistic, zero_features, features, rng,
-                                                n_boot))
+        slope_errors.append(paired_relative_se(statistic, zero_features, features, rng,
+                                               n_boot))
         return (value - intercept) / size ** 2
 
     slope = slope_at(reference)
@@ -872,7 +809,7 @@ def fit_trend(simulator: Simulator, model: FittedModel, cause: Cause,
         **without, cause.name: at_size(cause, cause.reference, None, data)})
     exchangeable = not replace(model, effects=without).order_dependent
     intercept = 0.0 if exchangeable else statistic(zero)
-    intercept_se = 0.0 if exchangeable else _bootstrap_se(statistic, zero, rng, n_boot)
+    intercept_se = 0.0 if exchangeable else bootstrap_se(statistic, zero, rng, n_boot)
     slope = (statistic(reference) - statistic(zero)) / cause.reference
     if not abs(slope) > 0:
         return SizeEstimate(cause.name, 0.0, math.inf, intercept=intercept,
@@ -1025,28 +962,3 @@ def moments_se_u(estimate: SizeEstimate, u: float, data_se: float | None = None,
     slope_part = estimate.slope_relative_se if slope_relative_se is None else slope_relative_se
     return math.hypot(data_part / estimate.slope, estimate.intercept_se / estimate.slope,
                       slope_part * max(u, 0.0))
-
-
-def _paired_relative_se(statistic, without: np.ndarray, with_cause: np.ndarray,
-                        rng: np.random.Generator, n_boot: int) -> float:
-    """
-    Return the relative error of S(with) - S(without) on the same simulated runs.
-
-    Runs are resampled in pairs: run i of both sets shares its random numbers.
-    """
-    n = min(without.shape[0], with_cause.shape[0])
-    difference = statistic(with_cause[:n]) - statistic(without[:n])
-    if not difference > 0:
-        return 0.0
-    values = []
-    for _ in range(n_boot):
-        picks = rng.integers(0, n, n)
-        values.append(statistic(with_cause[picks]) - statistic(without[picks]))
-    return float(np.std(values, ddof=1)) / difference
-
-
-def _bootstrap_se(statistic, features: np.ndarray, rng: np.random.Generator,
-                  n_boot: int) -> float:
-    n = features.shape[0]
-    values = [statistic(features[rng.integers(0, n, n)]) for _ in range(n_boot)]
-    return float(np.std(values, ddof=1))

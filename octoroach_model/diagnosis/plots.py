@@ -74,7 +74,8 @@ def _at_places(model, measured: Paths, n: int) -> tuple[Paths, np.ndarray]:
 
 
 def _paths_plot(report, measured: Paths, path: Path) -> bool:
-    k = report.baseline.get('k') or 11
+    checked = report.baseline.validation
+    k = checked.k if checked is not None else 11
     with np.errstate(invalid='ignore'):
         centre = np.nanmean(measured.positions, axis=0) * 100
         half = t_multiplier(k, 0.95) * np.nanstd(measured.positions, axis=0, ddof=1) * 100
@@ -109,24 +110,24 @@ def _paths_plot(report, measured: Paths, path: Path) -> bool:
 
 
 def _violation_plot(report, measured: Paths, path: Path) -> bool:
-    panels = [(name, section['validation']) for name, section in
+    panels = [(name, section.validation) for name, section in
               (('baseline', report.baseline), ('extended', report.extended))
-              if 'grid' in section.get('validation', {})]
+              if section.validation is not None and section.validation.grid is not None]
     if not panels:
         return False
     fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 5), squeeze=False)
     for ax, (name, section) in zip(axes[0], panels):
-        grid = section['grid']
-        values = np.array(grid['violation'])
-        image = ax.pcolormesh(grid['sigma2'], grid['sigma1'], values, vmin=0, vmax=1,
+        grid = section.grid
+        values = np.array(grid.violation)
+        image = ax.pcolormesh(grid.sigma2, grid.sigma1, values, vmin=0, vmax=1,
                               cmap='viridis', shading='nearest')
-        if values.min() < section['rho'] < values.max():
-            ax.contour(grid['sigma2'], grid['sigma1'], values, levels=[section['rho']],
+        if values.min() < section.rho < values.max():
+            ax.contour(grid.sigma2, grid.sigma1, values, levels=[section.rho],
                        colors='w', linewidths=1)
-            ax.plot([], [], color='w', lw=1, label=f'E^_k = rho = {section["rho"]}')
-        ax.plot(section['sigma2'], section['sigma1'], 'r*', ms=16,
-                label=f'chosen ({section["sigma1"]:.3f}, {section["sigma2"]:.3f}) rad, '
-                      f'E^_k = {section["violation"]:.2f}')
+            ax.plot([], [], color='w', lw=1, label=f'E^_k = rho = {section.rho}')
+        ax.plot(section.sigma2, section.sigma1, 'r*', ms=16,
+                label=f'chosen ({section.sigma1:.3f}, {section.sigma2:.3f}) rad, '
+                      f'E^_k = {section.violation:.2f}')
         ax.set_xlabel('sigma2, liftoff angle spread [rad]')
         ax.set_ylabel('sigma1, touchdown angle spread [rad]')
         ax.set_title(f'Estimated probability of violation, {name} model')

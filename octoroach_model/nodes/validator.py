@@ -519,7 +519,7 @@ class Validator(Node):
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            from octoroach_model.diagnosis.executors import one_blas_thread
+            from octoroach_model.workers import one_blas_thread
 
             server = multiprocessing.get_context('forkserver')
             server.set_forkserver_preload(['octoroach_model.diagnosis.live'])

@@ -37,12 +37,13 @@ from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
 from octoroach_model.studies.design import build_tasks
-from octoroach_model.studies.execute import check_where, CONNECT_TIMEOUT_S, run_tasks, where_to_run
+from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.spec import (
     Arm, nominal_robot, parse_spec, robot_spec, RobotSpec, StudySpec)
 from octoroach_model.studies.summary import wilson
 from octoroach_model.studies.table import cell, write_table
 from octoroach_model.studies.terms import main_parameter, null_value
+from octoroach_model.workers import check_where, CONNECT_TIMEOUT_S, executor_where, where_to_run
 
 PILOT_RUNS = 200
 METHODS = ('model', 'simulate')
@@ -187,23 +188,11 @@ def _plan_by_model(base: StudySpec, cause: str, size: float, power: float, min_r
                    workers: int | None, connect_timeout_s: float, budget_s: float,
                    say: Progress, started: float) -> PlanResult:
     """Plan with the calibrated power model (plan_model.py), on a pool or a Dask cluster."""
-    import contextlib
-
-    from octoroach_model.diagnosis.executors import executor_for
     from octoroach_model.diagnosis.live import Question
-    from octoroach_model.studies.execute import default_workers
     from octoroach_model.studies.plan_model import plan_by_model
 
     question = Question(cause, size, power)
-    with contextlib.ExitStack() as stack:
-        if client is not None or scheduler:
-            where = stack.enter_context(where_to_run(client, scheduler, None,
-                                                     connect_timeout_s))
-            executor, count = where.get_executor(), max(len(where.scheduler_info().get(
-                'workers', {})), 1)
-        else:
-            count = default_workers() if workers is None else workers
-            executor = stack.enter_context(executor_for(None, count))
+    with executor_where(client, scheduler, workers, connect_timeout_s) as (executor, count):
         answer = plan_by_model(base, question, min_runs=min_runs, max_runs=max_runs,
                                executor=executor, workers=count, budget_s=budget_s,
                                progress=say)

@@ -25,13 +25,14 @@ from octoroach_model.fileio import check_writable, folder_lock, LOCK_NAME, write
 from octoroach_model.jsonio import dumps
 from octoroach_model.limits import MAX_STUDY_TASKS
 from octoroach_model.studies.design import build_tasks
-from octoroach_model.studies.execute import check_where, CONNECT_TIMEOUT_S, run_tasks, where_to_run
+from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.plots import write_plots
 from octoroach_model.studies.spec import load_spec, parse_spec, StudySpec
 from octoroach_model.studies.summary import summarize
 from octoroach_model.studies.table import (
     append_row, MANIFEST_NAME, read_manifest, read_table, start_table, TABLE_NAME, write_manifest,
     write_table)
+from octoroach_model.workers import check_where, CONNECT_TIMEOUT_S, where_to_run
 
 SUMMARY_NAME = 'summary.json'
 # progress(rows done, rows in the study, the row that just arrived or None at the start)

@@ -306,7 +306,7 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
     from dataclasses import replace
 
     from octoroach_model.errors import DataError
-    from octoroach_model.validation.fit import fit_nominal, mean_start_pose
+    from octoroach_model.fitting import fit_nominal, mean_start_pose
 
     settings = settings or ValidationSettings()
     measured, duration_note = common_duration(measured)

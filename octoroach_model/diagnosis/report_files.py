@@ -1,0 +1,43 @@
+"""
+The diagnosis report on disk: report.json, summary.md and the plots, written all at once.
+
+The one place the report becomes JSON (`jsonio.dumps`, the package's one converter) and files
+(`fileio`'s atomic writers).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from octoroach_model.diagnosis.records import DiagnosisReport
+from octoroach_model.diagnosis.summary import summary_text
+from octoroach_model.fileio import atomic_directory, write_text_atomic
+from octoroach_model.jsonio import dumps
+from octoroach_model.paths import Paths
+
+
+def write_report(report: DiagnosisReport, out_dir: Path | str, measured: Paths | None = None,
+                 plots: bool = True) -> dict[str, Path]:
+    """
+    Write report.json, summary.md and (with `measured`) the PNG plots into out_dir.
+
+    All at once: they are written into a temporary folder beside out_dir that then takes its
+    name (`fileio.atomic_directory`), so an interrupted call leaves the whole report or
+    nothing; out_dir must be new or an empty directory. A plot that cannot be drawn is said
+    in summary.md, never at the cost of the report.
+    """
+    out = Path(out_dir)
+    with atomic_directory(out, what='report folder') as folder:
+        written: dict[str, Any] = {'report': folder / 'report.json',
+                                   'summary': folder / 'summary.md'}
+        write_text_atomic(written['report'], dumps(report, indent=2) + '\n')
+        summary = summary_text(report)
+        if plots and measured is not None:
+            from octoroach_model.diagnosis.plots import write_plots
+            drawn, errors = write_plots(report, measured, folder)
+            written.update(drawn)
+            if errors:
+                summary += '\n## Plots not drawn\n\n' + ''.join(
+                    f'- {name}: {reason}\n' for name, reason in errors.items())
+        write_text_atomic(written['summary'], summary)
+    return {name: out / Path(path).relative_to(folder) for name, path in written.items()}

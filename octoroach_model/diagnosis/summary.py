@@ -1,0 +1,196 @@
+"""
+The diagnosis report in words: summary.md.
+
+A one-line conclusion, what the paper's model gets wrong, the causes and extensions with their
+sizes, what each adds, what is still unexplained, and how small an effect could have been
+seen; every number is one the report (records.py) holds.
+"""
+from __future__ import annotations
+
+import math
+
+from octoroach_model.diagnosis.causes import BY_NAME
+from octoroach_model.diagnosis.records import CandidateResult, DiagnosisReport, Rival
+
+
+def _percent(share: float) -> str:
+    return f'{100 * share:.0f} %' if math.isfinite(share) else 'n/a'
+
+
+def _unit(unit: str) -> str:
+    return f' {unit}' if unit else ''
+
+
+def _number(value: float | None, digits: int = 3) -> str:
+    """
+    Format a number as a reader wants it.
+
+    0 where it is below resolution, else `digits` significant
+    digits.
+    """
+    if value is None or not math.isfinite(value):
+        return 'n/a'
+    if abs(value) < 1e-9:
+        return '0'
+    return f'{value:.{digits}g}'
+
+
+def conclusion(report: DiagnosisReport) -> str:
+    """
+    Return the summary's first line: what to conclude, in plain words.
+
+    Its numbers are the ones the summary gives below (the share of the baseline's gap the
+    extended model closes, the position gain: positive when the extended model is better).
+    """
+    added = [c.cause for c in report.causes] + [e.family for e in report.extensions]
+    if not added:
+        head = "The paper's model explains these runs: no cause of the table and no extension"
+        head += ' improves the prediction of held-out runs by a size that matters'
+    else:
+        closer = report.gain.energy_score_cm['baseline'] - report.gain.energy_score_cm['extended']
+        head = (f"The paper's model misses {_and(added)}: the model extended with "
+                f'{"it" if len(added) == 1 else "them"} closes {_percent(report.gain.relative)} '
+                "of the baseline's gap to the data on held-out runs, positions "
+                f'{_number(abs(closer), 2)} cm per run {"closer" if closer >= 0 else "further"}')
+    tail = ('; it explains every statistic' if report.adequate else
+            f'; it still misses {len(report.unexplained)} statistic'
+            f'{"s" if len(report.unexplained) != 1 else ""} (below)')
+    return f'**Conclusion:** {head}{tail}.'
+
+
+def _and(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else ', '.join(names[:-1]) + ' and ' + names[-1]
+
+
+def summary_text(report: DiagnosisReport) -> str:
+    """
+    Write summary.md in words.
+
+    summary.md: a one-line conclusion, what the model gets wrong, the causes and extensions
+    with sizes, what each adds, what is still unexplained, and how small an effect could have
+    been seen.
+    """
+    lines = ['# What the simulation gets wrong', '', conclusion(report), '']
+    runs = report.runs
+    early = ''
+    if runs.ended_early_between_s is not None:
+        first, last = runs.ended_early_between_s
+        early = (f'; {runs.ended_early} ended early (between {first:.2f} and {last:.2f} s) '
+                 'and were used to their end')
+    lines.append(f'{report.paths} measured runs of up to {report.duration_s:.2f} s{early}. '
+                 f"The paper's model was calibrated on {report.split['calibration']} of them "
+                 f"and judged on the other {report.split['held_out']}.")
+    lines += ['', "## Where the paper's model disagrees with the data", '']
+    off = [row for row in report.discrepancies
+           if abs(row.z) > report.adequacy_bound_z and row.material][:6]
+    if off:
+        for row in off:
+            lines.append(f'- {row.statistic}: data {_number(row.data, 4)}{_unit(row.unit)}, '
+                         f'model {_number(row.model, 4)}{_unit(row.unit)} (z = {row.z:+.1f})')
+    else:
+        lines.append('No statistic disagrees materially beyond the adequacy bound '
+                     f'(|z| > {report.adequacy_bound_z:.1f}).')
+    lines += ['', '## Causes', '']
+    if not report.causes:
+        lines.append('**None.** No cause of the table improves the prediction of held-out '
+                     'runs with a size that clears its floor.')
+    for number, named in enumerate(report.causes, 1):
+        parameter = BY_NAME[named.cause].parameter
+        low, high = named.interval[parameter]
+        values = ', '.join(f'{key} = {_number(value)}' for key, value in named.parameters.items())
+        lines.append(f'{number}. **{named.cause}** ({values}; 95 % interval of {parameter}: '
+                     f'{_number(low)} to {_number(high)}). Adding it improved the held-out '
+                     f'log score by {_number(named.gain)} nats per run (p = '
+                     f'{named.p_value:.2g}), {_percent(named.relative)} of what the model '
+                     f'lacked then; positions {_closer(named.gain_cm)} per run.')
+        lines += _rival_lines(named.cause, _rival_of(report, named.cause))
+    lines += ['', '## Beyond the table of causes', '']
+    if not report.extensions:
+        lines.append('**None.** No extension family (run-order drift, heading random walk, '
+                     'periodic heading, change point, run mixture) improves the prediction of '
+                     'held-out runs with a size that clears its floor.')
+    for number, extension in enumerate(report.extensions, 1):
+        lines.append(f'{number}. **{extension.family}**: {extension.description}. Adding it '
+                     f'improved the held-out log score by {_number(extension.gain)} nats per '
+                     f'run (p = {extension.p_value:.2g}), {_percent(extension.relative)} of '
+                     f'what the model lacked then; positions {_closer(extension.gain_cm)} '
+                     'per run.')
+        lines += _rival_lines(extension.family, extension.rival)
+    gain = report.gain
+    closer = gain.energy_score_cm['baseline'] - gain.energy_score_cm['extended']
+    lines += ['', f'Held-out log score per run: baseline {_number(gain.baseline)}, extended '
+                  f'{_number(gain.extended)}, the data themselves {_number(gain.ideal)} nats '
+                  f'(higher is better): the extended model closes '
+                  f"{_percent(gain.relative)} of the baseline's gap. Positions: "
+                  f"{_number(gain.energy_score_cm['baseline'])} -> "
+                  f"{_number(gain.energy_score_cm['extended'])} cm (energy score, lower is "
+                  f'better): {_closer(closer)} per run.']
+    lines += ['', '## What the extended model still misses', '']
+    if report.adequate:
+        lines.append('Nothing material: every statistic of the data agrees with the extended '
+                     f'model within the adequacy bound (|z| <= {report.adequacy_bound_z:.1f}).')
+    else:
+        lines.append('**The extended model is not adequate**: these statistics are still off, '
+                     'so the data carry an effect that neither the table of causes nor the '
+                     'library of extensions explains (or explains only in part):')
+        for row in report.unexplained:
+            lines.append(f'- {row.statistic}: data {_number(row.data, 4)}{_unit(row.unit)}, '
+                         f'model {_number(row.model, 4)}{_unit(row.unit)} (z = {row.z:+.1f})')
+        if report.misfit is not None:
+            lines += ['', 'Where to look:'] + report.misfit.words()
+    for name, model in (('baseline', report.baseline), ('extended', report.extended)):
+        checked = model.validation
+        if checked is not None:
+            lines.append('')
+            lines.append(f"Paper's validation of the {name} model (rho = {checked.rho}): "
+                         f'widest admissible spread sigma1 = {_number(checked.sigma1)}, '
+                         f'sigma2 = {_number(checked.sigma2)} rad at E_k = '
+                         f'{_number(checked.violation)}'
+                         + ('' if checked.accepted else ' (no spread admissible)') + '.')
+    lines += ['', '## What could have been seen', '']
+    named_terms = {c.cause for c in report.causes} | {e.term for e in report.extensions}
+    for candidate in (*report.candidates, *report.extension_candidates):
+        if candidate.cause in named_terms:
+            continue
+        lines.append(_unseen_line(candidate, report.paths))
+    if report.notes:
+        lines += ['', '## Notes on the input', ''] + [f'- {note}' for note in report.notes]
+    return '\n'.join(lines) + '\n'
+
+
+def _closer(gain_cm: float) -> str:
+    """Say a position gain in words: positive when the extended model is better."""
+    return f'{_number(abs(gain_cm), 2)} cm ' + ('closer' if gain_cm >= 0 else 'further')
+
+
+def _rival_of(report: DiagnosisReport, cause: str) -> Rival | None:
+    step = next((s for s in report.steps if s.chosen == cause), None)
+    return step.rival if step else None
+
+
+def _rival_lines(chosen: str, rival: Rival | None) -> list[str]:
+    if rival is None:
+        return []
+    values = ', '.join(f'{key} = {_number(value) if isinstance(value, float) else value}'
+                       for key, value in rival.parameters.items())
+    return [f'   These runs cannot tell it from **{rival.family}** ({values}; held-out gain '
+            f'{_number(rival.gain)} nats per run, p = {rival.p_difference:.2g} for the '
+            f'difference): {chosen} entered for its larger gain, but either may be what is '
+            'there; more runs, or runs that separate the two, would decide.']
+
+
+def _unseen_line(candidate: CandidateResult, paths: int) -> str:
+    """One line of 'What could have been seen' for a cause or family not named."""
+    cause = BY_NAME[candidate.cause]
+    parameter = cause.parameter
+    limit = candidate.detectable[parameter]
+    words = [_number(limit), cause.unit, 'from 1' if cause.null != 0 else '']
+    text = ('below ' + ' '.join(word for word in words if word) if limit is not None
+            else 'of any size on the grid')
+    label = cause.label + (f' ({cause.name.split(":", 1)[1]})' if ':' in cause.name else '')
+    name = label.replace('_', ' ')
+    article = 'an' if name[0] in 'aeiou' else 'a'
+    estimate = candidate.parameters.get(parameter)
+    shown = _number(estimate) if isinstance(estimate, (int, float)) else 'n/a'
+    return (f'- {article} {name} ({parameter}) {text} would go unseen in {paths} runs like '
+            f'these (80 % power; estimate here {shown}).')

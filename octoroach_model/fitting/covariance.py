@@ -1,0 +1,61 @@
+"""
+The covariance of a mean-path fit's vector, without refitting.
+
+Two sources of error, each resampled and carried to the vector by one Gauss-Newton step from
+the fit (`-pinv(jacobian) @ d(residual)`): the measured runs (a bootstrap over runs) and the
+simulated runs whose mean the model is (a bootstrap of their antithetic pairs). Only the first
+shrinks with more measured runs (diagnosis/power.py), so the two are returned apart.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from octoroach_model.fitting.nominal import MeanPathSettings, NominalFit, simulated_runs
+from octoroach_model.fitting.target import AverageTarget, residual_vector
+
+
+def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: np.ndarray,
+                    mean: MeanPathSettings, seed: int, n_boot: int = 60
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the covariance of the fit's vector from the measured and from the simulated runs.
+
+    `target` is what the fit matched, `data_sway` (n, 3) each measured run's sway (its mean
+    the sway target), `mean` the fit's simulated runs (with the sway matched), `seed` that
+    of the resamples.
+    """
+    assert fit.jacobian is not None, 'a fit by least squares has its Jacobian'
+    pseudo_inverse = np.linalg.pinv(fit.jacobian)
+    sway = mean.sway
+    assert sway is not None, 'the covariance is of a fit with the sway matched'
+    full = simulated_runs(fit.parameters, fit.start_pose, sway.t, fit.effects, mean)
+    model_sway = sway.of_runs(full, fit.parameters.stride_frequency)
+    runs = full[:, :len(target.t)]
+
+    def vector(xy, turn, sway):
+        return residual_vector(xy, turn, sway, fit.heading_weight_m, mean.scales)
+
+    rng = np.random.default_rng([seed, 17])
+    n_runs = len(data_sway)
+    base = vector(target.average, target.turn, np.nanmean(data_sway, axis=0))
+    data_steps = []
+    for _ in range(n_boot):
+        pick = rng.integers(0, n_runs, n_runs)
+        resampled = target.resampled(pick)
+        change = vector(resampled.average, resampled.turn,
+                        np.nanmean(data_sway[pick], axis=0)) - base
+        data_steps.append(pseudo_inverse @ change)
+    half = mean.runs // 2
+    pairs = 0.5 * (runs[:half] + runs[half:2 * half])          # antithetic pair means
+    pair_sway = 0.5 * (model_sway[:half] + model_sway[half:2 * half])
+    centre = vector(pairs[..., :2].mean(axis=0), pairs[..., 2].mean(axis=0),
+                    pair_sway.mean(axis=0))
+    model_steps = []
+    for _ in range(n_boot):
+        pick = rng.integers(0, half, half)
+        change = vector(pairs[pick, :, :2].mean(axis=0), pairs[pick, :, 2].mean(axis=0),
+                        pair_sway[pick].mean(axis=0)) - centre
+        model_steps.append(pseudo_inverse @ change)
+    measured = np.atleast_2d(np.cov(np.array(data_steps), rowvar=False))
+    simulated = np.atleast_2d(np.cov(np.array(model_steps), rowvar=False))
+    return measured, simulated

@@ -1,0 +1,357 @@
+"""
+The nominal fit (eq. 9): the deterministic model closest to the average measured path.
+
+docs/validation.md ("The nominal fit") describes it for users.
+
+Least squares over zeta = [l, phi1..phi4] (the paper's) plus the stride frequency. The model
+starts at the measured mean start pose (Table I's means: x, y and the circular mean heading):
+fitting it instead would trade a start offset for a better middle, and the confidence region
+is narrowest at the start. The stride frequency starts from the spectral peak of the average
+forward speed as well as from the initial value, so the fit does not lock onto a wrong number
+of strides. Liftoff angles follow from the touchdown angles by eqs. (7)-(8).
+
+Two extensions, off by default (the paper's fit), set in `NominalFitSettings`:
+- `heading_weight_m` adds the average heading to the residuals (radians times this length):
+  without it the geometry can bend to turn the path where the data drift sideways without
+  turning, e.g. under lateral slip;
+- `effects` are applied to the model path; the parameters named in `free` are fitted
+  together with the geometry (the geometry alone can mimic a sideways drift with a crab-like
+  gait; the shape of the average path over a stance tells the two apart).
+
+The fit runs in two stages: first with the stride frequency held at its guess, then with it
+free. Freed from the start, the frequency can slide to one stride more or less over a long
+run before the angles settle.
+
+The paper fits the deterministic path (every angle at its nominal value) to the average
+path. For a nonlinear model with random angles the two differ: the average of the model's
+runs is not the run of the average angles, and at Table III's spreads the deterministic fit
+misplaces the touchdown angles by up to 1.3 deg (benchmarks/bench_nominal_fit.py).
+`NominalFitSettings(mean=...)` fits the mean of simulated runs instead at given spreads
+(common random numbers, so the mean is a smooth function of the geometry): the fit is then
+unbiased for the stochastic model.
+
+The pieces: `NominalProblem` is the least-squares problem (the vector, its model, its
+residuals, bounds and starts), `solve` runs least squares from one start, `fit_nominal` puts
+them together.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+import math
+from typing import Any
+
+import numpy as np
+from scipy import optimize
+
+from octoroach_model.errors import DataError
+from octoroach_model.fitting.gait import stride_frequency_estimate
+from octoroach_model.fitting.target import (
+    average_target, AverageTarget, mean_start_pose, residual_vector, ResidualScales,
+    SwayTarget)
+from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
+from octoroach_model.model.kinematics import integrate_stances
+from octoroach_model.paths import Paths
+
+LOWER = [0.003, 0.05, 0.05, 0.05, 0.05, 0.2]
+UPPER = [0.08, 1.45, 1.45, 1.45, 1.45, 20.0]
+X_SCALE = [0.005, 0.1, 0.1, 0.1, 0.1, 0.1]
+FREQUENCY = 5            # index of the stride frequency in the fit's vector
+Effects = dict[str, dict[str, float]]
+
+
+@dataclass(frozen=True)
+class FreeEffect:
+    """An effect parameter fitted together with the geometry, within [lower, upper]."""
+
+    cause: str
+    parameter: str
+    lower: float
+    upper: float
+    start: float = 0.0
+
+
+@dataclass(frozen=True)
+class NominalFit:
+    """
+    Fitted deterministic model and how well it matches the average path.
+
+    `jacobian` is d(residual)/d(vector) at the solution, vector = [l, phi1..phi4, f, free
+    effects...] and residuals in cm (the average path, then the weighted heading): with
+    `average_runs`, a resampling of the runs moves the solution by about
+    -pinv(jacobian) @ d(residual), which gives intervals without refitting.
+    """
+
+    parameters: ModelParameters
+    start_pose: tuple[float, float, float]
+    rms_error_m: float
+    average_path: np.ndarray     # (T, 2) the measured average it was fitted to
+    effects: dict = field(default_factory=dict)   # effects in the model, incl. fitted ones
+    cost: float = 0.0            # least-squares cost at the solution (compares restarts)
+    jacobian: np.ndarray | None = None
+    free: tuple[FreeEffect, ...] = ()
+    heading_weight_m: float = 0.0
+
+    def report(self) -> dict:
+        return {**self.parameters.table(),
+                'start_pose': {'x_cm': self.start_pose[0] * 100, 'y_cm': self.start_pose[1] * 100,
+                               'heading_deg': math.degrees(self.start_pose[2])},
+                'rms_error_cm': self.rms_error_m * 100}
+
+
+@dataclass(frozen=True)
+class MeanPathSettings:
+    """
+    Fit the mean of `runs` simulated runs at `sigmas` (rad), drawn from `seed`.
+
+    With `sway`, the runs' mean sway (heading sway amplitude, sideways sway at f and 2f: what
+    one run does within a stride, which an average over runs blurs) is matched to the data's
+    as well, each mismatch weighted as a path offset of that size held over the whole run
+    (heading through `heading_weight_m`, `sway_weights`).
+    """
+
+    sigmas: tuple[float, float]
+    runs: int = 200
+    seed: int = 0
+    sway: SwayTarget | None = None
+    scales: ResidualScales | None = None
+
+
+@dataclass(frozen=True)
+class NominalFitSettings:
+    """
+    How the nominal fit runs; the defaults are the paper's fit (module docstring).
+
+    `multistart` also starts from the spectral guess of the stride frequency; a refit from a
+    good initial geometry can skip it. `align_gait` fits the average taken on a common gait
+    clock (`gait.aligned_runs`), which stride-to-stride frequency spread does not smear.
+    `mean` fits the mean of simulated runs instead of the deterministic path; with
+    `align_gait` the model's own stride-frequency spread is left out of it, as the alignment
+    removes the data's. `free` effects are fitted with the geometry, the other `effects`
+    held. `refine` starts from a good initial geometry in one stage, every parameter free;
+    `tolerance` is the relative change of cost and parameters at which least squares stops.
+    """
+
+    heading_weight_m: float = 0.0
+    effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    free: tuple[FreeEffect, ...] = ()
+    multistart: bool = True
+    align_gait: bool = False
+    mean: MeanPathSettings | None = None
+    refine: bool = False
+    tolerance: float = 1e-8
+
+
+def simulated_runs(parameters: ModelParameters, start_pose, t: np.ndarray,
+                   effects: Mapping[str, Any] | None, settings: MeanPathSettings) -> np.ndarray:
+    """
+    Simulate the (runs, T, 3) runs of a mean path.
+
+    Common random numbers, drawn in antithetic pairs so that their mean has no random tilt of
+    its own.
+    """
+    return model_poses(parameters, RandomStreams(settings.seed, antithetic=True),
+                       settings.runs, t, settings.sigmas[0], settings.sigmas[1], 'stance',
+                       effects or {}, None, start_pose)
+
+
+def deterministic_path(parameters: ModelParameters, start_pose, t: np.ndarray,
+                       effects: Mapping[str, Any] | None = None) -> np.ndarray:
+    """(T, 3) pose of the model with every angle at its nominal value."""
+    if effects:
+        return model_poses(parameters, RandomStreams(0), 1, t, 0.0, 0.0, 'stance', effects,
+                           None, start_pose)[0]
+    n_stances = max(1, int(math.ceil(2 * parameters.stride_frequency * t[-1] - 1e-9)))
+    angles = np.broadcast_to(parameters.nominal_angles, (1, n_stances, 6))
+    phase = 2 * parameters.stride_frequency * t
+    return integrate_stances(angles, phase, start_pose, parameters.leg_length,
+                             parameters.hip_distance)[0]
+
+
+def stride_frequency_guess(average_path: np.ndarray, t: np.ndarray, fallback: float) -> float:
+    """Half the dominant frequency of the average speed (one speed peak per stance)."""
+    if len(t) < 16:
+        return fallback
+    dt = float(t[1] - t[0])
+    speed = np.hypot(*np.gradient(average_path, dt, axis=0).T)
+    spectrum = np.abs(np.fft.rfft((speed - speed.mean()) * np.hanning(len(speed))))
+    freqs = np.fft.rfftfreq(len(speed), dt)
+    usable = freqs > 0.4
+    if not usable.any() or spectrum[usable].max() <= 0:
+        return fallback
+    return float(freqs[usable][np.argmax(spectrum[usable])] / 2.0)
+
+
+def check_measured(measured: Paths) -> None:
+    """Refuse runs the nominal fit cannot use (DataError, with what is missing)."""
+    if measured.n_paths < 1 or len(measured.t) < 3:
+        raise DataError('the nominal fit needs at least one run of three samples')
+    if not measured.well_formed:
+        raise DataError('the measured runs are not finite inside a run (only the tail of a '
+                        'run that ends early may be missing)')
+
+
+def initial_geometry(measured: Paths, initial: ModelParameters | None) -> ModelParameters:
+    """Return where the fit starts: `initial`, else Table II at the runs' stride frequency."""
+    if initial is None:
+        initial = ModelParameters.nominal()
+        estimate = stride_frequency_estimate(measured.poses[..., 2], measured.t)
+        if math.isfinite(estimate):
+            initial = replace(initial, stride_frequency=estimate)
+    return initial.with_paper_liftoff()
+
+
+@dataclass(frozen=True)
+class NominalProblem:
+    """
+    The least-squares problem of the nominal fit: vector -> model -> residuals.
+
+    The vector is [l, phi1..phi4, f, free effects...]; `held` are the effects in the model
+    with the free ones at their starts; `average` (G, 2) and `average_heading` (G,) (None
+    when the heading is not matched) are the target's.
+    """
+
+    initial: ModelParameters
+    start_pose: tuple[float, float, float]
+    t: np.ndarray
+    average: np.ndarray
+    average_heading: np.ndarray | None
+    held: Effects
+    settings: NominalFitSettings
+
+    @classmethod
+    def of(cls, initial: ModelParameters, start_pose: tuple[float, float, float],
+           target: AverageTarget, settings: NominalFitSettings) -> NominalProblem:
+        t, average = target.t, target.average
+        if len(t) < 3:
+            raise DataError('the runs share fewer than three samples of the gait: too short '
+                            'for the nominal fit')
+        average_heading = target.turn if settings.heading_weight_m > 0 else None
+        held = {name: dict(values) for name, values in settings.effects.items()}
+        for item in settings.free:
+            held.setdefault(item.cause, {})[item.parameter] = float(item.start)
+        if settings.mean is not None and settings.mean.scales is not None:
+            average_heading = target.turn
+        return cls(initial, start_pose, t, average, average_heading, held, settings)
+
+    def build(self, vector: np.ndarray) -> tuple[ModelParameters, Effects]:
+        """Return the geometry and the effects that `vector` stands for."""
+        parameters = replace(self.initial, leg_length=vector[0],
+                             touchdown_angles=tuple(vector[1:5]),
+                             stride_frequency=vector[5]).with_paper_liftoff()
+        model_effects = {name: dict(values) for name, values in self.held.items()}
+        for item, value in zip(self.settings.free, vector[6:]):
+            model_effects[item.cause][item.parameter] = float(value)
+        return parameters, check_effects(model_effects)
+
+    @property
+    def sway(self) -> SwayTarget | None:
+        mean = self.settings.mean
+        return mean.sway if mean is not None else None
+
+    def runs_of(self, parameters: ModelParameters, model_effects: Effects) -> np.ndarray:
+        """Return the model's (runs, T', 3) runs: one deterministic, or the simulated ones."""
+        mean = self.settings.mean
+        if mean is None:
+            return deterministic_path(parameters, self.start_pose, self.t, model_effects)[None]
+        if self.settings.align_gait:
+            model_effects = {name: values for name, values in model_effects.items()
+                             if name != 'gait_frequency_variation'}
+        sway = self.sway
+        grid = sway.t if sway is not None else self.t    # t is a prefix of the recorded grid
+        return simulated_runs(parameters, self.start_pose, grid, model_effects, mean)
+
+    def path_of(self, parameters: ModelParameters, model_effects: Effects) -> np.ndarray:
+        """Return the model's (G, 3) path on the target's times."""
+        return self.runs_of(parameters, model_effects)[:, :len(self.t)].mean(axis=0)
+
+    def residuals(self, vector: np.ndarray) -> np.ndarray:
+        """Return the residuals of the model that `vector` stands for (residual_vector)."""
+        parameters, model_effects = self.build(vector)
+        runs = self.runs_of(parameters, model_effects)
+        path = runs[:, :len(self.t)].mean(axis=0)
+        turn_gap = (path[:, 2] - self.start_pose[2] - self.average_heading
+                    if self.average_heading is not None else None)
+        sway = self.sway
+        sway_gap = (np.nanmean(sway.of_runs(runs, parameters.stride_frequency), axis=0)
+                    - np.asarray(sway.values) if sway is not None else None)
+        scales = self.settings.mean.scales if self.settings.mean is not None else None
+        return residual_vector(path[:, :2] - self.average, turn_gap, sway_gap,
+                               self.settings.heading_weight_m, scales)
+
+    def bounds(self) -> tuple[list[float], list[float], list[float]]:
+        """Return the vector's lower and upper bounds and its scales."""
+        free = self.settings.free
+        lower = LOWER + [item.lower for item in free]
+        upper = UPPER + [item.upper for item in free]
+        x_scale = X_SCALE + [max(0.1, 0.05 * (item.upper - item.lower)) for item in free]
+        return lower, upper, x_scale
+
+    def starts(self) -> list[np.ndarray]:
+        """Return the vectors the fit starts from: one per stride-frequency guess, in order."""
+        initial = self.initial
+        guesses = {initial.stride_frequency}
+        if self.settings.multistart:
+            guesses.add(stride_frequency_guess(self.average, self.t, initial.stride_frequency))
+        lower, upper, _ = self.bounds()
+        starts = []
+        for frequency in sorted(guesses):
+            values = [initial.leg_length, *initial.touchdown_angles,
+                      float(np.clip(frequency, LOWER[5] * 1.5, UPPER[5] * 0.95))]
+            values += [item.start for item in self.settings.free]
+            starts.append(np.clip(values, lower, upper))
+        return starts
+
+
+def solve(problem: NominalProblem, start: np.ndarray) -> optimize.OptimizeResult:
+    """Run least squares from `start`: in one stage with `refine`, else in two."""
+    lower, upper, x_scale = problem.bounds()
+    tolerance = problem.settings.tolerance
+    if problem.settings.refine:
+        return optimize.least_squares(problem.residuals, start, bounds=(lower, upper),
+                                      x_scale=x_scale, ftol=tolerance, xtol=tolerance)
+    return two_stage_least_squares(problem.residuals, start, lower, upper, x_scale, tolerance)
+
+
+def fit_nominal(measured: Paths, initial: ModelParameters | None = None,
+                settings: NominalFitSettings | None = None, *,
+                start_pose: tuple[float, float, float] | None = None,
+                target: AverageTarget | None = None) -> NominalFit:
+    """
+    Solve eq. (9) on the average of `measured` (module docstring; `NominalFitSettings`).
+
+    `start_pose` (default: the runs' mean start pose) and `target` (from `average_target`)
+    skip recomputing what a caller has already.
+    """
+    settings = settings or NominalFitSettings()
+    check_measured(measured)
+    initial = initial_geometry(measured, initial)
+    start_pose = start_pose or mean_start_pose(measured)
+    target = target or average_target(measured, start_pose, initial.stride_frequency,
+                                      settings.align_gait)
+    problem = NominalProblem.of(initial, start_pose, target, settings)
+    solutions = [solve(problem, start) for start in problem.starts()]
+    best = min(solutions, key=lambda candidate: candidate.cost)  # the first of equal costs
+    parameters, model_effects = problem.build(best.x)
+    path = problem.path_of(parameters, model_effects)
+    rms = float(np.sqrt(np.mean(np.sum((path[:, :2] - problem.average) ** 2, axis=1))))
+    return NominalFit(parameters, start_pose, rms, problem.average, model_effects,
+                      float(best.cost), np.asarray(best.jac), tuple(settings.free),
+                      settings.heading_weight_m)
+
+
+def two_stage_least_squares(residuals, start, lower, upper, x_scale, tolerance=1e-8):
+    """Least squares with the stride frequency (index FREQUENCY) held first, then released."""
+    frequency = start[FREQUENCY]
+    free = [i for i in range(len(start)) if i != FREQUENCY]
+
+    def held(vector):
+        full = np.insert(vector, FREQUENCY, frequency)
+        return residuals(full)
+
+    first = optimize.least_squares(held, start[free], bounds=(
+        [lower[i] for i in free], [upper[i] for i in free]), x_scale=[x_scale[i] for i in free],
+        ftol=tolerance, xtol=tolerance)
+    return optimize.least_squares(residuals, np.insert(first.x, FREQUENCY, frequency),
+                                  bounds=(lower, upper), x_scale=x_scale, ftol=tolerance,
+                                  xtol=tolerance)
