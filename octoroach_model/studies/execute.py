@@ -28,11 +28,12 @@ import uuid
 from octoroach_model.errors import OctoroachError, ParameterError
 from octoroach_model.studies.design import Task
 from octoroach_model.studies.replicate import run_task
+from octoroach_model.studies.rows import StudyRow
 from octoroach_model.studies.spec import StudySpec
 
 RETRIES = 3
 CONNECT_TIMEOUT_S = 10.0
-OnRow = Callable[[dict[str, Any]], None]
+OnRow = Callable[[StudyRow], None]
 
 
 def default_workers() -> int:
@@ -151,7 +152,7 @@ def check_workers(client: Any) -> None:
 
 
 def run_tasks(tasks: Sequence[Task], spec: StudySpec, *, client: Any | None,
-              done: Mapping[str, dict[str, Any]], on_row: OnRow) -> None:
+              done: Mapping[str, StudyRow], on_row: OnRow) -> None:
     """
     Run `tasks`, handing every new row to `on_row` (rows in `done` are not recomputed).
 
@@ -169,7 +170,7 @@ def run_tasks(tasks: Sequence[Task], spec: StudySpec, *, client: Any | None,
 
 
 def _run_on_dask(tasks: Sequence[Task], spec: StudySpec, client: Any,
-                 done: Mapping[str, dict[str, Any]], on_row: OnRow) -> None:
+                 done: Mapping[str, StudyRow], on_row: OnRow) -> None:
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]
