@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     rows_path = args.out / 'rows.csv'
     rows = read_rows(rows_path)
-    done = {row['replicate'] for row in rows}
+    done = {row.replicate for row in rows}
     wanted = range(min(args.replicates or spec.study.replicates, spec.study.replicates))
     todo = [replicate for replicate in wanted if replicate not in done]
     if todo and not args.report_only:
@@ -51,16 +51,16 @@ def main(argv: list[str] | None = None) -> int:
                 append_row(rows_path, row)
                 rows.append(row)
                 print(f'[looks {time.perf_counter() - started:7.0f}s] {number}/{len(todo)} '
-                      f'{row["key"]}: {row["status"]} {row["note"]} ({row["elapsed_s"]:.0f} s)',
+                      f'{row.key}: {row.status} {row.note} ({row.elapsed_s:.0f} s)',
                       file=sys.stderr, flush=True)
-    rows = [row for row in rows if row['replicate'] in set(wanted)]
+    rows = [row for row in rows if row.replicate in set(wanted)]
     print(table_text(spec, summarize(spec, rows)))
-    errors = [row for row in rows if row['status'] != 'ok']
+    errors = [row for row in rows if not row.ok]
     if errors:
-        print(f'\n{len(errors)} data sets failed, e.g. {errors[0]["key"]}: {errors[0]["note"]}')
-    cpu = sum(float(row['elapsed_s']) for row in rows)
+        print(f'\n{len(errors)} data sets failed, e.g. {errors[0].key}: {errors[0].note}')
+    cpu = sum(row.elapsed_s for row in rows)
     print(f'\n{len(rows)} data sets, {cpu / 60:.0f} worker-minutes '
-          f'(median {sorted(float(row["elapsed_s"]) for row in rows)[len(rows) // 2]:.0f} s each)'
+          f'(median {sorted(row.elapsed_s for row in rows)[len(rows) // 2]:.0f} s each)'
           if rows else '\nno data sets yet')
     return 0
 

@@ -135,8 +135,8 @@ def evidence(case: str, counts: list[int], replicates: int, workers: int) -> Non
                                                for task in tasks]]
     print(f'{case}: data sets diagnosed in full (replicates {first}-{first + replicates - 1})')
     for runs in counts:
-        group = [row for row in rows if row['runs'] == runs and row['status'] == 'ok']
-        rate = wilson(sum(term in (row['named'] or []) for row in group), len(group))
+        group = [row for row in rows if row.runs == runs and row.ok]
+        rate = wilson(sum(term in row.outcome.named for row in group), len(group))
         low, high = rate.interval or (math.nan, math.nan)
         print(f'  {runs} runs: named in {rate.successes}/{rate.trials} = {rate.rate:.0%} '
               f'({low:.0%}-{high:.0%})')

@@ -148,7 +148,7 @@ def table_summary(name: str) -> tuple[dict, str | None]:
     total = len(build_tasks(spec))
     if len(rows) >= total:
         return summarize(spec, rows, wall_time_s), None
-    replicates = sorted({row['replicate'] for row in rows})
+    replicates = sorted({row.replicate for row in rows})
     return summarize(spec, rows), (
         f'{len(rows)} of the {total} data sets of the spec (replicates {replicates[0]}-'
         f'{replicates[-1]}, not all complete); `--studies {name}` resumes it')

@@ -173,7 +173,7 @@ def test_a_question_must_name_a_term_and_a_size_that_matters():
 def test_the_looks_study_applies_each_rule_to_the_same_looks(tmp_path):
     """A look that passes the fixed-sample z but not the anytime boundary: named by one rule."""
     from octoroach_model.studies.looks import (
-        append_row, load_looks, named_at, read_rows, summarize, table_text)
+        append_row, load_looks, Look, LooksRow, named_at, read_rows, summarize, table_text)
 
     spec_file = tmp_path / 'looks.yaml'
     spec_file.write_text('name: tiny\nruns: [100]\ncauses: [none]\n'
@@ -192,10 +192,11 @@ def test_the_looks_study_applies_each_rule_to_the_same_looks(tmp_path):
     assert named_at(last_only, 'fixed, last look', levels, 100)['named'] == 100
     rows_file = tmp_path / 'rows.csv'
     for replicate, looks in enumerate((passes_fixed_only, passes_both, last_only)):
-        append_row(rows_file, {'key': f'r{replicate}', 'replicate': replicate,
-                               'term': 'lateral_slip', 'status': 'ok', 'looks': looks})
+        append_row(rows_file, LooksRow(f'r{replicate}', replicate, 'lateral_slip',
+                                       looks=tuple(Look(*look) for look in looks)))
     rows = read_rows(rows_file)
-    assert [row['looks'] for row in rows] == [passes_fixed_only, passes_both, last_only]
+    assert [[list(look) for look in row.looks] for row in rows] == [
+        passes_fixed_only, passes_both, last_only]
     summary = summarize(spec, rows)
     assert summary['rules']['live']['named']['successes'] == 1
     assert summary['rules']['fixed, every look']['named']['successes'] == 3

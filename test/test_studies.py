@@ -10,6 +10,7 @@ import math
 import os
 from pathlib import Path
 import random
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -21,11 +22,13 @@ from octoroach_model.recordings.runs.run_set import RunSet
 from octoroach_model.studies.damage import cut_runs_short, damage_paths, drop_frames
 from octoroach_model.studies.design import build_tasks, draw_robot, draw_signs
 from octoroach_model.studies.plan import _coarse_grid, _next_counts, fit_power_curve
-from octoroach_model.studies.replicate import outcome_columns, report_fields
-from octoroach_model.studies.spec import DamageSpec, Draw, parse_spec
+from octoroach_model.studies.replicate import read_report
+from octoroach_model.studies.rows import Status, StudyRow, TermOutcome
+from octoroach_model.studies.spec import ArmKind, DamageSpec, Draw, parse_spec
 from octoroach_model.studies.summary import summarize, wilson
 from octoroach_model.studies.table import (
-    append_row, COLUMN_NAMES, read_table, row_line, start_table, TABLE_NAME, typed_row)
+    append_row, COLUMN_NAMES, COLUMNS, format_cell, read_table, row_cells, row_line, row_of,
+    start_table, TABLE_NAME)
 
 
 def suite_seed() -> int:
@@ -237,14 +240,14 @@ def test_damage_is_the_same_for_every_arm_of_a_replicate_and_counted():
 # the table
 
 def a_row(**values):
-    row = dict.fromkeys(COLUMN_NAMES)
-    row.update({'key': 'none/n50/r0', 'arm': 'none', 'kind': 'null', 'replicate': 0,
-                'seed': 123, 'runs': 50, 'size': math.nan, 'true_causes': [],
-                'named': ['lateral_slip', 'speed_decay'], 'false_causes': ['lateral_slip'],
-                'named_lateral_slip': True, 'estimate_lateral_slip': 0.1 + 0.2,
-                'status': 'ok', 'note': 'a, note\nover "two" lines', 'elapsed_s': 1.5})
-    row.update(values)
-    return typed_row(row)
+    """Return a row given by its table columns (the others empty), through the converter."""
+    cells = {'key': 'none/n50/r0', 'arm': 'none', 'kind': 'null', 'replicate': 0,
+             'seed': 123, 'runs': 50, 'size': math.nan, 'true_causes': [],
+             'named': ['lateral_slip', 'speed_decay'], 'false_causes': ['lateral_slip'],
+             'named_lateral_slip': True, 'estimate_lateral_slip': 0.1 + 0.2,
+             'status': 'ok', 'note': 'a, note\nover "two" lines', 'elapsed_s': 1.5, **values}
+    kinds = dict(COLUMNS)
+    return row_of({name: format_cell(value, kinds[name]) for name, value in cells.items()})
 
 
 def test_a_row_reads_back_exactly_and_a_cut_off_last_line_is_dropped(tmp_path):
@@ -257,11 +260,14 @@ def test_a_row_reads_back_exactly_and_a_cut_off_last_line_is_dropped(tmp_path):
     rows, dropped = read_table(table)
     assert dropped == 1 and len(rows) == 2
     first = rows[0]
-    assert first['estimate_lateral_slip'] == 0.1 + 0.2              # bit for bit
-    assert first['named'] == 'lateral_slip;speed_decay'
-    assert first['named_lateral_slip'] is True and first['named_speed_decay'] is None
-    assert math.isnan(first['size']) and first['note'] == 'a, note over "two" lines'
-    assert first['seed'] == 123 and first['runs'] == 50
+    assert first.terms['lateral_slip'].estimate == 0.1 + 0.2          # bit for bit
+    assert first.outcome.named == ('lateral_slip', 'speed_decay')
+    assert first.terms['lateral_slip'].named is True and first.terms['speed_decay'].named is None
+    assert math.isnan(first.size) and first.note == 'a, note over "two" lines'
+    assert first.seed == 123 and first.runs == 50
+    assert first.kind is ArmKind.NULL and first.status is Status.OK
+    assert row_cells(first) == row_cells(a_row())
+    assert len(row_cells(first)) == len(COLUMN_NAMES)
 
 
 def test_a_file_that_is_not_a_study_table_is_refused(tmp_path):
@@ -274,39 +280,46 @@ def test_a_file_that_is_not_a_study_table_is_refused(tmp_path):
 # --------------------------------------------------------------------------------------------
 # the diagnosis adapter
 
-class TypedReport:
+def a_report(causes=(), candidates=(), extensions=(), extension_candidates=(), steps=(),
+             adequate=True, unexplained=(), discrepancies=(), adequacy_bound_z=3.0):
     """
-    A report's JSON as `diagnose` returns it (`to_json()`).
+    Return what a study reads of a DiagnosisReport, its records written out by hand.
 
-    Written out so that the columns it gives can be checked by hand.
+    Each record holds the fields the study reads, so that its columns can be checked by hand.
     """
+    def records(entries):
+        return tuple(SimpleNamespace(**entry) for entry in entries)
 
-    def to_json(self):
-        return {'cause': 'speed_decay', 'parameters': {'fraction': 0.21},
-                'causes': [{'cause': 'speed_decay', 'parameters': {'fraction': 0.21},
-                            'interval': {'fraction': [0.18, 0.24]}, 'gain': 1.0,
-                            'p_value': 1e-5},
-                           {'cause': 'measurement_noise', 'parameters': {'position_std_cm': 0.1},
-                            'interval': {'position_std_cm': [0.08, 0.12]}, 'gain': 0.2,
-                            'p_value': 1e-3}],
-                'candidates': [{'cause': 'lateral_slip', 'parameters': {'velocity_cm_s': 0.01},
-                                'gain': 0.0, 'p_value': 0.4,
-                                'detectable': {'velocity_cm_s': 0.2}}],
-                'adequate': False,
-                'unexplained': [{'statistic': 'heading_rate_spread', 'z': 5.0}]}
+    return SimpleNamespace(
+        causes=records(causes), candidates=records(candidates),
+        extensions=records(extensions), extension_candidates=records(extension_candidates),
+        steps=tuple(SimpleNamespace(chosen=step['chosen'], rival=step['rival'] and
+                                    SimpleNamespace(**step['rival'])) for step in steps),
+        adequate=adequate, unexplained=records(unexplained),
+        discrepancies=records(discrepancies), adequacy_bound_z=adequacy_bound_z)
 
 
 def test_the_adapter_reads_a_typed_report_with_several_causes_and_intervals():
-    plain = report_fields(TypedReport())
-    columns = outcome_columns(plain, {'speed_decay': {'fraction': 0.2},
-                                      'initial_pose_error': {'heading_std_deg': 4.0,
-                                                             'position_std_cm': 0.0}})
-    assert columns['named'] == ['speed_decay', 'measurement_noise']
-    assert columns['false_causes'] == ['measurement_noise']
-    assert columns['all_true_named'] is False and columns['adequate'] is False
-    assert (columns['low_speed_decay'], columns['high_speed_decay']) == (0.18, 0.24)
-    assert columns['unexplained'] == ['heading_rate_spread']
-    assert columns['limit_lateral_slip'] == 0.2 and columns['estimate_lateral_slip'] == 0.01
+    report = a_report(
+        causes=[{'cause': 'speed_decay', 'parameters': {'fraction': 0.21},
+                 'interval': {'fraction': [0.18, 0.24]}},
+                {'cause': 'measurement_noise', 'parameters': {'position_std_cm': 0.1},
+                 'interval': {'position_std_cm': [0.08, 0.12]}}],
+        candidates=[{'cause': 'lateral_slip', 'parameters': {'velocity_cm_s': 0.01},
+                     'detectable': {'velocity_cm_s': 0.2}}],
+        adequate=False, unexplained=[{'statistic': 'heading_rate_spread', 'z': 5.0}],
+        discrepancies=[{'statistic': 'heading_rate_spread', 'z': 5.0, 'material': True}])
+    outcome, terms = read_report(report, {'speed_decay': {'fraction': 0.2},
+                                          'initial_pose_error': {'heading_std_deg': 4.0,
+                                                                 'position_std_cm': 0.0}})
+    assert outcome.named == ('speed_decay', 'measurement_noise')
+    assert outcome.false_causes == ('measurement_noise',)
+    assert outcome.all_true_named is False and outcome.adequate is False
+    assert outcome.baseline_adequate is False
+    assert (terms['speed_decay'].low, terms['speed_decay'].high) == (0.18, 0.24)
+    assert terms['speed_decay'].true == 0.2 and terms['initial_pose_error'].named is False
+    assert outcome.unexplained == ('heading_rate_spread',)
+    assert terms['lateral_slip'].limit == 0.2 and terms['lateral_slip'].estimate == 0.01
 
 
 # --------------------------------------------------------------------------------------------
@@ -377,6 +390,12 @@ def test_power_at_a_limit_multiple_counts_the_misses_and_which_were_not_silent()
 # --------------------------------------------------------------------------------------------
 # plan's search
 
+def a_plan_row(runs, replicate, named):
+    """Return a diagnosed row of a plan: speed_decay named or not at `runs` runs."""
+    return StudyRow('', '', ArmKind.ABSOLUTE, replicate, 0, runs, status=Status.OK,
+                    terms={'speed_decay': TermOutcome(named=named)})
+
+
 def test_the_power_fit_finds_the_run_count_of_a_known_power_curve():
     """
     Check the 95 % interval of the run count over 40 simulated studies.
@@ -394,8 +413,7 @@ def test_the_power_fit_finds_the_run_count_of_a_known_power_curve():
             u = rng.random()             # one draw per replicate: nested data sets (CRN)
             for runs in counts:
                 power = 1 / (1 + math.exp(-(true_a + true_b * math.log(runs))))
-                rows.append({'runs': runs, 'replicate': replicate, 'status': 'ok',
-                             'named_speed_decay': u < power})
+                rows.append(a_plan_row(runs, replicate, u < power))
         fit = fit_power_curve(rows, 'speed_decay', 0.8, bootstrap=200, seed=study)
         covered += fit.interval_95[0] < truth < fit.interval_95[1]
         errors.append(abs(math.log(fit.runs_at_target / truth)))
@@ -408,8 +426,8 @@ def test_plan_grids_start_around_the_guess_and_grow_toward_the_answer():
     assert _coarse_grid(10, 40, 2000) == [40, 80, 160]
     assert _coarse_grid(2000, 40, 2000) == [500, 1000, 2000]
     assert _coarse_grid(5000, 40, 2000) == [625, 1250, 2000]
-    fit = fit_power_curve([{'runs': n, 'replicate': r, 'status': 'ok', 'named_x': False}
-                           for n in (100, 200) for r in range(4)], 'x', 0.8, bootstrap=10)
+    fit = fit_power_curve([a_plan_row(n, r, False) for n in (100, 200) for r in range(4)],
+                          'speed_decay', 0.8, bootstrap=10)
     assert _next_counts(fit, [100, 200], 40, 2000) == [400]
     assert _next_counts(fit, [100, 2000], 40, 2000) == []
 
@@ -458,19 +476,17 @@ def test_a_task_puts_its_family_into_the_data_at_the_spec_s_size():
 def test_the_adapter_reads_extensions_and_the_confusion_table_counts_them():
     from octoroach_model.studies.summary import confusion
 
-    plain = {'causes': [], 'candidates': [],
-             'extensions': [{'family': 'change_point', 'term': 'change_point',
-                             'parameters': {'time_s': 2.4, 'speed_factor': 0.72},
-                             'interval': {'speed_factor': [0.7, 0.74]}}],
-             'extension_candidates': [{'cause': 'run_mixture', 'parameters': {
-                 'fraction': 0.3, 'yaw_rate_deg_s': 1.0},
-                 'detectable': {'yaw_rate_deg_s': 5.0}}],
-             'adequate': True, 'unexplained': []}
-    columns = outcome_columns(plain, {'change_point': {'time_s': 2.5, 'speed_factor': 0.7}})
-    assert columns['named'] == ['change_point'] and columns['false_causes'] == []
-    assert columns['named_change_point'] is True
-    assert columns['rel_error_change_point'] == pytest.approx(-0.02 / 0.3)   # of 1 - factor
-    assert columns['limit_run_mixture'] == 5.0
+    report = a_report(
+        extensions=[{'family': 'change_point', 'term': 'change_point',
+                     'parameters': {'time_s': 2.4, 'speed_factor': 0.72},
+                     'interval': {'speed_factor': [0.7, 0.74]}}],
+        extension_candidates=[{'cause': 'run_mixture', 'parameters': {
+            'fraction': 0.3, 'yaw_rate_deg_s': 1.0}, 'detectable': {'yaw_rate_deg_s': 5.0}}])
+    outcome, terms = read_report(report, {'change_point': {'time_s': 2.5, 'speed_factor': 0.7}})
+    assert outcome.named == ('change_point',) and outcome.false_causes == ()
+    assert terms['change_point'].named is True and outcome.baseline_adequate is True
+    assert terms['change_point'].rel_error == pytest.approx(-0.02 / 0.3)   # of 1 - factor
+    assert terms['run_mixture'].limit == 5.0
     rows = [a_row(true_causes=['change_point'], named=['change_point']),
             a_row(true_causes=['change_point'], named=['speed_decay']),
             a_row(true_causes=['run_order_drift:yaw_rate'], named=[]),
@@ -487,12 +503,12 @@ def test_a_term_the_runs_cannot_tell_from_the_named_one_is_counted_apart():
 
     rival = {'cause': 'change_point', 'family': 'change_point', 'gain': 1.9,
              'parameters': {'time_s': 2.5, 'speed_factor': 1.03}, 'p_difference': 0.4}
-    plain = {'causes': [{'cause': 'speed_decay', 'parameters': {'fraction': -0.04}}],
-             'candidates': [], 'extensions': [], 'adequate': True, 'unexplained': [],
-             'steps': [{'step': 1, 'chosen': 'speed_decay', 'rival': rival},
-                       {'step': 2, 'chosen': None, 'rival': None}]}
-    columns = outcome_columns(plain, {'change_point': {'time_s': 2.5, 'speed_factor': 1.03}})
-    assert columns['named'] == ['speed_decay'] and columns['undecided'] == ['change_point']
+    report = a_report(causes=[{'cause': 'speed_decay', 'parameters': {'fraction': -0.04},
+                               'interval': {}}],
+                      steps=[{'step': 1, 'chosen': 'speed_decay', 'rival': rival},
+                             {'step': 2, 'chosen': None, 'rival': None}])
+    outcome, _ = read_report(report, {'change_point': {'time_s': 2.5, 'speed_factor': 1.03}})
+    assert outcome.named == ('speed_decay',) and outcome.undecided == ('change_point',)
     spec = spec_of('runs: [50]\ncauses: [none, {extension: change_point, '
                    'limit_multiples: [1]}]')
     arm = spec.arms[1].label

@@ -5,9 +5,12 @@ import argparse
 from pathlib import Path
 import sys
 import time
-from typing import Any, TextIO
+from typing import Any, TextIO, TYPE_CHECKING
 
 from octoroach_model.commands.common import add_workers_argument, finite_float, OneLineParser
+
+if TYPE_CHECKING:
+    from octoroach_model.studies.rows import StudyRow
 
 
 class ProgressBar:
@@ -26,7 +29,7 @@ class ProgressBar:
         self.first_done: int | None = None
         self.last_shown = -1.0
 
-    def __call__(self, done: int, total: int, row: dict[str, Any] | None = None) -> None:
+    def __call__(self, done: int, total: int, row: StudyRow | None = None) -> None:
         if self.first_done is None:
             self.first_done = done
         fraction = done / total if total else 1.0
@@ -40,7 +43,7 @@ class ProgressBar:
         left = ''
         if 0 < computed and done < total:
             left = f', about {elapsed / computed * (total - done) / 60:.1f} min left'
-        last = f' last: {row["key"]} {row["status"]}' if row else ''
+        last = f' last: {row.key} {row.status}' if row else ''
         text = (f'[{self.label} {bar}] {done}/{total} data sets, '
                 f'{elapsed / 60:.1f} min{left}{last}')
         if self.live:

@@ -53,6 +53,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 
@@ -79,6 +80,15 @@ def periodic_limit_hz(duration_s: float, stride_hz: float) -> float:
     return min(PERIODIC_LIMIT_PERIODS / max(duration_s, 1e-9), 0.5 * stride_hz)
 
 
+class EstimateKind(StrEnum):
+    """How a candidate's size is estimated (the four kinds of the module docstring)."""
+
+    MOMENTS = 'moments'
+    PATH = 'path'
+    TREND = 'trend'
+    MIXTURE = 'mixture'
+
+
 @dataclass(frozen=True)
 class RunScale:
     """What the floors depend on: how long a run lasts, how far it goes, how many stances."""
@@ -103,7 +113,7 @@ class Cause:
 
     name: str
     unit: str
-    kind: str                                   # 'moments', 'path', 'trend' or 'mixture'
+    kind: EstimateKind
     statistic_name: str
     statistic: Callable[[np.ndarray], float] | None
     reference: float
@@ -161,20 +171,22 @@ def _slip_floor(scale: RunScale) -> float:
 
 
 CAUSES: tuple[Cause, ...] = (
-    Cause('initial_pose_error', 'deg', 'moments', 'start heading variance',
+    Cause('initial_pose_error', 'deg', EstimateKind.MOMENTS, 'start heading variance',
           _variance_of('start_heading'), 4.0, lambda scale: 0.5),
-    Cause('measurement_noise', 'cm', 'moments', 'position noise variance (median 4th '
+    Cause('measurement_noise', 'cm', EstimateKind.MOMENTS, 'position noise variance (median 4th '
           'difference)', _noise_variance, 0.05, lambda scale: POSITION_RESOLUTION_M * 100),
-    Cause('gait_frequency_variation', '', 'moments', 'stride frequency variance across runs',
-          _variance_of('stride_frequency'), 0.05, lambda scale: 0.005),
-    Cause('speed_decay', '', 'path', 'average path (joint fit with the geometry)', None, 0.2,
-          lambda scale: 0.01, signed=True, bounds=(-0.9, 0.9),
+    Cause('gait_frequency_variation', '', EstimateKind.MOMENTS,
+          'stride frequency variance across runs', _variance_of('stride_frequency'), 0.05,
+          lambda scale: 0.005),
+    Cause('speed_decay', '', EstimateKind.PATH, 'average path (joint fit with the geometry)',
+          None, 0.2, lambda scale: 0.01, signed=True, bounds=(-0.9, 0.9),
           signature=_mean_of('progress_ratio')),
-    Cause('lateral_slip', 'cm/s', 'path', 'average path (joint fit with the geometry)', None,
-          2.0, _slip_floor, signed=True, bounds=(-50.0, 50.0),
-          signature=_mean_of('slip_angle')),
-    Cause('persistent_turning', 'deg/s', 'moments', 'heading rate variance across runs',
-          _variance_of('heading_rate'), 5.0, lambda scale: 1.0 / max(scale.duration_s, 1e-3)),
+    Cause('lateral_slip', 'cm/s', EstimateKind.PATH,
+          'average path (joint fit with the geometry)', None, 2.0, _slip_floor, signed=True,
+          bounds=(-50.0, 50.0), signature=_mean_of('slip_angle')),
+    Cause('persistent_turning', 'deg/s', EstimateKind.MOMENTS,
+          'heading rate variance across runs', _variance_of('heading_rate'), 5.0,
+          lambda scale: 1.0 / max(scale.duration_s, 1e-3)),
 )
 
 
@@ -199,25 +211,28 @@ def _duration_floor(scale: RunScale) -> float:
 
 
 FAMILIES: tuple[Cause, ...] = (
-    Cause(drift_term('stride_frequency'), '', 'trend', 'stride frequency against run order',
-          _trend_of('stride_frequency'), 0.1, lambda scale: 0.01, signed=True,
-          family='run_order_drift', order_dependent=True),
-    Cause(drift_term('yaw_rate'), 'deg/s', 'trend', 'heading rate against run order',
+    Cause(drift_term('stride_frequency'), '', EstimateKind.TREND,
+          'stride frequency against run order', _trend_of('stride_frequency'), 0.1,
+          lambda scale: 0.01, signed=True, family='run_order_drift', order_dependent=True),
+    Cause(drift_term('yaw_rate'), 'deg/s', EstimateKind.TREND, 'heading rate against run order',
           _trend_of('heading_rate'), 5.0, _duration_floor, signed=True,
           family='run_order_drift', order_dependent=True),
-    Cause(drift_term('lateral_velocity'), 'cm/s', 'trend',
+    Cause(drift_term('lateral_velocity'), 'cm/s', EstimateKind.TREND,
           'heading to travel angle against run order', _trend_of('slip_angle'), 2.0,
           _slip_floor, signed=True, family='run_order_drift', order_dependent=True),
-    Cause('heading_random_walk', 'deg', 'moments', 'per-cycle heading change variance beside '
-          'the stride length variance', _mean_of('increment_var'), 1.0,
-          lambda scale: 1.0 / np.sqrt(max(scale.stances, 1.0)), family='heading_random_walk'),
-    Cause('periodic_heading', 'deg', 'moments', 'heading power at the wobble frequency',
-          _mean_exp_of('heading_wobble'), 5.0, lambda scale: 0.5, family='periodic_heading'),
-    Cause('change_point', '', 'path', 'average path (joint fit with the geometry)', None, 0.7,
-          lambda scale: 0.01, signed=True, bounds=(0.2, 3.0), family='change_point',
+    Cause('heading_random_walk', 'deg', EstimateKind.MOMENTS,
+          'per-cycle heading change variance beside the stride length variance',
+          _mean_of('increment_var'), 1.0, lambda scale: 1.0 / np.sqrt(max(scale.stances, 1.0)),
+          family='heading_random_walk'),
+    Cause('periodic_heading', 'deg', EstimateKind.MOMENTS,
+          'heading power at the wobble frequency', _mean_exp_of('heading_wobble'), 5.0,
+          lambda scale: 0.5, family='periodic_heading'),
+    Cause('change_point', '', EstimateKind.PATH, 'average path (joint fit with the geometry)',
+          None, 0.7, lambda scale: 0.01, signed=True, bounds=(0.2, 3.0), family='change_point',
           main='speed_factor', null=1.0),
-    Cause('run_mixture', 'deg/s', 'mixture', 'heading rates across runs (two groups)', None,
-          8.0, _duration_floor, signed=True, family='run_mixture', main='yaw_rate_deg_s'),
+    Cause('run_mixture', 'deg/s', EstimateKind.MIXTURE,
+          'heading rates across runs (two groups)', None, 8.0, _duration_floor, signed=True,
+          family='run_mixture', main='yaw_rate_deg_s'),
 )
 CANDIDATES: tuple[Cause, ...] = CAUSES + FAMILIES
 BY_NAME = {cause.name: cause for cause in CANDIDATES}

@@ -28,7 +28,7 @@ import math
 
 from scipy import stats
 
-from octoroach_model.diagnosis.causes import BY_NAME
+from octoroach_model.diagnosis.causes import BY_NAME, EstimateKind
 from octoroach_model.diagnosis.modelfit import moments_se_u, SizeEstimate
 
 POWER = 0.8
@@ -55,7 +55,7 @@ def judge(estimate: SizeEstimate, floor: float, z_decision: float) -> SizeVerdic
     """Judge one size estimate (module docstring)."""
     cause = BY_NAME[estimate.cause]
     z_interval = float(stats.norm.isf((1 - INTERVAL_LEVEL) / 2))
-    if cause.kind == 'moments':
+    if cause.kind == EstimateKind.MOMENTS:
         u, se_u = estimate.u, estimate.se_u
         interval = (_root(u - z_interval * se_u), _root(u + z_interval * se_u))
         lower = _root(u - z_decision * se_u)

@@ -30,8 +30,8 @@ import numpy as np
 from scipy import stats
 
 from octoroach_model.diagnosis.causes import (
-    BY_NAME, CANDIDATES, Cause, CAUSES, FAMILIES, MIXTURE_FRACTION, periodic_limit_hz,
-    RunScale)
+    BY_NAME, CANDIDATES, Cause, CAUSES, EstimateKind, FAMILIES, MIXTURE_FRACTION,
+    periodic_limit_hz, RunScale)
 from octoroach_model.diagnosis.decide import decision_z, judge, SizeVerdict
 from octoroach_model.diagnosis.descriptions import describe
 from octoroach_model.diagnosis.discrepancies import (
@@ -477,11 +477,11 @@ def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Sc
         estimate = quick.estimates[cause]
         if out_of_reach(estimate, candidate.floor(halves.run_scale),
                         z_decision - SCREEN_ALLOWANCE) or (
-                candidate.kind == 'mixture'
+                candidate.kind == EstimateKind.MIXTURE
                 and estimate.detail['log_likelihood_ratio'] < MIXTURE_EVIDENCE_NATS):
             return Evaluation(cause, quick.model, quick.estimates, current_scores,
                               PairedGain(0.0, 0.0, 1.0), 0.0, screened=True)
-    geometry = candidate.kind in ('path', 'mixture', 'trend')
+    geometry = candidate.kind in (EstimateKind.PATH, EstimateKind.MIXTURE, EstimateKind.TREND)
     fitted = fit_causes(halves.train, current, causes, settings.fit(), geometry=geometry,
                         rounds=1)
     if not geometry and spread_statistic(fitted.model) != spread_statistic(current):
@@ -508,13 +508,13 @@ def quick_fit(train: RunData, current: FittedModel, cause: Cause,
     simulator = Simulator(train, settings.seed)
     fit = settings.fit()
     model = current.with_effect(cause.name, at_size(cause, 0.0, None, train))
-    if cause.kind == 'trend':
+    if cause.kind == EstimateKind.TREND:
         estimate = fit_trend(simulator, model, cause, fit)
         values = at_size(cause, estimate.size, None, train)
-    elif cause.kind == 'path':
+    elif cause.kind == EstimateKind.PATH:
         values, error = change_point_step(simulator, model, CHANGE_POINT_BOOTSTRAP)
         estimate = SizeEstimate(cause.name, values[cause.parameter], error)
-    elif cause.kind == 'mixture':
+    elif cause.kind == EstimateKind.MIXTURE:
         estimate, values = fit_mixture(simulator, model, cause, fit)
     else:
         if spread_statistic(model) != spread_statistic(current):
@@ -527,7 +527,7 @@ def quick_fit(train: RunData, current: FittedModel, cause: Cause,
 def out_of_reach(estimate: SizeEstimate, floor: float, z: float) -> bool:
     """Whether the size's lower bound at `z` standard errors stays below `floor`."""
     cause = BY_NAME[estimate.cause]
-    if cause.kind == 'moments':
+    if cause.kind == EstimateKind.MOMENTS:
         return bool(not math.isfinite(estimate.se_u)
                     or estimate.u - z * estimate.se_u <= floor ** 2)
     return bool(not math.isfinite(estimate.se)
@@ -580,7 +580,7 @@ def candidate_result(evaluation: Evaluation, verdict: SizeVerdict, step: int,
     if cause.is_extension:
         values = family_form(evaluation.cause, values)[1]
     limit = verdict.limit
-    if cause.kind == 'mixture' and limit is not None:
+    if cause.kind == EstimateKind.MIXTURE and limit is not None:
         limit /= math.sqrt(MIXTURE_FRACTION * (1 - MIXTURE_FRACTION))
     gain = evaluation.gain
     return CandidateResult(
@@ -691,12 +691,12 @@ def independent_moves(simulator: Simulator, fit: CausesFit, halves: _Halves,
         moves.append(replace(model, sigma_scale=model.sigma_scale + spread_se))
     for name, estimate in fit.estimates.items():
         cause = BY_NAME[name]
-        if cause.kind == 'path' or name not in model.effects or not (
+        if cause.kind == EstimateKind.PATH or name not in model.effects or not (
                 math.isfinite(estimate.se) and estimate.se > 0):
             continue
         values = model.effects[name]
-        size = abs(float(values[cause.parameter]) - cause.null) if cause.kind != 'mixture' \
-            else estimate.size
+        size = estimate.size if cause.kind == EstimateKind.MIXTURE \
+            else abs(float(values[cause.parameter]) - cause.null)
         moved = at_size(cause, size + estimate.se, values, halves.every)
         if cause.signed and float(values.get(cause.parameter, 0.0)) < cause.null:
             moved = at_size(cause, -(size + estimate.se), values, halves.every)
@@ -723,7 +723,7 @@ def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
     estimate = evaluation.estimates[cause.name]
     start = seen.detectable[cause.parameter]
     fitted = dict(evaluation.model.effects.get(cause.name) or {})
-    if cause.kind == 'mixture':
+    if cause.kind == EstimateKind.MIXTURE:
         fitted['fraction'] = MIXTURE_FRACTION
     if cause.name == 'periodic_heading':
         reference = periodic_limit_hz(halves.train.median_duration_s,
@@ -737,7 +737,7 @@ def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
         Simulator(halves.test, settings.seed), without, estimate, floor, z_bound,
         float(stats.norm.isf(settings.alpha / everyone)), halves.scales, halves.test.n,
         settings.score_runs, start, fitted, base, settings.fit())
-    if cause.kind == 'mixture' and limit.size is not None:
+    if cause.kind == EstimateKind.MIXTURE and limit.size is not None:
         share = MIXTURE_FRACTION * (1 - MIXTURE_FRACTION)
         limit = replace(limit, size=limit.size / math.sqrt(share))
     return limit
@@ -824,7 +824,7 @@ def extension_intervals(cause: Cause, values: dict, estimate: SizeEstimate | Non
     fraction and yaw rate, periodic_heading's frequency) from their own errors.
     """
     z = float(stats.norm.isf(0.025))
-    if cause.kind == 'mixture':
+    if cause.kind == EstimateKind.MIXTURE:
         errors = dict(estimate.others) if estimate else {}
         interval = {key: [values[key] - z * errors.get(key, math.inf),
                           values[key] + z * errors.get(key, math.inf)] for key in values}

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from enum import StrEnum
 import math
 
 import numpy as np
@@ -26,6 +27,17 @@ from scipy import stats
 from octoroach_model.diagnosis.features import INDEX, noise_variance_m2
 
 DEG = 180.0 / math.pi
+
+
+class Materiality(StrEnum):
+    """How large a difference in a statistic is material (see `Statistic`)."""
+
+    MEAN = 'mean'
+    SPREAD = 'spread'
+    ABSOLUTE = 'absolute'
+
+
+MEAN, SPREAD, ABSOLUTE = Materiality.MEAN, Materiality.SPREAD, Materiality.ABSOLUTE
 
 
 @dataclass(frozen=True)
@@ -42,7 +54,7 @@ class Statistic:
     unit: str
     function: Callable[[np.ndarray], float]
     resolution: float
-    kind: str
+    kind: Materiality
     material: float = 0.1
     feature: str = ''
 
@@ -113,55 +125,55 @@ def _growth_exponent(f: np.ndarray) -> float:
 
 
 STATISTICS: tuple[Statistic, ...] = (
-    Statistic('start heading spread', 'deg', _std('start_heading', DEG), 0.01, 'spread',
+    Statistic('start heading spread', 'deg', _std('start_heading', DEG), 0.01, SPREAD,
               feature='start_heading'),
-    Statistic('start position spread', 'cm', _start_position_spread_cm, 0.001, 'spread'),
-    Statistic('position noise (median 4th difference)', 'cm', _noise_cm, 0.001, 'spread'),
-    Statistic('heading to travel angle', 'deg', _mean('slip_angle', DEG), 0.01, 'mean',
+    Statistic('start position spread', 'cm', _start_position_spread_cm, 0.001, SPREAD),
+    Statistic('position noise (median 4th difference)', 'cm', _noise_cm, 0.001, SPREAD),
+    Statistic('heading to travel angle', 'deg', _mean('slip_angle', DEG), 0.01, MEAN,
               feature='slip_angle'),
-    Statistic('mean stride frequency', 'Hz', _mean('stride_frequency'), 1e-4, 'mean',
+    Statistic('mean stride frequency', 'Hz', _mean('stride_frequency'), 1e-4, MEAN,
               feature='stride_frequency'),
     Statistic('stride frequency spread across runs', 'Hz', _std('stride_frequency'), 1e-4,
-              'spread'),
-    Statistic('log speed ratio, 2nd half / 1st half', '', _mean('progress_ratio'), 1e-4, 'mean',
+              SPREAD),
+    Statistic('log speed ratio, 2nd half / 1st half', '', _mean('progress_ratio'), 1e-4, MEAN,
               feature='progress_ratio'),
     Statistic('heading rate spread across runs', 'deg/s', _std('heading_rate', DEG), 0.01,
-              'spread'),
+              SPREAD),
     Statistic('per-cycle heading change spread within runs', 'deg',
               lambda f: float(np.sqrt(f[:, INDEX['increment_var']].mean()) * DEG), 0.01,
-              'spread'),
+              SPREAD),
     Statistic('lag-1 autocorrelation of heading changes', '', _mean('increment_autocorr'),
-              1e-3, 'absolute'),
-    Statistic('mean progress at the end', 'cm', _mean('end_progress', 100), 0.01, 'mean',
+              1e-3, ABSOLUTE),
+    Statistic('mean progress at the end', 'cm', _mean('end_progress', 100), 0.01, MEAN,
               feature='end_progress'),
     Statistic('mean lateral position at the end', 'cm', _mean('end_lateral', 100), 0.01,
-              'mean', feature='end_lateral'),
-    Statistic('lateral spread at the end', 'cm', _std('end_lateral', 100), 0.01, 'spread'),
-    Statistic('progress spread at the end', 'cm', _std('end_progress', 100), 0.01, 'spread'),
-    Statistic('lateral spread growth exponent', '', _growth_exponent, 1e-3, 'absolute'),
-    Statistic('heading sway amplitude', 'deg', _mean('sway_amplitude', DEG), 0.01, 'mean',
+              MEAN, feature='end_lateral'),
+    Statistic('lateral spread at the end', 'cm', _std('end_lateral', 100), 0.01, SPREAD),
+    Statistic('progress spread at the end', 'cm', _std('end_progress', 100), 0.01, SPREAD),
+    Statistic('lateral spread growth exponent', '', _growth_exponent, 1e-3, ABSOLUTE),
+    Statistic('heading sway amplitude', 'deg', _mean('sway_amplitude', DEG), 0.01, MEAN,
               feature='sway_amplitude'),
     Statistic('sideways sway at the stride frequency', 'cm', _mean('lateral_sway_1', 100),
-              1e-4, 'mean', feature='lateral_sway_1'),
+              1e-4, MEAN, feature='lateral_sway_1'),
     Statistic('sideways sway at twice the stride frequency', 'cm', _mean('lateral_sway_2', 100),
-              1e-4, 'mean', feature='lateral_sway_2'),
+              1e-4, MEAN, feature='lateral_sway_2'),
     # what the extension families move (docs/extensions.md)
     Statistic('stride frequency change from the first run to the last', 'Hz',
-              _trend('stride_frequency'), 1e-4, 'mean', feature='stride_frequency'),
+              _trend('stride_frequency'), 1e-4, MEAN, feature='stride_frequency'),
     Statistic('heading rate change from the first run to the last', 'deg/s',
-              _trend('heading_rate', DEG), 0.01, 'mean', feature='heading_rate'),
+              _trend('heading_rate', DEG), 0.01, MEAN, feature='heading_rate'),
     Statistic('heading to travel angle change from the first run to the last', 'deg',
-              _trend('slip_angle', DEG), 0.01, 'mean', feature='slip_angle'),
+              _trend('slip_angle', DEG), 0.01, MEAN, feature='slip_angle'),
     Statistic('log speed ratio, 2nd quarter / 1st quarter', '', _mean('progress_early'), 1e-4,
-              'mean', feature='progress_early'),
+              MEAN, feature='progress_early'),
     Statistic('log speed ratio, 4th quarter / 3rd quarter', '', _mean('progress_late'), 1e-4,
-              'mean', feature='progress_late'),
+              MEAN, feature='progress_late'),
     Statistic('stride length change from cycle to cycle', 'cm',
-              _root_mean('stride_length_var', 100), 1e-4, 'spread'),
+              _root_mean('stride_length_var', 100), 1e-4, SPREAD),
     Statistic('heading wobble at the wobble frequency', 'deg', _rms('heading_wobble', DEG),
-              0.01, 'spread'),
+              0.01, SPREAD),
     Statistic('heading rate excess kurtosis across runs', '', _kurtosis('heading_rate'), 1e-3,
-              'absolute', material=0.5),
+              ABSOLUTE, material=0.5),
 )
 
 
@@ -230,11 +242,11 @@ def discrepancies(data_features: np.ndarray, model_features: np.ndarray,
 
 def _material(statistic: Statistic, difference: float, value: float,
               features: np.ndarray) -> bool:
-    if statistic.kind == 'mean':
+    if statistic.kind == MEAN:
         spread = float(np.std(features[:, INDEX[statistic.feature]], ddof=1))
         scale = spread * _unit_factor(statistic)
         return abs(difference) >= statistic.material * scale
-    if statistic.kind == 'spread':
+    if statistic.kind == SPREAD:
         return abs(difference) >= statistic.material * max(abs(value), statistic.resolution)
     return abs(difference) >= statistic.material
 

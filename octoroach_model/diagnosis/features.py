@@ -100,41 +100,45 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     last = np.maximum(lengths - 1, 0)
     rows = np.arange(n)
     complete = bool(lengths.min() == len(t))
-    out = np.empty((n, len(FEATURES)))
-    out[:, 0] = heading[:, 0]
-    out[:, 1:3] = xy[:, 0]
+    values: dict[str, np.ndarray | float] = {'start_heading': heading[:, 0],
+                                             'start_x': xy[:, 0, 0], 'start_y': xy[:, 0, 1]}
     fourth = np.diff(xy, n=4, axis=1) ** 2
     median = np.median(fourth, axis=(1, 2)) if complete else _nanmedian_rows(fourth)
-    out[:, 3] = np.log(np.nan_to_num(median, nan=0.0) + RESOLUTION_NOISE_M2)
+    values['log_noise'] = np.log(np.nan_to_num(median, nan=0.0) + RESOLUTION_NOISE_M2)
     cycle = max(2, int(round(1.0 / (stride_frequency * dt))))
-    out[:, 4] = _slip_angle(xy, heading, cycle)
+    values['slip_angle'] = _slip_angle(xy, heading, cycle)
     windowed = windowed_sway(heading, t)
-    out[:, 5], out[:, 11] = heading_sway(heading, t, stride_frequency, windowed)
-    out[:, 12], out[:, 13] = lateral_sway(xy, heading, t, out[:, 5])
+    frequencies, values['sway_amplitude'] = heading_sway(heading, t, stride_frequency, windowed)
+    values['stride_frequency'] = frequencies
+    values['lateral_sway_1'], values['lateral_sway_2'] = lateral_sway(xy, heading, t, frequencies)
     half = lengths // 2
     first_half = np.linalg.norm(xy[rows, half] - xy[:, 0], axis=-1)
     second_half = np.linalg.norm(xy[rows, last] - xy[rows, half], axis=-1)
-    out[:, 6] = np.log(np.maximum(second_half, 1e-9) / np.maximum(first_half, 1e-9))
-    out[:, 7] = _slope(heading, t)
+    values['progress_ratio'] = np.log(np.maximum(second_half, 1e-9)
+                                      / np.maximum(first_half, 1e-9))
+    values['heading_rate'] = _slope(heading, t)
     increments = heading[:, cycle::cycle] - heading[:, :-cycle:cycle][
         :, :heading[:, cycle::cycle].shape[1]]
-    out[:, 8], out[:, 15] = _increment_moments(increments)
+    values['increment_var'], values['increment_autocorr'] = _increment_moments(increments)
     forward = np.array([np.cos(reference_heading), np.sin(reference_heading)])
     right = np.array([forward[1], -forward[0]])
     end = xy[rows, last] - xy[:, 0]
-    out[:, 9] = end @ right
-    out[:, 10] = end @ forward
+    values['end_lateral'] = end @ right
+    values['end_progress'] = end @ forward
     quarter = np.rint(0.25 * last).astype(int)
-    out[:, 14] = (xy[rows, quarter] - xy[:, 0]) @ right
-    out[:, 16] = 0.0 if positions is None else positions
+    values['quarter_lateral'] = (xy[rows, quarter] - xy[:, 0]) @ right
+    values['position'] = 0.0 if positions is None else positions
     three_quarters = np.rint(0.75 * last).astype(int)
     quarters = [np.linalg.norm(xy[rows, end] - xy[rows, begin], axis=-1) for begin, end in (
         (0, quarter), (quarter, half), (half, three_quarters), (three_quarters, last))]
-    out[:, 17] = _log_ratio(quarters[1], quarters[0])
-    out[:, 18] = _log_ratio(quarters[3], quarters[2])
-    out[:, 19] = _stride_length_variance(xy, cycle)
-    out[:, 20] = 0.0 if not wobble_hz else np.log(
+    values['progress_early'] = _log_ratio(quarters[1], quarters[0])
+    values['progress_late'] = _log_ratio(quarters[3], quarters[2])
+    values['stride_length_var'] = _stride_length_variance(xy, cycle)
+    values['heading_wobble'] = 0.0 if not wobble_hz else np.log(
         _amplitudes(*windowed, t, np.array([wobble_hz]))[:, 0] ** 2 + WOBBLE_FLOOR_RAD2)
+    out = np.empty((n, len(FEATURES)))
+    for name in FEATURES:
+        out[:, INDEX[name]] = values[name]
     return out
 
 

@@ -42,7 +42,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import stats
 
-from octoroach_model.diagnosis.causes import BY_NAME, Cause
+from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind
 from octoroach_model.diagnosis.decide import POWER, se_u_if_true
 from octoroach_model.diagnosis.features import INDEX
 from octoroach_model.diagnosis.modelfit import (
@@ -86,7 +86,7 @@ class TestPoint(NamedTuple):
 def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float) -> float:
     """P(the lower bound of the size clears the floor) when the true size is `size`."""
     cause = BY_NAME[estimate.cause]
-    if cause.kind == 'moments':
+    if cause.kind == EstimateKind.MOMENTS:
         if not (estimate.slope > 0 and math.isfinite(estimate.se_u)):
             return 0.0
         u = size ** 2
@@ -124,7 +124,7 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: np.
     gain, runs = simulated_gains(simulator, without, without_features, cause, size, scales,
                                  score_runs, fitted_values, fit)
     identified = two_groups_power(without_features * scales, runs, held_out) \
-        if cause.kind == 'mixture' else 1.0
+        if cause.kind == EstimateKind.MIXTURE else 1.0
     spread = float(np.std(gain, ddof=1))
     if spread <= 0:
         return TestPoint(math.inf if gain.mean() > 0 else 0.0, identified)
@@ -297,7 +297,7 @@ def identified_interpolated(points: dict[float, float] | dict[float, TestPoint],
 def _solve(points: dict[float, float] | dict[float, TestPoint], estimate: SizeEstimate,
            floor: float, z_bound: float, z_test: float) -> Limit | None:
     """Return the smallest size where P(bound) x P(test) x P3 reaches POWER, T interpolated."""
-    mixture = BY_NAME[estimate.cause].kind == 'mixture'
+    mixture = BY_NAME[estimate.cause].kind == EstimateKind.MIXTURE
 
     def test_power(size: float) -> float:
         return float(stats.norm.cdf(t_interpolated(points, size) - z_test))

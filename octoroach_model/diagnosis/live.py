@@ -42,7 +42,7 @@ import math
 import numpy as np
 
 from octoroach_model.diagnosis.causes import (
-    BY_NAME, CANDIDATES, MIXTURE_FRACTION, periodic_limit_hz, RunScale)
+    BY_NAME, CANDIDATES, EstimateKind, MIXTURE_FRACTION, periodic_limit_hz, RunScale)
 from octoroach_model.diagnosis.decide import judge
 from octoroach_model.diagnosis.diagnose import (
     _baseline, _Halves, _score, _with_wobble, check_runs, choose_wobble_hz,
@@ -88,7 +88,7 @@ class Question:
     @property
     def internal_size(self) -> float:
         """Return the size as the decision weighs it (run_mixture: the spread it adds)."""
-        if BY_NAME[self.term].kind == 'mixture':
+        if BY_NAME[self.term].kind == EstimateKind.MIXTURE:
             return self.size * math.sqrt(MIXTURE_FRACTION * (1 - MIXTURE_FRACTION))
         return self.size
 
@@ -271,7 +271,7 @@ def question_gains(halves: _Halves, baseline: FittedModel, question: Question,
     """
     cause = BY_NAME[question.term]
     fitted: dict = {}
-    if cause.kind == 'mixture':
+    if cause.kind == EstimateKind.MIXTURE:
         fitted['fraction'] = MIXTURE_FRACTION
     if cause.name == 'periodic_heading':
         reference = periodic_limit_hz(halves.train.median_duration_s,
@@ -373,7 +373,7 @@ def evaluate(halves: _Halves, baseline: FittedModel, base_scores: Scores, term: 
     from octoroach_model.diagnosis.modelfit import fit_causes, Simulator
 
     cause = BY_NAME[term]
-    if warm is None or term not in warm.effects or cause.kind == 'moments':
+    if warm is None or term not in warm.effects or cause.kind == EstimateKind.MOMENTS:
         return evaluate_candidate(halves, baseline, base_scores, term, settings, z)
     screened = evaluate_candidate(halves, baseline, base_scores, term, settings, z) \
         if cause.is_extension else None
@@ -417,7 +417,7 @@ def _finite(value: float) -> float | None:
 
 def _stated(term: str, size: float) -> float:
     """Return a size as the question states it (run_mixture: the yaw rate of its share)."""
-    if BY_NAME[term].kind == 'mixture':
+    if BY_NAME[term].kind == EstimateKind.MIXTURE:
         return size / math.sqrt(MIXTURE_FRACTION * (1 - MIXTURE_FRACTION))
     return size
 
@@ -425,7 +425,7 @@ def _stated(term: str, size: float) -> float:
 def _bound_z(estimate: SizeEstimate, floor: float) -> float:
     """Return how far the size lies above the floor, in its standard errors."""
     cause = BY_NAME[estimate.cause]
-    if cause.kind == 'moments':
+    if cause.kind == EstimateKind.MOMENTS:
         return ((estimate.u - floor ** 2) / estimate.se_u
                 if estimate.se_u > 0 and math.isfinite(estimate.se_u) else 0.0)
     distance = abs(estimate.size - cause.null)
@@ -443,7 +443,7 @@ def confidence_sequence(estimate: SizeEstimate, calibration_runs: int,
     """
     cause = BY_NAME[estimate.cause]
     z = two_sided_z(calibration_runs, INTERVAL_ALPHA, planned)
-    if cause.kind == 'moments':
+    if cause.kind == EstimateKind.MOMENTS:
         u, se_u = estimate.u, estimate.se_u
 
         def root(value: float) -> float:

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from octoroach_model.diagnosis.causes import BY_NAME, Cause, MIXTURE_FRACTION
+from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind, MIXTURE_FRACTION
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.fitting.covariance import path_covariance
 from octoroach_model.fitting.gait import stride_frequency_estimate
@@ -309,10 +309,10 @@ def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
     model = replace(start, effects={cause: dict(start.effects.get(cause) or _zero(cause, data))
                                     for cause in causes})
     estimates: dict[str, SizeEstimate] = {}
-    path_causes = tuple(c for c in causes if BY_NAME[c].kind == 'path')
-    moment_causes = tuple(c for c in causes if BY_NAME[c].kind == 'moments')
-    trend_causes = tuple(c for c in causes if BY_NAME[c].kind == 'trend')
-    mixtures = tuple(c for c in causes if BY_NAME[c].kind == 'mixture')
+    path_causes = tuple(c for c in causes if BY_NAME[c].kind == EstimateKind.PATH)
+    moment_causes = tuple(c for c in causes if BY_NAME[c].kind == EstimateKind.MOMENTS)
+    trend_causes = tuple(c for c in causes if BY_NAME[c].kind == EstimateKind.TREND)
+    mixtures = tuple(c for c in causes if BY_NAME[c].kind == EstimateKind.MIXTURE)
     uncertainty = None
     new_path_causes = [cause for cause in path_causes if cause not in start.effects]
     for round_number in range(rounds or settings.rounds):
@@ -375,7 +375,7 @@ def at_size(cause: Cause, size: float, values: Mapping[str, float] | None = None
     if cause.null != 0.0:
         side = 1.0 if base.get(cause.parameter, cause.null) > cause.null else -1.0
         return {**base, cause.parameter: float(cause.null + side * abs(size))}
-    if cause.kind == 'mixture':
+    if cause.kind == EstimateKind.MIXTURE:
         fraction = base.get('fraction', 0.0)
         fraction = fraction if 0.02 <= fraction <= 0.98 else MIXTURE_FRACTION
         sign = -1.0 if base.get('yaw_rate_deg_s', 0.0) < 0 else 1.0

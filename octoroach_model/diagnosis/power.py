@@ -41,7 +41,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from octoroach_model.diagnosis.causes import BY_NAME
+from octoroach_model.diagnosis.causes import BY_NAME, EstimateKind
 from octoroach_model.diagnosis.decide import POWER
 from octoroach_model.diagnosis.limits import bound_power, held_out_gains, limit_base
 from octoroach_model.diagnosis.modelfit import FittedModel, RunData, Simulator, SizeEstimate
@@ -158,10 +158,10 @@ class PowerModel:
         ratio = self.calibration_runs / max(float(calibration_runs), 1.0)
         estimate = self.estimate
         kind = BY_NAME[self.term].kind
-        if kind == 'moments':
+        if kind == EstimateKind.MOMENTS:
             return replace(estimate, data_se=estimate.data_se * math.sqrt(ratio),
                            relative_se=estimate.relative_se * math.sqrt(ratio))
-        if kind == 'trend':
+        if kind == EstimateKind.TREND:
             slope = abs(estimate.slope) or math.inf
             se = math.hypot(estimate.data_se / slope * math.sqrt(ratio),
                             estimate.intercept_se / slope,

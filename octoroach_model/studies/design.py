@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from octoroach_model.model import ModelParameters, nominal_sigmas
-from octoroach_model.studies.spec import Arm, RobotSpec, StudySpec
+from octoroach_model.studies.spec import Arm, ArmKind, RobotSpec, StudySpec
 from octoroach_model.studies.terms import TERMS
 
 # children of a replicate's SeedSequence, in spawn order
@@ -115,13 +115,13 @@ def build_tasks(spec: StudySpec) -> list[Task]:
     This is the order of the final table and the order in which tasks are handed out, so a
     study stopped early holds whole replicates.
     """
-    null = next((arm for arm in spec.arms if arm.kind == 'null'), None)
+    null = next((arm for arm in spec.arms if arm.kind == ArmKind.NULL), None)
     tasks = []
     for replicate in range(spec.replicates):
         for cell in spec.run_cells:
             for arm in spec.arms:
                 depends = task_key(null, cell, replicate) \
-                    if arm.kind == 'relative' and null is not None else None
+                    if arm.kind == ArmKind.RELATIVE and null is not None else None
                 tasks.append(Task(task_key(arm, cell, replicate), arm, cell, replicate,
                                   depends))
     return tasks

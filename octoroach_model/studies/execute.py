@@ -22,14 +22,15 @@ import uuid
 from octoroach_model.errors import OctoroachError
 from octoroach_model.studies.design import Task
 from octoroach_model.studies.replicate import run_task
+from octoroach_model.studies.rows import StudyRow
 from octoroach_model.studies.spec import StudySpec
 
 RETRIES = 3
-OnRow = Callable[[dict[str, Any]], None]
+OnRow = Callable[[StudyRow], None]
 
 
 def run_tasks(tasks: Sequence[Task], spec: StudySpec, *, client: Any | None,
-              done: Mapping[str, dict[str, Any]], on_row: OnRow) -> None:
+              done: Mapping[str, StudyRow], on_row: OnRow) -> None:
     """
     Run `tasks`, handing every new row to `on_row` (rows in `done` are not recomputed).
 
@@ -47,7 +48,7 @@ def run_tasks(tasks: Sequence[Task], spec: StudySpec, *, client: Any | None,
 
 
 def _run_on_dask(tasks: Sequence[Task], spec: StudySpec, client: Any,
-                 done: Mapping[str, dict[str, Any]], on_row: OnRow) -> None:
+                 done: Mapping[str, StudyRow], on_row: OnRow) -> None:
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]

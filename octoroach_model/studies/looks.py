@@ -25,23 +25,59 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 import csv
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, fields, replace
 import json
 import math
 from pathlib import Path
 import time
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from octoroach_model.errors import ParameterError
+from octoroach_model.studies.rows import Status
 from octoroach_model.studies.spec import parse_spec, StudySpec
 from octoroach_model.studies.summary import wilson
 
-COLUMNS = ('key', 'replicate', 'term', 'seed', 'runs', 'stride_frequency_hz', 'cycles',
-           'sample_rate_hz', 'spread_scale', 'status', 'note', 'elapsed_s', 'looks')
-LOOK_FIELDS = ('runs', 'calibration_runs', 'held_out_runs', 'bound_z', 'p_value', 'screened')
 RULES = ('live', 'fixed, every look', 'fixed, last look')
+
+
+class Look(NamedTuple):
+    """One look: its runs, its halves, and its two statistics (None: not finite)."""
+
+    runs: int
+    calibration_runs: int
+    held_out_runs: int
+    bound_z: float | None
+    p_value: float | None
+    screened: bool
+
+
+@dataclass(frozen=True)
+class LooksRow:
+    """One replicate of a looks study: its robot, its question, and every look at it."""
+
+    key: str
+    replicate: int
+    term: str
+    seed: int = 0
+    runs: int = 0
+    stride_frequency_hz: float = math.nan
+    cycles: float = math.nan
+    sample_rate_hz: float = math.nan
+    spread_scale: float = math.nan
+    status: Status = Status.OK
+    note: str = ''
+    elapsed_s: float = math.nan
+    looks: tuple[Look, ...] = field(default=())
+
+    @property
+    def ok(self) -> bool:
+        """Return whether every look was taken (only such rows count in a rate)."""
+        return self.status == Status.OK
+
+
+COLUMNS = tuple(column.name for column in fields(LooksRow))
 
 
 @dataclass(frozen=True)
@@ -95,7 +131,7 @@ def load_looks(path: str | Path) -> LooksSpec:
     return LooksSpec(study, every, int(looks.get('planned_runs', 500)), tuple(questions))
 
 
-def looks_task(spec: LooksSpec, replicate: int) -> dict[str, Any]:
+def looks_task(spec: LooksSpec, replicate: int) -> LooksRow:
     """Simulate replicate `replicate`'s null runs and decide its question at every look."""
     from octoroach_model.diagnosis.live import (
         calibration_mask, decide, fit_held, Levels, Question, REFIT_GROWTH)
@@ -106,14 +142,12 @@ def looks_task(spec: LooksSpec, replicate: int) -> dict[str, Any]:
     started = time.perf_counter()
     draw = draw_robot(spec.study, replicate)
     term = spec.term(replicate)
-    row: dict[str, Any] = {
-        'key': f'{term}/r{replicate}', 'replicate': replicate, 'term': term,
-        'seed': draw.data_seed, 'runs': spec.max_runs,
-        'stride_frequency_hz': draw.stride_frequency_hz, 'cycles': draw.cycles,
-        'sample_rate_hz': draw.sample_rate_hz, 'spread_scale': draw.spread_scale,
-        'status': 'ok', 'note': '', 'looks': []}
+    row = LooksRow(f'{term}/r{replicate}', replicate, term, draw.data_seed, spec.max_runs,
+                   draw.stride_frequency_hz, draw.cycles, draw.sample_rate_hz,
+                   draw.spread_scale)
+    looks: list[Look] = []
     try:
-        runs = simulate_data(spec.study, draw, spec.max_runs, {}, {})
+        runs = simulate_data(spec.study, draw, spec.max_runs, {}).paths
         settings = replace(spec.study.diagnosis_settings(draw.data_seed), workers=1,
                            detection_limits=False)
         # the size only sets runs_needed, which a false-positive study does not use
@@ -128,13 +162,11 @@ def looks_task(spec: LooksSpec, replicate: int) -> dict[str, Any]:
             look = decide(measured, held, question, settings, levels, warm=warm)
             if look.extended is not None and not look.screened:
                 warm = look.extended
-            row['looks'].append([look.runs, look.calibration_runs, look.held_out_runs,
-                                 _plain(look.bound_z), _plain(look.p_value),
-                                 bool(look.screened)])
+            looks.append(Look(look.runs, look.calibration_runs, look.held_out_runs,
+                              _plain(look.bound_z), _plain(look.p_value), bool(look.screened)))
     except Exception as error:  # noqa: BLE001 - a data set that fails is a row, not a crash
-        row.update(status='error', note=f'{type(error).__name__}: {error}')
-    row['elapsed_s'] = round(time.perf_counter() - started, 3)
-    return row
+        row = replace(row, status=Status.ERROR, note=f'{type(error).__name__}: {error}')
+    return replace(row, looks=tuple(looks), elapsed_s=round(time.perf_counter() - started, 3))
 
 
 def _plain(value: float) -> float | None:
@@ -166,15 +198,15 @@ def named_at(looks: Sequence[Sequence[Any]], rule: str, settings_alpha: tuple[fl
     return first
 
 
-def summarize(spec: LooksSpec, rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+def summarize(spec: LooksSpec, rows: Sequence[LooksRow]) -> dict[str, Any]:
     """Return, per rule, the share of data sets named at some look (and per criterion)."""
     settings = spec.study.diagnosis_settings(0)
     levels = (settings.decision_alpha, settings.alpha)
-    ok = [row for row in rows if row['status'] == 'ok' and row['looks']]
+    ok = [row for row in rows if row.ok and row.looks]
     summary: dict[str, Any] = {'data_sets': len(ok), 'errors': len(rows) - len(ok),
                                'looks': spec.look_counts(), 'rules': {}}
     for rule in RULES:
-        firsts = [named_at(row['looks'], rule, levels, spec.planned_runs) for row in ok]
+        firsts = [named_at(row.looks, rule, levels, spec.planned_runs) for row in ok]
         entry = {}
         for criterion in ('named', 'bound', 'test'):
             rate = wilson(sum(first[criterion] is not None for first in firsts), len(ok))
@@ -184,13 +216,13 @@ def summarize(spec: LooksSpec, rows: Sequence[Mapping[str, Any]]) -> dict[str, A
     return summary
 
 
-def _by_kind(rows: Sequence[Mapping[str, Any]], firsts: Sequence[Mapping[str, Any]]
+def _by_kind(rows: Sequence[LooksRow], firsts: Sequence[Mapping[str, Any]]
              ) -> dict[str, Any]:
     from octoroach_model.diagnosis.causes import BY_NAME
 
     groups: dict[str, list[bool]] = {}
     for row, first in zip(rows, firsts):
-        kind = 'causes' if not BY_NAME[row['term']].is_extension else 'extensions'
+        kind = 'causes' if not BY_NAME[row.term].is_extension else 'extensions'
         groups.setdefault(kind, []).append(first['named'] is not None)
     return {kind: wilson(sum(named), len(named))._asdict() for kind, named in groups.items()}
 
@@ -218,28 +250,39 @@ def _rate_text(rate: Mapping[str, Any]) -> str:
             f'({100 * low:.1f}-{100 * high:.1f} %)')
 
 
-def read_rows(path: Path) -> list[dict[str, Any]]:
+def read_rows(path: Path) -> list[LooksRow]:
     """Read the rows written so far (a cut-off last line is dropped)."""
     if not path.exists():
         return []
     rows = []
     with path.open(newline='') as stream:
-        for row in csv.DictReader(stream):
+        for cells in csv.DictReader(stream):
             try:
-                row['looks'] = json.loads(row['looks'])
-                row['replicate'] = int(row['replicate'])
+                rows.append(_row_of(cells))
             except (ValueError, TypeError):
                 continue
-            rows.append(row)
     return rows
 
 
-def append_row(path: Path, row: Mapping[str, Any]) -> None:
+def _row_of(cells: Mapping[str, str]) -> LooksRow:
+    """Return the row of rows.csv's cells: the looks as JSON, an empty number a default."""
+    def number(name: str, kind: type = float) -> Any:
+        return kind(cells[name]) if cells[name] else (math.nan if kind is float else 0)
+
+    return LooksRow(cells['key'], int(cells['replicate']), cells['term'], number('seed', int),
+                    number('runs', int), number('stride_frequency_hz'), number('cycles'),
+                    number('sample_rate_hz'), number('spread_scale'), Status(cells['status']),
+                    cells['note'], number('elapsed_s'),
+                    tuple(Look(*look) for look in json.loads(cells['looks'])))
+
+
+def append_row(path: Path, row: LooksRow) -> None:
     """Append one row (flushed), writing the header first to a new file."""
     new = not path.exists()
     with path.open('a', newline='') as stream:
-        writer = csv.DictWriter(stream, fieldnames=COLUMNS, lineterminator='\n')
+        writer = csv.writer(stream, lineterminator='\n')
         if new:
-            writer.writeheader()
-        writer.writerow({**row, 'looks': json.dumps(row['looks'])})
+            writer.writerow(COLUMNS)
+        writer.writerow([json.dumps([list(look) for look in row.looks]) if name == 'looks'
+                         else getattr(row, name) for name in COLUMNS])
         stream.flush()

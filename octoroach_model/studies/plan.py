@@ -38,10 +38,11 @@ from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
+from octoroach_model.studies.rows import Status, StudyRow
 from octoroach_model.studies.spec import (
-    Arm, nominal_robot, parse_spec, robot_spec, RobotSpec, StudySpec)
+    Arm, ArmKind, nominal_robot, NULL, parse_spec, robot_spec, RobotSpec, StudySpec)
 from octoroach_model.studies.summary import wilson
-from octoroach_model.studies.table import cell, write_table
+from octoroach_model.studies.table import write_table
 from octoroach_model.studies.terms import main_parameter, null_value
 from octoroach_model.workers import check_where, CONNECT_TIMEOUT_S, executor_where, where_to_run
 
@@ -85,7 +86,7 @@ class PlanResult:
     replicates: int
     seed: int
     elapsed_s: float
-    rows: tuple[dict, ...] = field(default=(), metadata={'json': False}, repr=False)
+    rows: tuple[StudyRow, ...] = field(default=(), metadata={'json': False}, repr=False)
     method: str = 'simulate'
     checks: tuple = ()            # method 'model': the simulated checks (plan_model.py)
 
@@ -149,16 +150,16 @@ def plan_runs(cause: str, size: float, *, power: float = 0.8,
                                  f'{run_counts}')
     check_where(client, scheduler, workers)
     out_dir = _check_out(out)
-    rows: list[dict[str, Any]] = []
+    rows: list[StudyRow] = []
     with where_to_run(client, scheduler, workers, connect_timeout_s) as where:
-        def run(spec: StudySpec, label: str) -> list[dict[str, Any]]:
+        def run(spec: StudySpec, label: str) -> list[StudyRow]:
             tasks = build_tasks(spec)
-            new: list[dict[str, Any]] = []
+            new: list[StudyRow] = []
 
-            def arrived(row: dict[str, Any]) -> None:
+            def arrived(row: StudyRow) -> None:
                 new.append(row)
-                say(len(new) / len(tasks), f'{label}: {row["key"]} {row["status"]} '
-                    f'(named: {row["named"] or "none"})')
+                say(len(new) / len(tasks), f'{label}: {row.key} {row.status} '
+                    f'(named: {";".join(row.outcome.named) or "none"})')
             say(0.0, f'{label}: {len(tasks)} data sets')
             run_tasks(tasks, spec, client=where, done={}, on_row=arrived)
             return new
@@ -171,7 +172,7 @@ def plan_runs(cause: str, size: float, *, power: float = 0.8,
         rows += run(_with_runs(base, counts), 'coarse grid')
         for round_number in range(1, rounds + 1):
             fit = fit_power_curve(rows, cause, power, seed=seed)
-            more = _next_counts(fit, sorted({row['runs'] for row in rows}), min_runs, max_runs)
+            more = _next_counts(fit, sorted({row.runs for row in rows}), min_runs, max_runs)
             if not more:
                 break
             rows += run(_with_runs(base, more), f'refinement {round_number}')
@@ -206,7 +207,7 @@ def _model_result(base: StudySpec, cause: str, size: float, power: float, answer
     parameter = main_parameter(cause)
     what = (f'{cause} with {parameter} {null_value(cause):g} - {size:g}' if null_value(cause)
             else f'{cause} with {parameter} = {size:g}')
-    checks = [check for check in answer.checks if check.status == 'ok']
+    checks = [check for check in answer.checks if check.status == Status.OK]
     named = sum(check.named for check in checks)
     basis = (f'calibrated power model from {len(answer.pilots)} pilot data sets, checked on '
              f'{len(checks)} simulated data sets ({named} named)')
@@ -275,10 +276,10 @@ def _pilot(base: StudySpec, run: Callable, min_runs: int, max_runs: int) -> dict
     """Diagnose one null data set; the limit it reports gives the first guess of runs."""
     arm = base.arms[0]
     pilot_runs = int(min(max(PILOT_RUNS, min_runs), max_runs))
-    spec = StudySpec(base.name, base.seed, 1, (pilot_runs,), base.robot, (Arm('null', 'none'),),
-                     diagnosis=base.diagnosis)
+    spec = StudySpec(base.name, base.seed, 1, (pilot_runs,), base.robot,
+                     (Arm(ArmKind.NULL, NULL),), diagnosis=base.diagnosis)
     row = run(spec, 'pilot')[0]
-    limit = cell(row, 'limit', arm.cause) if row['status'] == 'ok' else None
+    limit = row.terms[arm.cause].limit if row.ok else None
     if limit is not None and math.isfinite(limit) and limit > 0:
         guess = pilot_runs * (limit / arm.size) ** 2
         how = (f'the pilot reported a detection limit of {limit:.4g}; runs scaled by '
@@ -288,7 +289,7 @@ def _pilot(base: StudySpec, run: Callable, min_runs: int, max_runs: int) -> dict
         how = 'the pilot reported no detection limit; starting at 4 x the pilot runs'
     guess = float(min(max(guess, min_runs), max_runs))
     return {'runs': pilot_runs, 'limit': limit, 'guess_runs': guess, 'how': how,
-            'status': row['status'], 'note': row['note']}
+            'status': row.status, 'note': row.note}
 
 
 def _coarse_grid(guess: float, min_runs: int, max_runs: int) -> list[int]:
@@ -322,15 +323,15 @@ class PowerFit(NamedTuple):
     counts: tuple[int, ...]
 
 
-def fit_power_curve(rows: Sequence[Mapping[str, Any]], cause: str, target: float,
+def fit_power_curve(rows: Sequence[StudyRow], cause: str, target: float,
                     bootstrap: int = BOOTSTRAP, seed: int = 0) -> PowerFit:
     """Fit named / not named against ln(runs) over `rows` (status ok only), logistically."""
-    usable = [row for row in rows if row['status'] == 'ok']
+    usable = [row for row in rows if row.ok]
     if not usable:
         raise ParameterError('no data set of the plan could be diagnosed; see the rows')
-    x = np.log([row['runs'] for row in usable])
-    y = np.array([1.0 if cell(row, 'named', cause) else 0.0 for row in usable])
-    replicate = np.array([row['replicate'] for row in usable])
+    x = np.log([row.runs for row in usable])
+    y = np.array([1.0 if row.terms[cause].named else 0.0 for row in usable])
+    replicate = np.array([row.replicate for row in usable])
     intercept, slope = _logistic(x, y)
     crossing = _crossing(intercept, slope, target)
     rng = np.random.default_rng(seed)
@@ -344,7 +345,7 @@ def fit_power_curve(rows: Sequence[Mapping[str, Any]], cause: str, target: float
     finite = np.minimum(np.array(crossings), HUGE)
     low, high = (math.inf if value >= HUGE else float(value)
                  for value in np.percentile(finite, [2.5, 97.5]))
-    counts = tuple(sorted({int(row['runs']) for row in usable}))
+    counts = tuple(sorted({int(row.runs) for row in usable}))
     return PowerFit(intercept, slope, crossing, (low, high), counts)
 
 
@@ -423,13 +424,13 @@ def _next_counts(fit: PowerFit, counts: list[int], min_runs: int, max_runs: int)
 
 
 def _result(base: StudySpec, cause: str, size: float, power: float,
-            rows: list[dict[str, Any]], fit: PowerFit, pilot: dict[str, Any], seed: int,
+            rows: list[StudyRow], fit: PowerFit, pilot: dict[str, Any], seed: int,
             replicates: int, min_runs: int, max_runs: int, elapsed_s: float) -> PlanResult:
     parameter = main_parameter(cause)
     curve = []
     for runs in fit.counts:
-        group = [row for row in rows if row['runs'] == runs and row['status'] == 'ok']
-        rate = wilson(sum(bool(cell(row, 'named', cause)) for row in group), len(group))
+        group = [row for row in rows if row.runs == runs and row.ok]
+        rate = wilson(sum(bool(row.terms[cause].named) for row in group), len(group))
         assert rate.rate is not None and rate.interval is not None  # fit.counts have ok rows
         curve.append(PowerPoint(runs, rate.successes, rate.trials, rate.rate, rate.interval))
     answer = fit.runs_at_target
@@ -459,7 +460,7 @@ def _result(base: StudySpec, cause: str, size: float, power: float,
     return PlanResult(cause, parameter, size, power, needed, (interval_low, interval_high),
                       status, statement, tuple(curve), fit_json, pilot, base.robot.to_json(),
                       replicates, seed, round(elapsed_s, 2),
-                      tuple(sorted(rows, key=lambda row: (row['runs'], row['replicate']))))
+                      tuple(sorted(rows, key=lambda row: (row.runs, row.replicate))))
 
 
 def _runs_text(value: float) -> str:

@@ -48,6 +48,7 @@ from octoroach_model.diagnosis.modelfit import FittedModel
 from octoroach_model.diagnosis.power import Calibration, fixed, PowerModel, shifted
 from octoroach_model.studies.design import build_tasks, draw_robot, RobotDraw
 from octoroach_model.studies.replicate import simulate_data, task_effects
+from octoroach_model.studies.rows import Status
 from octoroach_model.studies.spec import StudySpec
 
 PILOTS = 2
@@ -63,7 +64,7 @@ class CheckOutcome:
     runs: int
     replicate: int
     seed: int
-    status: str
+    status: Status
     named: bool
     predicted: float             # the pilots' (uncalibrated) power at these runs
     estimate: float
@@ -101,7 +102,7 @@ def pilot_task(spec: StudySpec, question: Question, replicate: int, runs: int
     use_large_malloc_thresholds()
     started = time.perf_counter()
     draw = draw_robot(spec, replicate)
-    measured = simulate_data(spec, draw, runs, {}, {})
+    measured = simulate_data(spec, draw, runs, {}).paths
     settings = spec.diagnosis_settings(draw.data_seed)
     model = pilot_model(measured, question, settings, robot_model(draw))
     return model, {'replicate': replicate, 'runs': runs, 'seed': draw.data_seed,
@@ -119,17 +120,17 @@ def check_task(spec: StudySpec, question: Question, runs: int, replicate: int
     task = replace(build_tasks(spec)[0], runs_cell=runs, replicate=replicate)
     try:
         effects = task_effects(task, spec, None, draw.cycles / draw.stride_frequency_hz)
-        measured = simulate_data(spec, draw, runs, effects, {})
+        measured = simulate_data(spec, draw, runs, effects).paths
         settings = spec.diagnosis_settings(draw.data_seed)
         held = fit_held(measured, question, settings, robot_model(draw), with_power=False)
         look = decide(measured, held, question, settings,
                       Levels.fixed(settings, len(CANDIDATES)))
     except Exception as error:  # noqa: BLE001 - a check that fails is a result, not a crash
-        return CheckOutcome(runs, replicate, draw.data_seed, 'error', False, math.nan,
+        return CheckOutcome(runs, replicate, draw.data_seed, Status.ERROR, False, math.nan,
                             math.nan, math.nan, math.nan,
                             round(time.perf_counter() - started, 3),
                             f'{type(error).__name__}: {error}')
-    return CheckOutcome(runs, replicate, draw.data_seed, 'ok', look.named_here, math.nan,
+    return CheckOutcome(runs, replicate, draw.data_seed, Status.OK, look.named_here, math.nan,
                         look.estimate, look.gain, look.p_value,
                         round(time.perf_counter() - started, 3))
 
@@ -187,8 +188,8 @@ def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_run
                     workers, started + budget_s, say)
     if checks:
         calibration = calibration.updated(
-            [check.predicted for check in checks if check.status == 'ok'],
-            [check.named for check in checks if check.status == 'ok'],
+            [check.predicted for check in checks if check.status == Status.OK],
+            [check.named for check in checks if check.status == Status.OK],
             f'checks: named in {sum(check.named for check in checks)} of '
             f'{sum(check.status == "ok" for check in checks)} simulated data sets')
         answer = _answer(curve, calibration, question.power, min_runs, max_runs)
@@ -238,13 +239,13 @@ def _check(spec: StudySpec, question: Question, curve: _Curve, calibration: Cali
             runs_done, predicted = running.pop(future)
             outcome = replace(future.result(), predicted=predicted)
             done.append(outcome)
-            if outcome.status == 'ok':
+            if outcome.status == Status.OK:
                 costs.append(outcome.elapsed_s / max(runs_done, 1))
                 calibration = calibration.updated([predicted], [outcome.named], 'check')
                 answer = _answer(curve, calibration, question.power, min_runs, max_runs)
             say(min(0.3 + 0.6 * len(done) / (len(done) + 2), 0.95),
                 f'check {len(done)}: {runs_done} runs, '
-                + ('named' if outcome.named else 'not named' if outcome.status == 'ok'
+                + ('named' if outcome.named else 'not named' if outcome.status == Status.OK
                    else f'failed ({outcome.note})')
                 + f' (predicted power {predicted:.0%}); answer now {_runs_text(answer[0])} '
                   f'runs (95 % {_runs_text(answer[1][0])} to {_runs_text(answer[1][1])})')

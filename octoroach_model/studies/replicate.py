@@ -14,28 +14,25 @@ from dataclasses import replace
 import math
 import sys
 import time
-from typing import Any
+from typing import Any, NamedTuple, TYPE_CHECKING
 
-from octoroach_model.jsonio import jsonable
 from octoroach_model.model import check_effects, simulate
 from octoroach_model.paths import Paths
 from octoroach_model.studies.damage import damage_paths
 from octoroach_model.studies.design import (
     DAMAGE, draw_robot, draw_signs, replicate_seeds, RobotDraw, Task)
-from octoroach_model.studies.spec import StudySpec
-from octoroach_model.studies.table import COLUMN_NAMES, typed_row
-from octoroach_model.studies.terms import column, main_parameter, null_value, term_values, TERMS
+from octoroach_model.studies.rows import Outcome, Status, StudyRow, TermOutcome
+from octoroach_model.studies.spec import ArmKind, StudySpec
+from octoroach_model.studies.table import one_line
+from octoroach_model.studies.terms import main_parameter, null_value, term_values, TERMS
 
-OK, ERROR, SKIPPED = 'ok', 'error', 'skipped'
+if TYPE_CHECKING:
+    from octoroach_model.diagnosis import DiagnosisReport
+    from octoroach_model.diagnosis.records import NamedCause, NamedExtension
 
 
 class Skip(Exception):
     """A task that cannot be run for a reason of the design (e.g. no limit to multiply)."""
-
-
-def report_fields(report: Any) -> dict[str, Any]:
-    """Return the report's JSON fields, which a row reads (where a study meets a report)."""
-    return jsonable(report.to_json())
 
 
 # glibc's mallopt parameters, and the thresholds a plain process reaches for our arrays
@@ -62,30 +59,30 @@ def use_large_malloc_thresholds() -> bool:
         return False
 
 
-def run_task(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None = None
-             ) -> dict[str, Any]:
+def run_task(task: Task, spec: StudySpec, null_row: StudyRow | None = None) -> StudyRow:
     """Simulate, damage and diagnose the task's data set; return its row of the table."""
     use_large_malloc_thresholds()
     started = time.perf_counter()
     draw = draw_robot(spec, task.replicate)
     runs = task.runs_cell if task.runs_cell is not None else draw.runs
     assert runs is not None  # without run-count cells, every replicate draws its own count
-    row = _empty_row(task, spec, draw, runs)
+    row = _empty_row(task, draw, runs)
     try:
         effects = task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
-        row.update(_truth_columns(effects, task))
-        measured = simulate_data(spec, draw, runs, effects, row)
+        row = replace(row, true_causes=tuple(effects), terms=_truth_terms(effects))
+        simulated = simulate_data(spec, draw, runs, effects)
+        row = replace(row, duration_s=simulated.duration_s, runs_cut=simulated.runs_cut,
+                      frames_dropped=simulated.frames_dropped)
         from octoroach_model.diagnosis import diagnose
 
-        report = report_fields(diagnose(measured, task_settings(task, spec, draw.data_seed)))
-        row.update(outcome_columns(report, effects))
-        row['status'] = OK
+        report = diagnose(simulated.paths, task_settings(task, spec, draw.data_seed))
+        outcome, terms = read_report(report, effects)
+        row = replace(row, outcome=outcome, terms=terms, status=Status.OK)
     except Skip as reason:
-        row.update(status=SKIPPED, note=str(reason))
+        row = replace(row, status=Status.SKIPPED, note=one_line(str(reason)))
     except Exception as error:  # noqa: BLE001 - a data set the diagnosis fails on is a result
-        row.update(status=ERROR, note=f'{type(error).__name__}: {error}')
-    row['elapsed_s'] = round(time.perf_counter() - started, 3)
-    return typed_row(row)
+        row = replace(row, status=Status.ERROR, note=one_line(f'{type(error).__name__}: {error}'))
+    return replace(row, elapsed_s=round(time.perf_counter() - started, 3))
 
 
 def task_settings(task: Task, spec: StudySpec, seed: int) -> Any:
@@ -96,12 +93,12 @@ def task_settings(task: Task, spec: StudySpec, seed: int) -> Any:
     elsewhere the size bound's own limit is reported, and a quarter of the work is saved.
     """
     settings = spec.diagnosis_settings(seed)
-    if task.arm.kind == 'null':
+    if task.arm.kind == ArmKind.NULL:
         return settings
     return replace(settings, detection_limits=False)
 
 
-def task_effects(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None,
+def task_effects(task: Task, spec: StudySpec, null_row: StudyRow | None,
                  duration_s: float) -> dict[str, dict[str, float]]:
     """
     Return the effects put into the task's data set, signs applied and sizes checked.
@@ -112,10 +109,10 @@ def task_effects(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None
     """
     arm = task.arm
     effects = arm.effect_dict()
-    if arm.kind in ('absolute', 'relative'):
+    if arm.kind in (ArmKind.ABSOLUTE, ArmKind.RELATIVE):
         sign = {'positive': 1.0, 'negative': -1.0}.get(
             arm.sign, draw_signs(spec, task.replicate)[arm.cause])
-        size = arm.size if arm.kind == 'absolute' else _limit_size(task, null_row)
+        size = arm.size if arm.kind == ArmKind.ABSOLUTE else _limit_size(task, null_row)
         effects[arm.cause] = term_values(arm.cause, sign * size, effects[arm.cause],
                                          duration_s)
     else:
@@ -126,77 +123,95 @@ def task_effects(task: Task, spec: StudySpec, null_row: Mapping[str, Any] | None
     return check_effects(effects)
 
 
-def _limit_size(task: Task, null_row: Mapping[str, Any] | None) -> float:
+def _limit_size(task: Task, null_row: StudyRow | None) -> float:
     cause = task.arm.cause
-    if null_row is None or null_row.get('status') != OK:
+    if null_row is None or null_row.status != Status.OK:
         raise Skip('the null data set of this replicate has no diagnosis to read the limit from')
-    limit = null_row.get(f'limit_{column(cause)}')
-    if limit is None or not math.isfinite(limit) or limit <= 0:
+    limit = null_row.terms[cause].limit
+    if not math.isfinite(limit) or limit <= 0:
         raise Skip(f'the diagnosis reported no detection limit for {cause} on the null data '
                    f'set of this replicate')
     return task.arm.limit_multiple * float(limit)
 
 
-def simulate_data(spec: StudySpec, draw: RobotDraw, runs: int,
-                  effects: Mapping[str, Mapping[str, float]], row: dict[str, Any]) -> Paths:
-    """
-    Simulate the replicate's robot with `effects`, damaged as the spec says.
+class Simulated(NamedTuple):
+    """A task's data set as the diagnosis gets it, and what the damage did to it."""
 
-    The damage counts and the duration go into `row`.
-    """
+    paths: Paths
+    duration_s: float
+    runs_cut: int
+    frames_dropped: int
+
+
+def simulate_data(spec: StudySpec, draw: RobotDraw, runs: int,
+                  effects: Mapping[str, Mapping[str, float]]) -> Simulated:
+    """Simulate the replicate's robot with `effects`, damaged as the spec says."""
     sigma1, sigma2 = draw.sigmas()
     paths = simulate(runs, seed=draw.data_seed, sigma1=sigma1, sigma2=sigma2,
                      cycles=draw.cycles, parameters=draw.parameters(), effects=effects)
     damaged = damage_paths(paths, spec.damage, replicate_seeds(spec.seed, draw.replicate)[DAMAGE])
-    row.update(runs_cut=damaged.runs_cut, frames_dropped=damaged.frames_dropped,
-               duration_s=float(paths.t[-1]))
-    return damaged.paths
+    return Simulated(damaged.paths, float(paths.t[-1]), damaged.runs_cut,
+                     damaged.frames_dropped)
 
 
-def outcome_columns(report: Mapping[str, Any], effects: Mapping[str, Mapping[str, float]]
-                    ) -> dict[str, Any]:
+def read_report(report: DiagnosisReport, effects: Mapping[str, Mapping[str, float]]
+                ) -> tuple[Outcome, dict[str, TermOutcome]]:
     """
     Compare what the diagnosis named and estimated with the truth put into the data.
 
     Causes of the table and extension terms alike (`named` lists both, by term); a size's
     relative error is that of its distance from the value of no effect.
     """
-    named_entries = {entry['cause']: entry for entry in report['causes']}
-    named_entries.update({entry['term']: entry for entry in report.get('extensions') or []})
-    candidates = {entry.get('cause'): entry for entry in (
-        *report['candidates'], *(report.get('extension_candidates') or []))}
-    named = [entry['cause'] for entry in report['causes']] + [
-        entry['term'] for entry in report.get('extensions') or []]
+    named = named_terms(report)
     true = list(effects)
-    columns: dict[str, Any] = {
-        'named': named, 'undecided': undecided_terms(report, named),
-        'false_causes': [cause for cause in named if cause not in true],
-        'all_true_named': all(cause in named for cause in true) if true else None,
-        'adequate': report.get('adequate'),
-        'baseline_adequate': _baseline_adequate(report),
-        'unexplained': [item.get('statistic', '?') if isinstance(item, Mapping) else str(item)
-                        for item in report.get('unexplained') or []],
-    }
-    for cause in TERMS:
-        main, key = main_parameter(cause), column(cause)
-        entry = named_entries.get(cause)
-        candidate = candidates.get(cause, {})
+    outcome = Outcome(
+        named=tuple(named), false_causes=tuple(term for term in named if term not in true),
+        all_true_named=all(term in named for term in true) if true else None,
+        adequate=bool(report.adequate), unexplained=tuple(
+            item.statistic for item in report.unexplained),
+        baseline_adequate=_baseline_adequate(report),
+        undecided=undecided_terms(report, tuple(named)))
+    candidates = {entry.cause: entry
+                  for entry in (*report.candidates, *report.extension_candidates)}
+    terms = {}
+    for term in TERMS:
+        main = main_parameter(term)
+        entry, candidate = named.get(term), candidates.get(term)
         source = entry if entry is not None else candidate
-        estimate = _number((source.get('parameters') or {}).get(main))
-        interval = ((entry or {}).get('interval') or {}).get(main) or [None, None]
-        truth = effects.get(cause, {}).get(main)
-        distance = truth - null_value(cause) if truth is not None else None
-        columns[f'named_{key}'] = entry is not None
-        columns[f'estimate_{key}'] = estimate
-        columns[f'low_{key}'] = _number(interval[0])
-        columns[f'high_{key}'] = _number(interval[1])
-        columns[f'limit_{key}'] = _number((candidate.get('detectable') or {}).get(main))
-        columns[f'rel_error_{key}'] = (estimate - truth) / distance \
-            if truth is not None and distance and math.isfinite(estimate) else math.nan
-    return columns
+        estimate = _number(main_value(source.parameters, main)) if source is not None \
+            else math.nan
+        low, high = (main_value(entry.interval, main) if entry is not None else None) \
+            or (None, None)
+        truth = effects[term][main] if term in effects else None
+        distance = truth - null_value(term) if truth is not None else None
+        terms[term] = TermOutcome(
+            true=_number(truth), named=entry is not None, estimate=estimate, low=_number(low),
+            high=_number(high),
+            rel_error=(estimate - truth) / distance
+            if truth is not None and distance and math.isfinite(estimate) else math.nan,
+            limit=_number(main_value(candidate.detectable, main))
+            if candidate is not None else math.nan)
+    return outcome, terms
 
 
-def undecided_terms(report: Mapping[str, Any], named: list[str]) -> list[str]:
+def named_terms(report: DiagnosisReport) -> dict[str, NamedCause | NamedExtension]:
+    """Return what the report names, by term: its causes of the table, then extension terms."""
+    named: dict[str, NamedCause | NamedExtension] = {entry.cause: entry
+                                                     for entry in report.causes}
+    named.update({entry.term: entry for entry in report.extensions})
+    return named
+
+
+def main_value(values: Mapping[str, Any], main: str) -> Any:
+    """
+    Return a report's value of a term's main parameter (None where it has none).
+
+    The one place a study reads the report's mappings by parameter (sizes, intervals, limits).
+    """
+    return values.get(main)
+
+
+def undecided_terms(report: DiagnosisReport, named: tuple[str, ...]) -> tuple[str, ...]:
     """
     Return the terms reported beside a named one as what the runs cannot tell it from.
 
@@ -204,46 +219,38 @@ def undecided_terms(report: Mapping[str, Any], named: list[str]) -> list[str]:
     two families), their held-out scores not told apart, are both reported (the chosen one
     named, the other as its rival): the data cannot say which, and the report does not guess.
     """
-    return [step['rival']['cause'] for step in report.get('steps') or []
-            if step.get('rival') and step.get('chosen') in named]
+    return tuple(step.rival.cause for step in report.steps
+                 if step.rival is not None and step.chosen in named)
 
 
-def _baseline_adequate(report: Mapping[str, Any]) -> bool | None:
+def _baseline_adequate(report: DiagnosisReport) -> bool | None:
     """Return whether the paper's model explained every statistic (as adequacy judges)."""
-    bound = report.get('adequacy_bound_z')
-    rows = report.get('discrepancies')
-    if bound is None or rows is None:
+    bound = report.adequacy_bound_z
+    if not math.isfinite(bound):
         return None
-    return not any(abs(row.get('z', 0.0)) > bound and row.get('material') for row in rows)
+    return not any(abs(row.z) > bound and row.material for row in report.discrepancies)
 
 
-def _truth_columns(effects: Mapping[str, Mapping[str, float]], task: Task) -> dict[str, Any]:
-    columns: dict[str, Any] = {'true_causes': list(effects)}
-    for cause in TERMS:
-        columns[f'true_{column(cause)}'] = effects[cause][main_parameter(cause)] \
-            if cause in effects else math.nan
-    return columns
+def _truth_terms(effects: Mapping[str, Mapping[str, float]]) -> dict[str, TermOutcome]:
+    """Return each term's columns before a diagnosis: its true size (NaN when absent)."""
+    return {term: TermOutcome(true=float(effects[term][main_parameter(term)]))
+            if term in effects else TermOutcome() for term in TERMS}
 
 
-def _empty_row(task: Task, spec: StudySpec, draw: RobotDraw, runs: int) -> dict[str, Any]:
-    row: dict[str, Any] = dict.fromkeys(COLUMN_NAMES)
+def _empty_row(task: Task, draw: RobotDraw, runs: int) -> StudyRow:
+    """Return the task's row before anything was run: what the design and the draw say."""
     sigma1, sigma2 = draw.sigmas()
-    row.update({
-        'key': task.key, 'arm': task.arm.label, 'kind': task.arm.kind,
-        'replicate': task.replicate, 'seed': draw.data_seed, 'runs': runs,
-        'size': task.arm.size, 'limit_multiple': task.arm.limit_multiple,
-        'leg_length_cm': draw.leg_length_cm, 'hip_distance_cm': draw.hip_distance_cm,
-        'stride_frequency_hz': draw.stride_frequency_hz, 'cycles': draw.cycles,
-        'sample_rate_hz': draw.sample_rate_hz, 'spread_scale': draw.spread_scale,
-        'sigma1_rad': sigma1, 'sigma2_rad': sigma2, 'runs_cut': 0, 'frames_dropped': 0,
-        'true_causes': [], 'named': [], 'undecided': [], 'false_causes': [], 'unexplained': [],
-        'note': '', 'status': ERROR,
-    })
-    for number, angle in enumerate(draw.touchdown_angles_deg, 1):
-        row[f'touchdown_{number}_deg'] = angle
-    for cause in TERMS:
-        row[f'named_{column(cause)}'] = None
-    return row
+    first, second, third, fourth = (float(angle) for angle in draw.touchdown_angles_deg)
+    return StudyRow(
+        key=task.key, arm=task.arm.label, kind=task.arm.kind, replicate=task.replicate,
+        seed=draw.data_seed, runs=runs, size=float(task.arm.size),
+        limit_multiple=float(task.arm.limit_multiple),
+        leg_length_cm=float(draw.leg_length_cm), hip_distance_cm=float(draw.hip_distance_cm),
+        touchdown_1_deg=first, touchdown_2_deg=second, touchdown_3_deg=third,
+        touchdown_4_deg=fourth, stride_frequency_hz=float(draw.stride_frequency_hz),
+        cycles=float(draw.cycles), sample_rate_hz=float(draw.sample_rate_hz),
+        spread_scale=float(draw.spread_scale), sigma1_rad=float(sigma1),
+        sigma2_rad=float(sigma2))
 
 
 def _number(value: Any) -> float:

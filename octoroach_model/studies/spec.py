@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 import dataclasses
 from dataclasses import dataclass, field
+from enum import StrEnum
 import hashlib
 import math
 from pathlib import Path
@@ -95,17 +96,26 @@ class RobotSpec:
         return plain
 
 
+class ArmKind(StrEnum):
+    """
+    What an arm puts into data (see `Arm`).
+
+    The paper's model (null), one cause at an absolute size, one cause at a multiple of the
+    limit the diagnosis reported on the same replicate's null data (relative), or several
+    causes at once (together).
+    """
+
+    NULL = 'null'
+    ABSOLUTE = 'absolute'
+    RELATIVE = 'relative'
+    TOGETHER = 'together'
+
+
 @dataclass(frozen=True)
 class Arm:
-    """
-    One kind of data set of the design.
+    """One kind of data set of the design: its kind, its label, and what it puts into data."""
 
-    The paper's model ('null'), one cause at an absolute size ('absolute'), one cause at a
-    multiple of the limit the diagnosis reported on the same replicate's null data
-    ('relative'), or several causes at once ('together').
-    """
-
-    kind: str
+    kind: ArmKind
     label: str
     effects: tuple[tuple[str, tuple[tuple[str, float], ...]], ...] = ()
     cause: str = ''
@@ -196,9 +206,9 @@ def _arm_json(arm: Arm) -> dict:
         plain['cause'] = arm.cause
     if arm.effects:
         plain['effects'] = arm.effect_dict()
-    if arm.kind == 'absolute':
+    if arm.kind == ArmKind.ABSOLUTE:
         plain['size'] = arm.size
-    if arm.kind == 'relative':
+    if arm.kind == ArmKind.RELATIVE:
         plain['limit_multiple'] = arm.limit_multiple
     if arm.cause:
         plain['sign'] = arm.sign
@@ -267,7 +277,7 @@ def nominal_robot() -> RobotSpec:
 def robot_spec(values: Mapping[str, Any]) -> RobotSpec:
     """Check a mapping of robot keys (missing keys: Table II); return a RobotSpec."""
     robot = _robot(_mapping(values, 'robot'))
-    _check_robot_space(StudySpec('robot', 0, 1, (100,), robot, (Arm('null', NULL),)))
+    _check_robot_space(StudySpec('robot', 0, 1, (100,), robot, (Arm(ArmKind.NULL, NULL),)))
     return robot
 
 
@@ -348,7 +358,7 @@ def _arms(value: Any) -> tuple[Arm, ...]:
     for number, item in enumerate(items, 1):
         where = f'causes[{number}]'
         if item == NULL or item is None:
-            arms.append(Arm('null', NULL))
+            arms.append(Arm(ArmKind.NULL, NULL))
             continue
         if isinstance(item, str):
             raise ParameterError(f'{where}: {item!r}: write none, or a mapping such as '
@@ -362,16 +372,16 @@ def _arms(value: Any) -> tuple[Arm, ...]:
     unique: list[Arm] = []
     for arm in arms:
         if any(other.label == arm.label for other in unique):
-            if arm.kind == 'null':
+            if arm.kind == ArmKind.NULL:
                 continue
             raise ParameterError(f'causes: {arm.label} is listed twice')
         unique.append(arm)
-    if any(arm.kind == 'relative' for arm in unique) and not any(
-            arm.kind == 'null' for arm in unique):
+    if any(arm.kind == ArmKind.RELATIVE for arm in unique) and not any(
+            arm.kind == ArmKind.NULL for arm in unique):
         # a limit multiple is read off the replicate's null data set: diagnose it as well
-        unique.append(Arm('null', NULL))
+        unique.append(Arm(ArmKind.NULL, NULL))
     # the null arm first: relative arms need its limits, and tasks run in arm order
-    return tuple(sorted(unique, key=lambda arm: arm.kind != 'null'))
+    return tuple(sorted(unique, key=lambda arm: arm.kind != ArmKind.NULL))
 
 
 def _single(item: Mapping[str, Any], where: str) -> list[Arm]:
@@ -395,11 +405,11 @@ def _single(item: Mapping[str, Any], where: str) -> list[Arm]:
         sizes = _positive_list(item['sizes'], f'{where}.sizes')
         for size in sizes:
             _check_size(cause, size, sign, f'{where}.sizes')
-        return [Arm('absolute', f'{cause}={SIGN_MARK[sign]}{size:g}',
+        return [Arm(ArmKind.ABSOLUTE, f'{cause}={SIGN_MARK[sign]}{size:g}',
                     ((cause, ((main, size), *extra)),), cause=cause, size=size, sign=sign)
                 for size in sizes]
     multiples = _positive_list(item['limit_multiples'], f'{where}.limit_multiples')
-    return [Arm('relative', f'{cause}@{SIGN_MARK[sign]}{multiple:g}x', ((cause, extra),),
+    return [Arm(ArmKind.RELATIVE, f'{cause}@{SIGN_MARK[sign]}{multiple:g}x', ((cause, extra),),
                 cause=cause, limit_multiple=multiple, sign=sign) for multiple in multiples]
 
 
@@ -426,7 +436,7 @@ def _together(item: Mapping[str, Any], where: str) -> Arm:
         effects.append((cause, params))
     label = '+'.join(f'{cause}={dict(params)[main_parameter(cause)]:g}'
                      for cause, params in effects)
-    return Arm('together', label, tuple(effects))
+    return Arm(ArmKind.TOGETHER, label, tuple(effects))
 
 
 def _parameters(cause: str, value: Any, where: str) -> tuple[tuple[str, float], ...]:

@@ -27,6 +27,7 @@ from octoroach_model.limits import MAX_STUDY_TASKS
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.plots import write_plots
+from octoroach_model.studies.rows import StudyRow
 from octoroach_model.studies.spec import load_spec, parse_spec, StudySpec
 from octoroach_model.studies.summary import summarize
 from octoroach_model.studies.table import (
@@ -36,7 +37,7 @@ from octoroach_model.workers import check_where, CONNECT_TIMEOUT_S, where_to_run
 
 SUMMARY_NAME = 'summary.json'
 # progress(rows done, rows in the study, the row that just arrived or None at the start)
-StudyProgress = Callable[[int, int, 'dict[str, Any] | None'], None]
+StudyProgress = Callable[[int, int, 'StudyRow | None'], None]
 
 
 @dataclass(frozen=True)
@@ -112,11 +113,11 @@ def _run(spec: StudySpec, tasks: list[Any], out: Path, client: Any | None,
     pending = [task for task in tasks if task.key not in done]
     table = out / TABLE_NAME
     say = progress or (lambda finished, total, row: None)
-    computed: dict[str, dict[str, Any]] = {}
+    computed: dict[str, StudyRow] = {}
 
-    def arrived(row: dict[str, Any]) -> None:
+    def arrived(row: StudyRow) -> None:
         append_row(table, row)
-        computed[row['key']] = row
+        computed[row.key] = row
         say(len(done) + len(computed), len(tasks), row)
 
     # connect (or start the local cluster) before the directory is written: a scheduler that
@@ -144,7 +145,7 @@ def _run(spec: StudySpec, tasks: list[Any], out: Path, client: Any | None,
     return StudyResult(out, table, summary_path, written, len(rows), len(computed), summary)
 
 
-def _rows_done(out: Path, spec: StudySpec, resume: bool) -> dict[str, dict[str, Any]]:
+def _rows_done(out: Path, spec: StudySpec, resume: bool) -> dict[str, StudyRow]:
     """
     Check `out` without writing anything; return the rows it holds already.
 
@@ -169,13 +170,13 @@ def _rows_done(out: Path, spec: StudySpec, resume: bool) -> dict[str, dict[str, 
     if not table.exists():
         return {}
     rows, _ = read_table(table)
-    if len({row['key'] for row in rows}) != len(rows):
+    if len({row.key for row in rows}) != len(rows):
         raise DataError(f'{table} holds a row twice; it was not written by one study')
-    return {row['key']: row for row in rows}
+    return {row.key: row for row in rows}
 
 
 def _write_directory(out: Path, spec: StudySpec, n_tasks: int,
-                     done: dict[str, dict[str, Any]]) -> None:
+                     done: dict[str, StudyRow]) -> None:
     """
     Write a new directory's manifest and table header, or rewrite a resumed table.
 

@@ -9,15 +9,15 @@ Rows whose status is not `ok` count in `status` only, never in a rate.
 """
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 import math
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from octoroach_model.diagnosis.causes import BY_NAME
-from octoroach_model.studies.spec import StudySpec
-from octoroach_model.studies.table import causes_of, cell
+from octoroach_model.studies.rows import StudyRow
+from octoroach_model.studies.spec import ArmKind, StudySpec
 from octoroach_model.studies.terms import main_parameter, null_value, TERMS
 
 LEVEL = 0.95
@@ -61,23 +61,23 @@ def _median(values: Iterable[float]) -> float | None:
     return float(np.median(finite)) if finite else None
 
 
-def _cell(spec: StudySpec, row: Mapping[str, Any]) -> int | str:
+def _cell(spec: StudySpec, row: StudyRow) -> int | str:
     """Return a row's run-count cell: its count, or 'drawn' (each replicate drew one)."""
-    return row['runs'] if isinstance(spec.runs, tuple) else 'drawn'
+    return row.runs if isinstance(spec.runs, tuple) else 'drawn'
 
 
-def summarize(spec: StudySpec, rows: Sequence[Mapping[str, Any]],
+def summarize(spec: StudySpec, rows: Sequence[StudyRow],
               wall_time_s: float | None = None) -> dict[str, Any]:
     """Return the summary.json of a study (docs/studies.md describes every field)."""
-    ok = [row for row in rows if row['status'] == 'ok']
+    ok = [row for row in rows if row.ok]
     return {
         'study': spec.name, 'spec_hash': spec.spec_hash, 'seed': spec.seed,
         'status': _status(rows),
         'false_positive': _false_positive(spec, ok),
         'inadequate_on_nulls': _inadequate_on_nulls(spec, ok),
         'false_causes_with_effects': wilson(
-            sum(bool(row['false_causes']) for row in ok if row['true_causes']),
-            sum(1 for row in ok if row['true_causes'])).to_json(),
+            sum(bool(row.outcome.false_causes) for row in ok if row.true_causes),
+            sum(1 for row in ok if row.true_causes)).to_json(),
         'power': _power(spec, ok),
         'power_at_limit_multiples': _relative_power(spec, ok),
         'estimation': _estimation(spec, ok),
@@ -88,25 +88,25 @@ def summarize(spec: StudySpec, rows: Sequence[Mapping[str, Any]],
     }
 
 
-def _status(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+def _status(rows: Sequence[StudyRow]) -> dict[str, Any]:
     counts: dict[str, int] = {}
     for row in rows:
-        counts[row['status']] = counts.get(row['status'], 0) + 1
-    notes = [f'{row["key"]}: {row["note"]}' for row in rows if row['status'] != 'ok']
+        counts[row.status] = counts.get(row.status, 0) + 1
+    notes = [f'{row.key}: {row.note}' for row in rows if not row.ok]
     return {'rows': len(rows), 'counts': counts, 'first_problems': notes[:5]}
 
 
-def _false_positive(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    nulls = [row for row in ok if row['kind'] == 'null']
-    overall = wilson(sum(bool(row['named']) for row in nulls), len(nulls))
+def _false_positive(spec: StudySpec, ok: Sequence[StudyRow]) -> dict[str, Any]:
+    nulls = [row for row in ok if row.kind == ArmKind.NULL]
+    overall = wilson(sum(bool(row.outcome.named) for row in nulls), len(nulls))
     by_cell = []
     for cell_of in sorted({_cell(spec, row) for row in nulls}, key=str):
         members = [row for row in nulls if _cell(spec, row) == cell_of]
-        by_cell.append({'runs': cell_of, **wilson(sum(bool(r['named']) for r in members),
+        by_cell.append({'runs': cell_of, **wilson(sum(bool(r.outcome.named) for r in members),
                                                   len(members)).to_json()})
     named_counts: dict[str, int] = {}
     for row in nulls:
-        for cause in causes_of(row['named']):
+        for cause in row.outcome.named:
             named_counts[cause] = named_counts.get(cause, 0) + 1
     return {'definition': "share of data sets from the paper's model (no effect) in which "
                           'any cause or extension was named',
@@ -114,61 +114,65 @@ def _false_positive(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> dict[st
             'by_runs': by_cell, 'causes_named': named_counts}
 
 
-def _inadequate_on_nulls(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+def _inadequate_on_nulls(spec: StudySpec, ok: Sequence[StudyRow]) -> dict[str, Any]:
     """
     Return the adequacy check's false alarms: nulls called inadequate (the model is exact).
 
     Overall and per run count (`by_runs`), with which statistics were left unexplained.
     """
-    judged = [row for row in ok if row['kind'] == 'null' and row['adequate'] is not None]
+    judged = [row for row in ok
+              if row.kind == ArmKind.NULL and row.outcome.adequate is not None]
     by_cell = []
     for cell_of in sorted({_cell(spec, row) for row in judged}, key=str):
         members = [row for row in judged if _cell(spec, row) == cell_of]
-        by_cell.append({'runs': cell_of, **wilson(sum(row['adequate'] is False for row in members),
-                                                  len(members)).to_json()})
+        by_cell.append({'runs': cell_of, **wilson(
+            sum(row.outcome.adequate is False for row in members), len(members)).to_json()})
     statistics: dict[str, int] = {}
     for row in judged:
-        for name in causes_of(row['unexplained']):
+        for name in row.outcome.unexplained:
             statistics[name] = statistics.get(name, 0) + 1
-    return {**wilson(sum(row['adequate'] is False for row in judged), len(judged)).to_json(),
+    return {**wilson(sum(row.outcome.adequate is False for row in judged),
+                     len(judged)).to_json(),
             'by_runs': by_cell, 'unexplained': statistics}
 
 
-def _power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+def _power(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]:
     entries = []
-    for arm in (arm for arm in spec.arms if arm.kind == 'absolute'):
-        members = [row for row in ok if row['arm'] == arm.label]
+    for arm in (arm for arm in spec.arms if arm.kind == ArmKind.ABSOLUTE):
+        members = [row for row in ok if row.arm == arm.label]
         for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
             group = [row for row in members if _cell(spec, row) == cell_of]
             entries.append({
                 'cause': arm.cause, 'parameter': main_parameter(arm.cause),
                 'size': arm.size, 'sign': arm.sign, 'runs': cell_of,
-                **wilson(sum(bool(cell(row, 'named', arm.cause)) for row in group),
+                **wilson(sum(bool(row.terms[arm.cause].named) for row in group),
                          len(group)).to_json()})
     return entries
 
 
-def _relative_power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+def _relative_power(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]:
     entries = []
-    for arm in (arm for arm in spec.arms if arm.kind == 'relative'):
-        members = [row for row in ok if row['arm'] == arm.label]
+    for arm in (arm for arm in spec.arms if arm.kind == ArmKind.RELATIVE):
+        members = [row for row in ok if row.arm == arm.label]
         null = null_value(arm.cause)
         for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
             group = [row for row in members if _cell(spec, row) == cell_of]
-            rate = wilson(sum(bool(cell(row, 'named', arm.cause)) for row in group), len(group))
-            found = wilson(sum(bool(cell(row, 'named', arm.cause))
-                               or arm.cause in causes_of(row.get('undecided') or '')
+            rate = wilson(sum(bool(row.terms[arm.cause].named) for row in group), len(group))
+            found = wilson(sum(bool(row.terms[arm.cause].named)
+                               or arm.cause in row.outcome.undecided
                                for row in group), len(group))
-            missed = [row for row in group if not cell(row, 'named', arm.cause)]
+            missed = [row for row in group if not row.terms[arm.cause].named]
             entry = {'cause': arm.cause, 'limit_multiple': arm.limit_multiple, 'runs': cell_of,
-                     'median_size': _median(abs(cell(row, 'true', arm.cause) - null)
+                     'median_size': _median(abs(row.terms[arm.cause].true - null)
                                             for row in group),
                      **rate.to_json(), 'named_or_undecided': found.to_json(),
                      'missed': len(missed),
-                     'missed_not_adequate': sum(row['adequate'] is False for row in missed),
+                     'missed_not_adequate': sum(row.outcome.adequate is False
+                                                for row in missed),
                      'baseline_inadequate': wilson(
-                         sum(row['baseline_adequate'] is False for row in group),
-                         sum(row['baseline_adequate'] is not None for row in group)).to_json()}
+                         sum(row.outcome.baseline_adequate is False for row in group),
+                         sum(row.outcome.baseline_adequate is not None
+                             for row in group)).to_json()}
             if arm.limit_multiple == 1 and rate.rate is not None:
                 entry['target'] = f'{AT_LIMIT_RANGE[0]:.0%}-{AT_LIMIT_RANGE[1]:.0%}'
                 entry['meets_target'] = AT_LIMIT_RANGE[0] <= rate.rate <= AT_LIMIT_RANGE[1]
@@ -179,23 +183,23 @@ def _relative_power(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[di
     return entries
 
 
-def _estimation(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+def _estimation(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]:
     """
     Summarise the main parameter's errors where the true cause was named.
 
     Also how often the reported 95 % interval held the truth.
     """
     entries = []
-    for arm in (arm for arm in spec.arms if arm.kind in ('absolute', 'relative', 'together')):
-        members = [row for row in ok if row['arm'] == arm.label]
+    for arm in (arm for arm in spec.arms if arm.kind != ArmKind.NULL):
+        members = [row for row in ok if row.arm == arm.label]
         for cause in arm.causes:
             for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
                 named = [row for row in members if _cell(spec, row) == cell_of
-                         and cell(row, 'named', cause)]
-                errors = _finite(cell(row, 'rel_error', cause) for row in named)
-                with_interval = [row for row in named if math.isfinite(cell(row, 'low', cause))]
-                covered = sum(cell(row, 'low', cause) <= cell(row, 'true', cause)
-                              <= cell(row, 'high', cause) for row in with_interval)
+                         and row.terms[cause].named]
+                errors = _finite(row.terms[cause].rel_error for row in named)
+                with_interval = [row for row in named if math.isfinite(row.terms[cause].low)]
+                covered = sum(row.terms[cause].low <= row.terms[cause].true
+                              <= row.terms[cause].high for row in with_interval)
                 entries.append({
                     'arm': arm.label, 'cause': cause, 'runs': cell_of, 'named': len(named),
                     'median_abs_relative_error': _median(abs(e) for e in errors),
@@ -204,33 +208,33 @@ def _estimation(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[s
     return entries
 
 
-def _recovery(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+def _recovery(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]:
     entries = []
-    for arm in (arm for arm in spec.arms if arm.kind == 'together'):
-        members = [row for row in ok if row['arm'] == arm.label]
+    for arm in (arm for arm in spec.arms if arm.kind == ArmKind.TOGETHER):
+        members = [row for row in ok if row.arm == arm.label]
         for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
             group = [row for row in members if _cell(spec, row) == cell_of]
             entries.append({
                 'arm': arm.label, 'causes': list(arm.causes), 'runs': cell_of,
                 'definition': 'share of data sets in which every true cause was named',
-                **wilson(sum(bool(row['all_true_named']) for row in group),
+                **wilson(sum(bool(row.outcome.all_true_named) for row in group),
                          len(group)).to_json(),
-                'each_named': {cause: wilson(sum(bool(cell(row, 'named', cause))
+                'each_named': {cause: wilson(sum(bool(row.terms[cause].named)
                                                  for row in group), len(group)).to_json()
                                for cause in arm.causes},
-                'other_named': wilson(sum(bool(row['false_causes']) for row in group),
+                'other_named': wilson(sum(bool(row.outcome.false_causes) for row in group),
                                       len(group)).to_json()})
     return entries
 
 
-def _limits(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+def _limits(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]:
     """Median detection limit each cause reported on null data sets, per run count."""
-    nulls = [row for row in ok if row['kind'] == 'null']
+    nulls = [row for row in ok if row.kind == ArmKind.NULL]
     entries = []
     for cell_of in sorted({_cell(spec, row) for row in nulls}, key=str):
         group = [row for row in nulls if _cell(spec, row) == cell_of]
         for cause in TERMS:
-            limits = _finite(cell(row, 'limit', cause) for row in group)
+            limits = _finite(row.terms[cause].limit for row in group)
             entries.append({'cause': cause, 'parameter': main_parameter(cause), 'runs': cell_of,
                             'median_limit': _median(limits), 'reported': len(limits),
                             'data_sets': len(group)})
@@ -240,7 +244,7 @@ def _limits(spec: StudySpec, ok: Sequence[Mapping[str, Any]]) -> list[dict[str, 
 NOTHING = 'nothing'
 
 
-def confusion(ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+def confusion(ok: Sequence[StudyRow]) -> dict[str, Any]:
     """
     Return, for each cause or family put alone into data, how often each one was named.
 
@@ -253,16 +257,16 @@ def confusion(ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     undecided: dict[str, dict[str, int]] = {}
     totals: dict[str, int] = {}
     for row in ok:
-        truth = causes_of(row['true_causes'])
+        truth = row.true_causes
         if len(truth) > 1:
             continue
         true_label = BY_NAME[truth[0]].label if truth else 'none'
-        named = {BY_NAME[term].label for term in causes_of(row['named']) if term in BY_NAME}
+        named = {BY_NAME[term].label for term in row.outcome.named if term in BY_NAME}
         counts = table.setdefault(true_label, {})
         totals[true_label] = totals.get(true_label, 0) + 1
         for label in named or {NOTHING}:
             counts[label] = counts.get(label, 0) + 1
-        for term in causes_of(row.get('undecided') or ''):
+        for term in row.outcome.undecided:
             if term in BY_NAME:
                 beside = undecided.setdefault(true_label, {})
                 beside[BY_NAME[term].label] = beside.get(BY_NAME[term].label, 0) + 1
@@ -272,7 +276,7 @@ def confusion(ok: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
             'data_sets': totals, 'named': table, 'undecided': undecided}
 
 
-def _timing(rows: Sequence[Mapping[str, Any]], wall_time_s: float | None) -> dict[str, Any]:
-    elapsed = _finite(row['elapsed_s'] for row in rows)
+def _timing(rows: Sequence[StudyRow], wall_time_s: float | None) -> dict[str, Any]:
+    elapsed = _finite(row.elapsed_s for row in rows)
     return {'wall_time_s': wall_time_s, 'median_task_s': _median(elapsed),
             'total_task_s': float(sum(elapsed)) if elapsed else None}

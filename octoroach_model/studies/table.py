@@ -8,7 +8,8 @@ canonical order. `study.json` (the manifest) holds the normalised spec and its h
 `--resume` compares before adding rows.
 
 Cells: numbers as Python writes them (they read back bit for bit), booleans true/false, lists
-of causes joined by ';', an empty cell for a missing value (NaN, None).
+of causes joined by ';', an empty cell for a missing value (NaN, None). `row_cells` and
+`row_of` are the one conversion between a typed row (studies/rows.py) and its cells.
 """
 from __future__ import annotations
 
@@ -23,48 +24,56 @@ from typing import Any
 
 from octoroach_model.errors import DataError
 from octoroach_model.fileio import atomic_file, write_text_atomic
+from octoroach_model.studies.rows import Outcome, Status, StudyRow, TermOutcome
+from octoroach_model.studies.spec import ArmKind
 from octoroach_model.studies.terms import column, TERMS
 
 TABLE_NAME = 'table.csv'
 MANIFEST_NAME = 'study.json'
 MANIFEST_FORMAT = 1
 
-# (column, type); docs/studies.md says what each holds
-_FIXED: tuple[tuple[str, type], ...] = (
-    ('key', str), ('arm', str), ('kind', str), ('replicate', int), ('seed', int),
+# (column, type), in table order; docs/studies.md says what each holds. The first and the
+# last are fields of StudyRow, _OUTCOME those of its Outcome, _PER_CAUSE those of each term's
+# TermOutcome (columns `<field>_<term>`); a tuple is a list of causes
+_ROW: tuple[tuple[str, type], ...] = (
+    ('key', str), ('arm', str), ('kind', ArmKind), ('replicate', int), ('seed', int),
     ('runs', int), ('size', float), ('limit_multiple', float),
     ('leg_length_cm', float), ('hip_distance_cm', float),
     ('touchdown_1_deg', float), ('touchdown_2_deg', float), ('touchdown_3_deg', float),
     ('touchdown_4_deg', float), ('stride_frequency_hz', float), ('cycles', float),
     ('sample_rate_hz', float), ('spread_scale', float), ('sigma1_rad', float),
     ('sigma2_rad', float), ('duration_s', float), ('runs_cut', int), ('frames_dropped', int),
-    ('true_causes', str), ('named', str), ('false_causes', str), ('all_true_named', bool),
-    ('adequate', bool), ('unexplained', str), ('baseline_adequate', bool), ('undecided', str),
+    ('true_causes', tuple),
+)
+_OUTCOME: tuple[tuple[str, type], ...] = (
+    ('named', tuple), ('false_causes', tuple), ('all_true_named', bool), ('adequate', bool),
+    ('unexplained', tuple), ('baseline_adequate', bool), ('undecided', tuple),
 )
 _PER_CAUSE: tuple[tuple[str, type], ...] = (
     ('true', float), ('named', bool), ('estimate', float), ('low', float), ('high', float),
     ('rel_error', float), ('limit', float),
 )
-_TAIL: tuple[tuple[str, type], ...] = (('status', str), ('note', str), ('elapsed_s', float))
+_TAIL: tuple[tuple[str, type], ...] = (('status', Status), ('note', str), ('elapsed_s', float))
 COLUMNS: tuple[tuple[str, type], ...] = (
-    _FIXED + tuple((f'{prefix}_{column(term)}', kind) for term in TERMS
-                   for prefix, kind in _PER_CAUSE) + _TAIL)
+    _ROW + _OUTCOME + tuple((f'{prefix}_{column(term)}', kind) for term in TERMS
+                            for prefix, kind in _PER_CAUSE) + _TAIL)
 COLUMN_NAMES = tuple(name for name, _ in COLUMNS)
 # columns that depend on the machine rather than the spec (left out when tables are compared)
 TIMING_COLUMNS = ('elapsed_s',)
 
 
-def format_cell(value: Any) -> str:
-    """Format one cell as text (see the module docstring)."""
+def format_cell(value: Any, kind: type) -> str:
+    """Format one cell of a column of type `kind` as text (see the module docstring)."""
     if value is None:
         return ''
-    if isinstance(value, bool):
+    if kind is bool:
         return 'true' if value else 'false'
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else ''
-    if isinstance(value, (list, tuple)):
+    if kind is int:
+        return str(int(value))
+    if kind is float:
+        number = float(value)
+        return repr(number) if math.isfinite(number) else ''
+    if kind is tuple:
         return ';'.join(str(item) for item in value)
     return ' '.join(str(value).split())       # one line, whatever the text held
 
@@ -73,6 +82,8 @@ def parse_cell(text: str, kind: type) -> Any:
     """Parse one cell written by `format_cell`."""
     if kind is str:
         return text
+    if kind is tuple:
+        return tuple(cause for cause in text.split(';') if cause)
     if text == '':
         return math.nan if kind is float else None
     if kind is bool:
@@ -80,34 +91,34 @@ def parse_cell(text: str, kind: type) -> Any:
     return kind(text)
 
 
-def typed_row(row: Mapping[str, Any]) -> dict[str, Any]:
-    """
-    Return a row exactly as it reads back from the table.
-
-    Lists become ';'-joined text and missing numbers NaN: the one in-memory form of a row,
-    whether just computed or read.
-    """
-    return {name: parse_cell(format_cell(row[name]), kind) for name, kind in COLUMNS}
-
-
-def cell(row: Mapping[str, Any], prefix: str, term: str) -> Any:
-    """Return a row's per-term cell: `prefix` such as 'named', `term` a cause or term."""
-    return row[f'{prefix}_{column(term)}']
+def row_cells(row: StudyRow) -> list[str]:
+    """Return a row's cells in table order: the one conversion of a row to the table."""
+    values = [getattr(row, name) for name, _ in _ROW]
+    values += [getattr(row.outcome, name) for name, _ in _OUTCOME]
+    values += [getattr(row.terms[term], prefix) for term in TERMS for prefix, _ in _PER_CAUSE]
+    values += [getattr(row, name) for name, _ in _TAIL]
+    return [format_cell(value, kind) for value, (_, kind) in zip(values, COLUMNS)]
 
 
-def causes_of(cell: str) -> list[str]:
-    """Split a cell such as `named` into its causes ('' for none)."""
-    return [cause for cause in cell.split(';') if cause]
+def row_of(cells: Mapping[str, str]) -> StudyRow:
+    """Return the row of a table's cells by column name (a column missing reads as empty)."""
+    def parsed(columns: tuple[tuple[str, type], ...], suffix: str = '') -> dict[str, Any]:
+        return {name: parse_cell(cells.get(name + suffix, ''), kind) for name, kind in columns}
+
+    terms = {term: TermOutcome(**parsed(_PER_CAUSE, f'_{column(term)}')) for term in TERMS}
+    return StudyRow(**parsed(_ROW), outcome=Outcome(**parsed(_OUTCOME)), terms=terms,
+                    **parsed(_TAIL))
 
 
-def row_line(row: Mapping[str, Any]) -> str:
+def one_line(text: str) -> str:
+    """Return `text` as its table cell holds it: one line, single spaces."""
+    return ' '.join(text.split())
+
+
+def row_line(row: StudyRow) -> str:
     """Format a row as one CSV line (with its line end), columns in table order."""
-    missing = [name for name in COLUMN_NAMES if name not in row]
-    if missing:
-        raise ValueError(f'row lacks column {missing[0]}')
     buffer = io.StringIO()
-    csv.writer(buffer, lineterminator='\n').writerow(
-        [format_cell(row[name]) for name in COLUMN_NAMES])
+    csv.writer(buffer, lineterminator='\n').writerow(row_cells(row))
     return buffer.getvalue()
 
 
@@ -120,7 +131,7 @@ def start_table(path: Path) -> None:
     write_text_atomic(path, header_line(), what='study table')
 
 
-def append_row(path: Path, row: Mapping[str, Any]) -> None:
+def append_row(path: Path, row: StudyRow) -> None:
     """Add one row at the end, on disk before returning (flush and fsync); no link followed."""
     descriptor = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_NOFOLLOW | os.O_CLOEXEC)
     with os.fdopen(descriptor, 'a', encoding='utf-8') as stream:
@@ -129,7 +140,7 @@ def append_row(path: Path, row: Mapping[str, Any]) -> None:
         os.fsync(stream.fileno())
 
 
-def write_table(path: Path, rows: Iterable[Mapping[str, Any]]) -> None:
+def write_table(path: Path, rows: Iterable[StudyRow]) -> None:
     """Write the whole table at once, replacing the study's own file atomically."""
     with atomic_file(path, replace=True, what='study table') as stream:
         stream.write(header_line().encode('utf-8'))
@@ -137,7 +148,7 @@ def write_table(path: Path, rows: Iterable[Mapping[str, Any]]) -> None:
             stream.write(row_line(row).encode('utf-8'))
 
 
-def read_table(path: Path, earlier: bool = False) -> tuple[list[dict[str, Any]], int]:
+def read_table(path: Path, earlier: bool = False) -> tuple[list[StudyRow], int]:
     """
     Read a table: its rows and how many cut-off lines were dropped (interrupted writes).
 
@@ -163,8 +174,7 @@ def read_table(path: Path, earlier: bool = False) -> tuple[list[dict[str, Any]],
         if len(cells) != len(names):
             dropped += 1
             continue
-        given = dict(zip(names, cells))
-        rows.append({name: parse_cell(given.get(name, ''), kind) for name, kind in COLUMNS})
+        rows.append(row_of(dict(zip(names, cells))))
     return rows, dropped
 
 
