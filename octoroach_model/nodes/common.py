@@ -450,11 +450,11 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
 
     try:
         rclpy.init(args=[prog, *(ros_args or [])],
-                   signal_handler_options=SignalHandlerOptions.SIGINT)
+                   signal_handler_options=SignalHandlerOptions.NO)
     except Exception as error:  # noqa: BLE001 - RCLError for malformed --ros-args
         return fail(f'bad ROS arguments: {str(error).splitlines()[0]}')
-    previous_sigterm = signal.getsignal(signal.SIGTERM)
-    stop_on_sigterm()
+    previous = {signum: signal.getsignal(signum) for signum in STOP_SIGNALS}
+    stop_on_signals()
     node = None
     executor = None
     code = 0
@@ -477,7 +477,7 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
     except (OctoroachError, ParameterException) as error:
         code = fail(str(error), start_exit_code(error))
     finally:
-        stop_on_sigterm(interrupt=False)       # a second one must not cut the way out short
+        stop_on_signals(interrupt=False)       # a second one must not cut the way out short
         stopping = shutdown_watchdog(prog, code)
         stop_jobs = getattr(node, 'stop_jobs', None)
         if stop_jobs is not None:
@@ -493,29 +493,35 @@ def run_node(node_factory: Callable[[], Node], ros_args: Sequence[str] | None = 
         stopping = shutdown_watchdog(prog, code)
         rclpy.try_shutdown()
         stopping.set()
-        if previous_sigterm is not None:      # as it was: a caller's children must not
-            signal.signal(signal.SIGTERM, previous_sigterm)    # inherit SIG_IGN
+        for signum, handler in previous.items():    # as they were: a caller's children
+            if handler is not None:                  # must not inherit SIG_IGN
+                signal.signal(signum, handler)
     return code
 
 
 SHUTDOWN_DEADLINE_S = 20.0
 SPIN_POLL_S = 0.2      # longest wait of the executor: how soon a signal is acted on
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-def stop_on_sigterm(interrupt: bool = True) -> None:
+def stop_on_signals(interrupt: bool = True) -> None:
     """
-    Make SIGTERM raise KeyboardInterrupt in the main thread (or do nothing); SIGINT is rclpy's.
+    Make SIGINT and SIGTERM raise KeyboardInterrupt in the main thread (or do nothing).
 
-    On the way out it does nothing: a second SIGTERM must not cut a bag's closing short, and
-    the watchdog bounds the way out. rclpy's own handlers (which wake the executor from C)
-    missed a SIGTERM now and then while a MultiThreadedExecutor waited, on a loaded machine,
-    and the node ran on; Python's handlers cannot miss, and the executor's short waits
-    (SPIN_POLL_S) let them run.
+    On the way out they do nothing: a second one must not cut a bag's closing short, and the
+    watchdog bounds the way out. rclpy's own handlers are not installed: they shut the
+    context down from a thread of their own, which can overlap the main thread's
+    destroy_node (a segmentation fault in the type description service's destroy after a
+    SIGINT, once in a suite run on a loaded machine), and they missed a SIGTERM now and then
+    while a MultiThreadedExecutor waited, and the node ran on. Python's handlers run in the
+    main thread, between the executor's short waits (SPIN_POLL_S): the way out is one
+    thread's, in order.
     """
     def raise_interrupt(signum: int, frame: Any) -> None:
         raise KeyboardInterrupt(signal.Signals(signum).name)
 
-    signal.signal(signal.SIGTERM, raise_interrupt if interrupt else signal.SIG_IGN)
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, raise_interrupt if interrupt else signal.SIG_IGN)
 
 
 def shutdown_watchdog(prog: str, code: int,
