@@ -8,6 +8,7 @@ from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 import sys
+import time
 
 from octoroach_model.commands.common import (
     add_input_arguments, add_workers_argument, new_output, nonnegative_int, OneLineParser,
@@ -52,15 +53,19 @@ def run(args: argparse.Namespace) -> int:
     from octoroach_model.recordings import load_measured
 
     new_output(args.out, '--out', directory_ok=True)
+    reading = time.monotonic()
     measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s,
                              progress=reading_progress('diagnose'))
     say_repeated_runs(measured)
     workers = default_workers() if args.workers is None else args.workers
     settings = DiagnosisSettings(seed=args.seed, workers=1)
+    diagnosing = time.monotonic()
     with worker_pool(workers) as pool:
         report = diagnose(measured, settings, progress=progress_printer('diagnose'),
                           executor=pool)
-    report = replace(report, sources=tuple(str(path) for path in args.bags))
+    read_s = round(diagnosing - reading, 3)
+    report = replace(report, sources=tuple(str(path) for path in args.bags),
+                     stages_s={'read': read_s, **report.stages_s})
     written = write_report(report, args.out, measured=measured, plots=not args.no_plots)
     named = ', '.join(cause.cause for cause in report.causes) or 'none'
     sys.stderr.write(f'causes: {named}; adequate: {str(report.adequate).lower()}\n')

@@ -49,6 +49,7 @@ from octoroach_model.diagnosis.records import (
     NamedExtension, PaperValidation, Rival, RunLengths, ScoreSummary, StepResult)
 from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, position_points_cm, score_model, Scores)
+from octoroach_model.diagnosis.stages import StageClock
 from octoroach_model.errors import DataError
 from octoroach_model.fitting import fit_nominal, mean_start_pose, NominalFitSettings
 from octoroach_model.fitting.gait import stride_frequency_estimate
@@ -133,12 +134,15 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     settings = settings or DiagnosisSettings()
     say = progress or (lambda fraction, message: None)
     started = time.monotonic()
+    clock = StageClock()
     check_runs(measured)
     resolved, resolution_note = decimated(measured)
     with executor_for(executor, settings.workers) as pool, single_threaded():
         say(0.02, 'preparing the runs (features, gait clock)')
+        clock.enter('prepare')
         halves = _prepare(resolved, settings)
         say(0.08, 'fitting the baseline (geometry on the mean path, spread scale)')
+        clock.enter('baseline')
         baseline_fit = _baseline(halves, settings, pool)
         baseline = baseline_fit.model
         halves = _with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
@@ -147,6 +151,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         baseline_scores = current_scores
         say(0.15, f'baseline: sigma1 = {baseline.sigmas[0]:.3f}, '
                   f'sigma2 = {baseline.sigmas[1]:.3f} rad')
+        clock.enter('race')
         model = baseline
         steps: list[StepResult] = []
         last_seen: dict[str, CandidateResult] = {}
@@ -173,6 +178,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             current_scores = _score(simulator, model, halves, settings)
             remaining.remove(chosen.cause)
         say(0.75, 'refitting the extended model on all runs')
+        clock.enter('final_fit')
         final_future = pool.submit(_final_fit, halves, model, settings)
         validations = {}
         if settings.validate_models:
@@ -190,6 +196,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         final_fit, dropped = _pruned(final_future.result(), halves, settings)
         final, final_estimates = final_fit.model, final_fit.estimates
         say(0.85, 'discrepancies and adequacy')
+        clock.enter('adequacy')
         rng = np.random.default_rng([settings.seed, 41])
         everything = Simulator(halves.every, settings.seed)
         n_model = max(halves.every.n, settings.discrepancy_runs)
@@ -211,6 +218,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         misfit = locate(halves.every.paths, halves.every.features, _places(halves),
                         final_paths, final_features, halves.scales, final.order_dependent,
                         rng) if unexplained else None
+        clock.enter('limits_and_validations')
         validation_results = {name: future.result() for name, future in validations.items()}
         limits = {cause: future.result() for cause, future in limit_futures.items()}
     named, named_extensions = _named(steps, final, final_estimates, halves, settings)
@@ -237,7 +245,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             settings.adequacy_alpha, bound),
         notes=tuple(measured.info.get('notes', ())) + (
             (resolution_note,) if resolution_note else ()) + dropped,
-        elapsed_s=round(time.monotonic() - started, 2))
+        stages_s=clock.stop(), elapsed_s=round(time.monotonic() - started, 2))
     say(1.0, 'causes: ' + (', '.join(c.cause for c in named) or 'none')
         + '; extensions: ' + (', '.join(e.family for e in named_extensions) or 'none')
         + ('' if report.adequate else '; the extended model still misses '

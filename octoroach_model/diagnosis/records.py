@@ -335,6 +335,7 @@ class DiagnosisReport:
     extended_model: FittedModel = field(metadata={'json': False})
     misfit: Misfit | None = None    # where the extended model misses (None when adequate)
     notes: tuple[str, ...] = ()
+    stages_s: dict[str, float] = field(default_factory=dict)  # wall time per stage (stages.py)
     elapsed_s: float = 0.0
     sources: tuple[str, ...] = ()
 

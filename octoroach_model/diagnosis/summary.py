@@ -155,6 +155,10 @@ def summary_text(report: DiagnosisReport) -> str:
         lines.append(_unseen_line(candidate, report.paths))
     if report.notes:
         lines += ['', '## Notes on the input', ''] + [f'- {note}' for note in report.notes]
+    if report.stages_s:
+        stages = ', '.join(f'{stage.replace("_", " ")} {seconds:.1f} s'
+                           for stage, seconds in report.stages_s.items())
+        lines += ['', f'Time: {stages} (wall time of each stage).']
     return '\n'.join(lines) + '\n'
 
 
