@@ -12,6 +12,7 @@ failure message that depends on it. `OCTOROACH_TEST_SEED=N make test` replays a 
 """
 from __future__ import annotations
 
+import hashlib
 import os
 import random
 
@@ -29,10 +30,19 @@ LINT_MARKERS = {
 
 
 def _isolated_domain_id() -> int:
+    """
+    Return this test process's domain: one run's workers take consecutive ids.
+
+    The run's base comes from xdist's id of the run (shared by its workers; the process id
+    without xdist), so two workers of one run never share a domain, and two runs at once
+    share one only where their bases fall within a worker count of each other.
+    """
     worker = os.environ.get('PYTEST_XDIST_WORKER', 'gw0')
     worker_index = int(''.join(ch for ch in worker if ch.isdigit()) or 0)
+    run = os.environ.get('PYTEST_XDIST_TESTRUNUID') or str(os.getpid())
+    base = int.from_bytes(hashlib.sha256(run.encode()).digest()[:4], 'big')
     # Fast DDS with LOCALHOST range accepts domain ids 0..232; keep clear of 0 (the default).
-    return 1 + (os.getpid() * 7 + worker_index * 31) % 200
+    return 1 + (base + worker_index) % 200
 
 
 os.environ['ROS_DOMAIN_ID'] = str(_isolated_domain_id())
