@@ -32,9 +32,43 @@ from typing import Any
 
 from octoroach_model.errors import OctoroachError, ParameterError
 from octoroach_model.paths import Paths
+from octoroach_model.settings import setting
 
 VALIDATION = 'validation'
 NO_QUESTION = ''
+QUESTIONS = (NO_QUESTION, VALIDATION, 'initial_pose_error', 'measurement_noise',
+             'gait_frequency_variation', 'speed_decay', 'lateral_slip', 'persistent_turning',
+             'run_order_drift:stride_frequency', 'run_order_drift:yaw_rate',
+             'run_order_drift:lateral_velocity', 'heading_random_walk', 'periodic_heading',
+             'change_point', 'run_mixture')
+
+
+@dataclass(frozen=True)
+class GuidanceSettings:
+    """
+    The validator's parameters of live guidance: the one source of their help, unit and range.
+
+    The node's parameters and config/validator.yaml are made from these fields;
+    `GuidanceQuestion.from_values` reads the values in force, with these defaults.
+    """
+
+    question: str = setting(NO_QUESTION, 'live guidance on ~/guidance: a cause or extension '
+                            "term (with question_size), validation (runs for the paper's "
+                            'validation), or empty: none', choices=QUESTIONS)
+    question_size: float = setting(0.0, "the size that matters: the term's main parameter "
+                                   '(its distance from no effect; run_mixture: the yaw rate of '
+                                   '30 % of the runs), in its unit', unit='as the term',
+                                   low=0.0, high=1000.0)
+    question_power: float = setting(0.8, 'probability with which runs_needed names the term at '
+                                    'question_size', low=0.5, high=0.99)
+    planned_runs: int = setting(500, 'runs the session is planned to reach: where the live '
+                                'decision is least strict (any count stays valid)', low=40,
+                                high=1000000)
+    guidance_period_s: float = setting(0.25, 'how often the files behind bags are looked at '
+                                       'for new runs', unit='s', low=0.05, high=10.0)
+
+
+DEFAULTS = GuidanceSettings()
 
 
 @dataclass(frozen=True)
@@ -54,13 +88,13 @@ class GuidanceQuestion:
         from octoroach_model.diagnosis.live import Question
         from octoroach_model.validation import chernoff_sample_size
 
-        kind = str(values.get('question', NO_QUESTION))
-        size = float(values.get('question_size', 0.0))
-        power = float(values.get('question_power', 0.8))
+        kind = str(values.get('question', DEFAULTS.question))
+        size = float(values.get('question_size', DEFAULTS.question_size))
+        power = float(values.get('question_power', DEFAULTS.question_power))
         if kind not in (NO_QUESTION, VALIDATION):
             Question(kind, size if size > 0 else math.nan, power)   # raises with the reason
         n = chernoff_sample_size(float(values['epsilon']), float(values['delta']))
-        return cls(kind, size, power, int(values.get('planned_runs', 500)),
+        return cls(kind, size, power, int(values.get('planned_runs', DEFAULTS.planned_runs)),
                    int(values.get('seed', 0)), n * int(values['k']))
 
     @property

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+import math
 import re
 import secrets
 from typing import Any
@@ -18,16 +19,17 @@ import numpy as np
 from octoroach_model.errors import ParameterError
 from octoroach_model.model import (
     check_effects, DRAWS, EFFECT_NAMES, EFFECT_PARAMETERS, ModelParameters, nominal_sigmas,
-    simulate)
-from octoroach_model.model.extensions import DRIFT, FAMILY_NAMES, FAMILY_PARAMETERS, family_terms
+    PARAMETER_RANGES, simulate)
+from octoroach_model.model.extensions import (
+    DRIFT, DRIFTED, FAMILY_NAMES, FAMILY_PARAMETERS, family_terms, TERMS)
 from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.model.simulate import DEFAULT_START_POSE
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import marker_topic, pose_topic
 from octoroach_model.settings import check_fields, Setting, setting
 
-__all__ = ['ANGLE_DRAWS', 'EFFECT_PREFIX', 'EXTENSION_PREFIX', 'RunSettings', 'marker_topic',
-           'pose_topic']
+__all__ = ['ANGLE_DRAWS', 'EFFECT_PREFIX', 'EXTENSION_PREFIX', 'RunSettings', 'effect_settings',
+           'extension_settings', 'marker_topic', 'pose_topic']
 
 NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 FRAME = re.compile(r'^[A-Za-z0-9_/]+$')
@@ -75,7 +77,12 @@ class RunSettings:
     draws: str = setting(DRAWS[0], ANGLE_DRAWS)
     seed: int = setting(-1, 'run k uses a seed derived from (seed, k); -1: fresh entropy',
                         low=-1, high=2**31 - 1)
-    start_pose: tuple[float, float, float] = DEFAULT_START_POSE
+    start_x: float = setting(float(DEFAULT_START_POSE[0]), 'x at the start of every run',
+                             unit='m', low=-1000.0, high=1000.0)
+    start_y: float = setting(float(DEFAULT_START_POSE[1]), 'y at the start of every run',
+                             unit='m', low=-1000.0, high=1000.0)
+    start_heading: float = setting(float(DEFAULT_START_POSE[2]), 'heading at the start (pi/2: '
+                                   'along +y)', unit='rad', low=-2 * math.pi, high=2 * math.pi)
     effect: str = setting('none', 'model extension: a cause (docs/ros.md) added to every run',
                           choices=('none', *EFFECT_NAMES))
     effect_params: Mapping[str, float] = field(default_factory=dict)
@@ -109,8 +116,8 @@ class RunSettings:
             sigma2=float(values['sigma2']),
             stride_frequency=float(values['stride_frequency']), draws=values['draws'],
             seed=int(values['seed']),
-            start_pose=(float(values['start_x']), float(values['start_y']),
-                        float(values['start_heading'])),
+            start_x=float(values['start_x']), start_y=float(values['start_y']),
+            start_heading=float(values['start_heading']),
             effect=values['effect'],
             effect_params={key[len(EFFECT_PREFIX):]: float(value)
                            for key, value in values.items() if key.startswith(EFFECT_PREFIX)},
@@ -124,6 +131,11 @@ class RunSettings:
                                  'session sits at k / (runs - 1) of the drift')
         settings.model_parameters()  # ParameterError where rate or frequency cannot be used
         return settings
+
+    @property
+    def start_pose(self) -> tuple[float, float, float]:
+        """Return (x, y, heading) at the start of every run."""
+        return (self.start_x, self.start_y, self.start_heading)
 
     def subjects(self) -> list[tuple[str, str]]:
         """Return (subject, segment) of each robot."""
@@ -171,3 +183,58 @@ class RunSettings:
                         cycles=self.cycles, parameters=self.model_parameters(),
                         draws=self.draws, effects=self.effects(), start_pose=self.start_pose,
                         extensions=self.extensions(), positions=np.full(self.robots, place))
+
+
+_EFFECT_UNITS = {'_deg_s': 'deg/s', '_cm_s': 'cm/s', '_deg': 'deg', '_cm': 'cm'}
+
+
+def effect_settings() -> dict[str, tuple[float, Setting]]:
+    """
+    Return {effect_params.KEY: (default, Setting)}: the parameters of the causes.
+
+    Made from the model's tables (PARAMETER_RANGES, EFFECT_PARAMETERS), their one source;
+    the unit is the key's suffix (heading_std_deg: deg).
+    """
+    found = {}
+    for key, (low, high) in PARAMETER_RANGES.items():
+        users = ', '.join(name for name, keys in EFFECT_PARAMETERS.items() if key in keys)
+        unit = next((unit for suffix, unit in _EFFECT_UNITS.items() if key.endswith(suffix)),
+                    '1')
+        found[EFFECT_PREFIX + key] = (0.0, Setting(f'parameter of {users}', unit, float(low),
+                                                   float(high)))
+    return found
+
+
+def extension_settings() -> dict[str, tuple[Any, Setting]]:
+    """
+    Return {extension_params.KEY: (default, Setting)}: the parameters of the extension terms.
+
+    Made from the terms (`model.extensions.TERMS`), their one source: a key several terms
+    use gets the widest range.
+    """
+    found: dict[str, tuple[Any, Setting]] = {
+        EXTENSION_PREFIX + 'parameter': (DRIFTED[0], Setting(
+            f'what {DRIFT} moves over the session', choices=DRIFTED))}
+    for key, (default, unit, low, high, users) in extension_parameter_table().items():
+        found[EXTENSION_PREFIX + key] = (default, Setting(f'parameter of {users}', unit, low,
+                                                          high))
+    return found
+
+
+def extension_parameter_table() -> dict[str, tuple[float, str, float, float, str]]:
+    """
+    Each numeric key of the extension terms: default, unit, widest range, terms using it.
+
+    run_order_drift's `change` takes the unit of what drifts (relative, deg/s or cm/s).
+    """
+    table: dict[str, tuple[float, str, float, float, str]] = {}
+    for term in TERMS:
+        for key, unit, (low, high) in zip(term.parameters, term.units, term.ranges):
+            default = float(term.defaults.get(key, 0.0))
+            if key in table:
+                old = table[key]
+                table[key] = (old[0], old[1] if old[1] == unit else 'see the family',
+                              min(old[2], low), max(old[3], high), f'{old[4]}, {term.name}')
+            else:
+                table[key] = (default, unit or '1', low, high, term.name)
+    return table

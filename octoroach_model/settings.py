@@ -5,8 +5,9 @@ A setting is declared once, as a field of the record that uses it (`ValidationSe
 `RunSettings.sigma1`, ...), made with `setting(...)`: its `Setting` rides in the field's
 metadata. Everything else is made from it: the record's own checks (`check_fields`), the
 options of the offline programs (`commands.common.add_setting`), the ROS parameters of the
-nodes with their descriptors (`nodes.common.field_specs`) and, through those, the params
-files config/NODE.yaml (`settings_yaml`). test_settings.py compares them all, so the help,
+nodes with their descriptors (`nodes.common.field_specs`), the nodes' flags
+(`nodes.common.add_flag`) and, through the parameters, the params files config/NODE.yaml
+(`settings_yaml`). test_settings.py compares them all, so the help,
 unit and range a user reads are the ones in force, wherever they read them.
 
 A setting used by several records (the axes of the poses, the gap that splits runs, the wait
@@ -69,6 +70,12 @@ class Setting:
             return False
         return self.high is None or not (value >= self.high if self.open_high
                                          else value > self.high)
+
+    def help_text(self) -> str:
+        """Return an option's help: 'description [unit]; range' (choices: argparse lists them)."""
+        unit = f' [{self.unit}]' if self.unit else ''
+        bounds = '' if self.choices else self.range_text()
+        return self.description + unit + (f'; {bounds}' if bounds else '')
 
     def demand(self) -> str:
         """Say what a value must be, after 'NAME must ': 'lie in (0, 1)', 'be non-negative'."""

@@ -174,11 +174,7 @@ def add_setting(parser: argparse.ArgumentParser | argparse._ArgumentGroup, recor
     `overrides` are argparse's keywords where the program differs (a default of its own).
     """
     default, described = settings_of(record)[name]
-    unit = f' [{described.unit}]' if described.unit else ''
-    bounds = '' if described.choices else described.range_text()
-    keywords: dict[str, Any] = {
-        'default': default, 'dest': name,
-        'help': described.description + unit + (f'; {bounds}' if bounds else '')}
+    keywords: dict[str, Any] = {'default': default, 'dest': name, 'help': described.help_text()}
     if described.choices:
         keywords['choices'] = described.choices
     elif isinstance(default, bool):
@@ -217,7 +213,7 @@ def add_gap_argument(parser: argparse.ArgumentParser) -> None:
     from octoroach_model.recordings.options import GAP_S
 
     parser.add_argument('--gap-s', type=finite_float, default=DEFAULT_GAP_S, dest='gap_s',
-                        help=f'{GAP_S.description} [{GAP_S.unit}]; {GAP_S.range_text()}')
+                        help=GAP_S.help_text())
 
 
 def add_pose_arguments(parser: argparse.ArgumentParser) -> None:

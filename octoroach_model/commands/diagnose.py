@@ -11,13 +11,15 @@ import sys
 import time
 
 from octoroach_model.commands.common import (
-    add_input_arguments, add_workers_argument, new_output, nonnegative_int, OneLineParser,
+    add_input_arguments, add_setting, add_workers_argument, new_output, OneLineParser,
     progress_printer, read_options, reading_progress, say_repeated_runs)
 from octoroach_model.workers import default_workers, process_pool
 
 
 def parser() -> argparse.ArgumentParser:
-    """Build the `diagnose` command line."""
+    """Build the `diagnose` command line (--seed: the field of DiagnosisSettings)."""
+    from octoroach_model.diagnosis import DiagnosisSettings
+
     result = OneLineParser(
         prog='diagnose', description='The main job: calibrates the paper model on measured '
         'runs, shows where it disagrees with them, names the causes, extends the model with '
@@ -26,8 +28,7 @@ def parser() -> argparse.ArgumentParser:
     add_input_arguments(result)
     result.add_argument('--out', type=Path, required=True,
                         help='directory for the report (new, or an existing empty one)')
-    result.add_argument('--seed', type=nonnegative_int, default=0,
-                        help='seed of the split, the simulations and the bootstrap')
+    add_setting(result, DiagnosisSettings, 'seed')
     result.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
     add_workers_argument(result, 'the side-by-side work of the diagnosis')
     return result

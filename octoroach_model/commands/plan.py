@@ -6,15 +6,15 @@ from pathlib import Path
 import sys
 
 from octoroach_model.commands.common import (
-    finite_float, nonnegative_int, OneLineParser, positive_int, Progress)
+    add_setting, finite_float, OneLineParser, positive_int, Progress)
 from octoroach_model.commands.simulate import OrderedEffectAction
 from octoroach_model.commands.study import add_where_arguments
 from octoroach_model.errors import ParameterError
 
 
 def parser() -> argparse.ArgumentParser:
-    """Build the `plan` command line."""
-    from octoroach_model.studies.plan import BUDGET_S, METHODS
+    """Build the `plan` command line (the search's options: the fields of PlanSettings)."""
+    from octoroach_model.studies.plan import PlanSettings
     from octoroach_model.studies.terms import TERMS
 
     result = OneLineParser(
@@ -35,8 +35,7 @@ def parser() -> argparse.ArgumentParser:
                         help="size of the cause's main parameter in its unit (e.g. "
                         'yaw_rate_std_deg_s for persistent_turning; for change_point the '
                         "speed factor's distance from 1)")
-    result.add_argument('--power', type=finite_float, default=0.8,
-                        help='probability of naming the cause')
+    add_setting(result, PlanSettings, 'power')
     result.add_argument('--param', action=OrderedEffectAction, dest='effect_param',
                         metavar='KEY=VALUE', help='another parameter of the cause (e.g. '
                         'position_std_cm=0.3 for initial_pose_error); repeatable')
@@ -54,24 +53,14 @@ def parser() -> argparse.ArgumentParser:
     robot.add_argument('--spread-scale', type=finite_float, default=None,
                        help="multiple of Table III's angle spreads (default 1)")
     search = result.add_argument_group('search')
-    search.add_argument('--method', choices=METHODS, default='model',
-                        help='model: a calibrated model of the power curve from two pilot '
-                        'data sets, checked by simulation as --budget-s allows (seconds); '
-                        'simulate: data sets diagnosed in full at several run counts (minutes, '
-                        'the reference); docs/studies.md, "How plan decides"')
-    search.add_argument('--budget-s', type=finite_float, default=BUDGET_S,
-                        help='for --method model: seconds the plan may take, pilots and '
-                        'checks')
-    search.add_argument('--replicates', type=positive_int, default=6,
-                        help='for --method simulate: data sets per run count (more on a '
-                        'cluster: tighter intervals)')
+    add_setting(search, PlanSettings, 'method')
+    add_setting(search, PlanSettings, 'budget_s')
+    add_setting(search, PlanSettings, 'replicates')
     search.add_argument('--runs', type=positive_int, nargs='+', default=None, metavar='N',
                         help='for --method simulate: start from these run counts instead of '
                         "the pilot's guess")
-    search.add_argument('--max-runs', type=positive_int, default=2000,
-                        help='the largest run count tried')
-    search.add_argument('--seed', type=nonnegative_int, default=0,
-                        help='seed of every data set and of the bootstrap')
+    add_setting(search, PlanSettings, 'max_runs')
+    add_setting(search, PlanSettings, 'seed')
     add_where_arguments(result)
     result.add_argument('--out', type=Path, default=None, metavar='DIR',
                         help='also write plan.json, the data sets (checks.csv, or table.csv '

@@ -57,6 +57,7 @@ from octoroach_model.fitting.target import average_target
 from octoroach_model.model import ModelParameters
 from octoroach_model.model.extensions import family_form
 from octoroach_model.paths import Paths
+from octoroach_model.settings import setting
 from octoroach_model.validation import chernoff_sample_size, ValidationSettings
 from octoroach_model.workers import executor_for, single_threaded
 
@@ -86,7 +87,7 @@ class DiagnosisSettings:
     is the size bound's own limit, and the method says so).
     """
 
-    seed: int = 0
+    seed: int = setting(0, 'seed of the split, the simulations and the bootstrap', low=0)
     alpha: float = 0.01
     decision_alpha: float = 0.05
     min_gain: float = 0.0

@@ -23,7 +23,7 @@ import threading
 from typing import Any, NoReturn, TYPE_CHECKING
 
 from octoroach_model.errors import exit_code, EXIT_USAGE, OctoroachError, ParameterError
-from octoroach_model.settings import Setting, settings_of
+from octoroach_model.settings import Setting, setting, settings_of
 
 if TYPE_CHECKING:
     from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -160,6 +160,21 @@ def field_specs(record: type, names: Sequence[str], **defaults: ParamValue
         specs.append(ParamSpec.of(name, list(value) if isinstance(value, tuple) else value,
                                   described))
     return specs
+
+
+@dataclass(frozen=True)
+class SubscriberWait:
+    """
+    How a publishing node waits for subscribers before its first message (simulator, replay).
+
+    One record for both nodes, so that the parameters mean and allow the same on each.
+    """
+
+    wait_subscribers: int = setting(
+        0, 'before the first message, wait until every topic published has this many '
+        'subscribers (1: start a recorder first, lose nothing)', low=0, high=1000)
+    wait_timeout_s: float = setting(10.0, 'longest wait for wait_subscribers, then start',
+                                    unit='s', low=0.0, high=3600.0, option='--wait-timeout')
 
 
 def _has_kind(value: Any, kind: str) -> bool:
@@ -317,6 +332,41 @@ class NodeArgumentParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         raise UsageError(message)
+
+
+def add_flag(parser: argparse.ArgumentParser, record: type, name: str, *flags: str,
+             **overrides: Any) -> argparse.Action:
+    """
+    Add the command-line flag of parameter `name`, a field of the node's settings `record`.
+
+    Help, unit and range come from the field (`settings.setting`); `flags` name it where it
+    is not --NAME-WITH-DASHES or the field's `option` (a bare name: positional). A flag has
+    no default: only the flags given replace their parameters' defaults (`with_defaults`),
+    and the parameter's check says whether the value is allowed, as for --ros-args.
+    `overrides` are argparse's keywords where the flag differs (a metavar).
+    """
+    default, described = settings_of(record)[name]
+    keywords: dict[str, Any] = {'default': None,
+                                'help': f'{described.help_text()} (parameter {name})'}
+    if described.choices:
+        keywords['choices'] = tuple(choice for choice in described.choices if choice)
+    elif isinstance(default, bool):
+        keywords['action'] = 'store_true'
+    elif isinstance(default, (list, tuple)):
+        keywords['nargs'] = '+'
+    elif isinstance(default, (int, float)):
+        keywords['type'] = type(default)
+    flags = flags or (described.option or '--' + name.replace('_', '-'),)
+    if flags[0].startswith('-'):
+        keywords['dest'] = name
+    keywords.update(overrides)
+    return parser.add_argument(*flags, **keywords)
+
+
+def flags_given(args: argparse.Namespace, *records: type) -> dict[str, Any]:
+    """Return {parameter: value} of the flags given of the fields of `records` (`add_flag`)."""
+    return {name: getattr(args, name) for record in records for name in settings_of(record)
+            if getattr(args, name, None) is not None}
 
 
 def node_parser(prog: str, summary: str, specs: Sequence[ParamSpec],

@@ -25,10 +25,13 @@ from typing import Any
 from octoroach_model.errors import DataError, exit_code, OctoroachError, OutputError
 from octoroach_model.fileio import check_writable
 from octoroach_model.nodes.common import (
+    add_flag,
     declare_parameters,
     fail,
     field_specs,
+    flags_given,
     node_parser,
+    NodeArgumentParser,
     ParamSpec,
     run_node,
     set_parameters_callback,
@@ -38,6 +41,10 @@ from octoroach_model.nodes.common import (
     vicon_qos,
     with_defaults,
 )
+from octoroach_model.recordings import (
+    DEFAULT_GAP_S, DEFAULT_MARKER_TOPIC, DEFAULT_POSE_TOPIC, DEFAULT_RATE_HZ)
+from octoroach_model.recordings.options import FORWARD_AXIS, GAP_S, UP_AXIS
+from octoroach_model.settings import setting, settings_of
 
 SUMMARY = ('ROS node: records VICON pose topics (TransformStamped or PoseStamped) and run '
            'markers to a rosbag2 MCAP bag directory (ROS 2 Jazzy layout), flushed every '
@@ -63,32 +70,38 @@ DISCOVERY_PERIOD_S = 0.2
 MAX_TAKEN_PER_CALLBACK = 1000  # then let timers (flush, drain) run
 
 
+@dataclass(frozen=True)
+class RecorderSettings:
+    """
+    The recorder's parameters: the one source of their help, unit, range and default.
+
+    Its parameters, its flags (-o/--output, --dataset, --topics) and config/recorder.yaml
+    are made from these fields; the reading ones are shared with the offline programs.
+    """
+
+    output: str = setting('', 'bag directory to create; empty: ./octoroach_YYYYmmdd_HHMMSS',
+                          read_only=True)
+    topics: tuple[str, ...] = setting((DEFAULT_POSE_TOPIC, DEFAULT_MARKER_TOPIC),
+                                      'topics to record (names or fnmatch patterns)',
+                                      read_only=True)
+    dataset: str = setting('', 'data set file (.npz) written on exit and by ~/export; empty: '
+                           'none; must not exist at start', read_only=True)
+    gap_s: float = setting(float(DEFAULT_GAP_S), GAP_S)
+    export_rate_hz: float = setting(float(DEFAULT_RATE_HZ), 'sample rate of the data set',
+                                    unit='Hz', low=1.0, high=1000.0)
+    forward_axis: str = setting('x', FORWARD_AXIS)
+    up_axis: str = setting('z', UP_AXIS)
+    flush_period_s: float = setting(1.0, 'bag file flushed this often', unit='s', low=0.1,
+                                    high=10.0)
+    log_period_s: float = setting(5.0, 'progress logged this often', unit='s', low=0.5,
+                                  high=3600.0)
+    qos_depth: int = setting(1000, 'history depth of the subscriptions', low=1, high=100_000,
+                             read_only=True)
+
+
 def recorder_specs() -> list[ParamSpec]:
     """List the recorder's parameters."""
-    from octoroach_model.recordings import (
-        DEFAULT_GAP_S,
-        DEFAULT_MARKER_TOPIC,
-        DEFAULT_POSE_TOPIC,
-        DEFAULT_RATE_HZ,
-    )
-    from octoroach_model.recordings.options import GAP_S, ReadOptions
-
-    return [
-        ParamSpec('output', '', 'bag directory to create; empty: ./octoroach_YYYYmmdd_HHMMSS',
-                  read_only=True),
-        ParamSpec('topics', [DEFAULT_POSE_TOPIC, DEFAULT_MARKER_TOPIC],
-                  'topics to record (names or fnmatch patterns)', read_only=True),
-        ParamSpec('dataset', '', 'data set file (.npz) written on exit and by ~/export; '
-                  'empty: none; must not exist at start', read_only=True),
-        ParamSpec.of('gap_s', float(DEFAULT_GAP_S), GAP_S),
-        ParamSpec('export_rate_hz', float(DEFAULT_RATE_HZ), 'sample rate of the data set',
-                  'Hz', 1.0, 1000.0),
-        *field_specs(ReadOptions, ('forward_axis', 'up_axis')),
-        ParamSpec('flush_period_s', 1.0, 'bag file flushed this often', 's', 0.1, 10.0),
-        ParamSpec('log_period_s', 5.0, 'progress logged this often', 's', 0.5, 3600.0),
-        ParamSpec('qos_depth', 1000, 'history depth of the subscriptions', '', 1, 100_000,
-                  read_only=True),
-    ]
+    return field_specs(RecorderSettings, tuple(settings_of(RecorderSettings)))
 
 
 def default_output() -> str:
@@ -384,23 +397,25 @@ class Recorder(Node):
         return 0
 
 
+def parser() -> NodeArgumentParser:
+    """Build the command line: its flags are parameters' (`add_flag`), --ros-args the rest."""
+    result = node_parser('recorder', SUMMARY, recorder_specs(), TOPICS, NOTES,
+                         '[-o BAG] [--dataset FILE] [--topics TOPIC ...]')
+    add_flag(result, RecorderSettings, 'output', '-o', '--output')
+    add_flag(result, RecorderSettings, 'dataset')
+    add_flag(result, RecorderSettings, 'topics', metavar='TOPIC')
+    return result
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `recorder [-o BAG] [--dataset FILE] [--topics T ...] [--ros-args ...]`."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)
-        parser = node_parser('recorder', SUMMARY, recorder_specs(), TOPICS, NOTES,
-                             '[-o BAG] [--dataset FILE] [--topics TOPIC ...]')
-        parser.add_argument('-o', '--output', help='bag directory (parameter output)')
-        parser.add_argument('--dataset', help='data set file (parameter dataset)')
-        parser.add_argument('--topics', nargs='+', metavar='TOPIC',
-                            help='topics or patterns (parameter topics)')
-        args = parser.parse_args(own)
+        args = parser().parse_args(own)
     except SystemExit as stop:  # --help
         return int(stop.code or 0)
     except (UsageError, OctoroachError) as error:
         return fail(str(error), start_exit_code(error))
-    defaults = {name: value for name, value in
-                (('output', args.output), ('dataset', args.dataset), ('topics', args.topics))
-                if value is not None}
+    defaults = flags_given(args, RecorderSettings)
     return run_node(lambda: Recorder(defaults), ros, 'recorder')

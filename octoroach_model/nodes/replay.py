@@ -16,6 +16,7 @@ so a recorder listening gets every message.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 import importlib
 from pathlib import Path
 import sys
@@ -25,17 +26,23 @@ from typing import Any
 
 from octoroach_model.errors import BagError, OctoroachError
 from octoroach_model.nodes.common import (
+    add_flag,
     declare_parameters,
     fail,
+    field_specs,
+    flags_given,
     node_parser,
+    NodeArgumentParser,
     ParamSpec,
     run_node,
     set_parameters_callback,
     split_ros_args,
     start_exit_code,
+    SubscriberWait,
     UsageError,
     with_defaults,
 )
+from octoroach_model.settings import setting
 
 SUMMARY = ('ROS node: publishes every message of a rosbag2 bag (MCAP directory or file, or '
            'sqlite3 directory) on its recorded topics with the recorded types (raw CDR, '
@@ -55,24 +62,31 @@ ACK_TIMEOUT_S = 5.0
 FALLBACK_DEPTH = 1000
 
 
+@dataclass(frozen=True)
+class ReplaySettings:
+    """
+    The replay node's own parameters: the one source of their help, unit, range and default.
+
+    Its parameters and flags are made from these fields and from `SubscriberWait`'s.
+    """
+
+    bag: str = setting('', 'bag directory or .mcap file to play', read_only=True)
+    rate: float = setting(1.0, 'speed factor: recorded intervals are divided by it',
+                          low=0.01, high=1000.0)
+    loop: bool = setting(False, 'start again from the beginning when done')
+    reliability: str = setting('', "publishers' reliability; empty: as recorded",
+                               choices=('', 'reliable', 'best_effort'), read_only=True)
+    durability: str = setting('', "publishers' durability; empty: as recorded",
+                              choices=('', 'volatile', 'transient_local'), read_only=True)
+    qos_depth: int = setting(0, f'history depth of the publishers; 0: as recorded (else '
+                             f'{FALLBACK_DEPTH})', low=0, high=100_000, read_only=True)
+
+
 def replay_specs() -> list[ParamSpec]:
     """List the replay node's parameters."""
-    return [
-        ParamSpec('bag', '', 'bag directory or .mcap file to play', read_only=True),
-        ParamSpec('rate', 1.0, 'speed factor: recorded intervals are divided by it', '',
-                  0.01, 1000.0),
-        ParamSpec('loop', False, 'start again from the beginning when done'),
-        ParamSpec('wait_subscribers', 0, 'before starting, wait until every topic has this '
-                  'many subscribers', '', 0, 1000),
-        ParamSpec('wait_timeout_s', 10.0, 'longest wait for wait_subscribers, then start',
-                  's', 0.0, 3600.0),
-        ParamSpec('reliability', '', "publishers' reliability; empty: as recorded",
-                  choices=('', 'reliable', 'best_effort'), read_only=True),
-        ParamSpec('durability', '', "publishers' durability; empty: as recorded",
-                  choices=('', 'volatile', 'transient_local'), read_only=True),
-        ParamSpec('qos_depth', 0, f'history depth of the publishers; 0: as recorded (else '
-                  f'{FALLBACK_DEPTH})', '', 0, 100_000, read_only=True),
-    ]
+    return [*field_specs(ReplaySettings, ('bag', 'rate', 'loop')),
+            *field_specs(SubscriberWait, ('wait_subscribers', 'wait_timeout_s')),
+            *field_specs(ReplaySettings, ('reliability', 'durability', 'qos_depth'))]
 
 
 def _message_class(msgtype: str) -> Any:
@@ -245,28 +259,27 @@ class Replay(Node):
         super().destroy_node()
 
 
+def parser() -> NodeArgumentParser:
+    """Build the command line: its flags are parameters' (`add_flag`), --ros-args the rest."""
+    result = node_parser('replay', SUMMARY, replay_specs(), TOPICS, NOTES,
+                         'BAG [--rate R] [--loop] [--wait-subscribers N] [--wait-timeout S]')
+    add_flag(result, ReplaySettings, 'bag', 'bag', nargs='?')
+    add_flag(result, ReplaySettings, 'rate')
+    add_flag(result, ReplaySettings, 'loop')
+    add_flag(result, SubscriberWait, 'wait_subscribers', metavar='N')
+    add_flag(result, SubscriberWait, 'wait_timeout_s', metavar='S')
+    add_flag(result, ReplaySettings, 'reliability')
+    add_flag(result, ReplaySettings, 'durability')
+    add_flag(result, ReplaySettings, 'qos_depth', metavar='N')
+    return result
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `replay BAG [--rate R] [--loop] [--wait-subscribers N] [--reliability R] ...`."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         own, ros = split_ros_args(argv)
-        parser = node_parser('replay', SUMMARY, replay_specs(), TOPICS, NOTES,
-                             'BAG [--rate R] [--loop] [--wait-subscribers N] [--wait-timeout S]')
-        parser.add_argument('bag', nargs='?', help='bag directory or .mcap file (parameter bag)')
-        parser.add_argument('--rate', type=float, help='speed factor (parameter rate)')
-        parser.add_argument('--loop', action='store_true', default=None,
-                            help='play again and again (parameter loop)')
-        parser.add_argument('--wait-subscribers', type=int, metavar='N',
-                            help='subscribers to wait for on every topic (wait_subscribers)')
-        parser.add_argument('--wait-timeout', type=float, metavar='S',
-                            help='longest wait for them, seconds (wait_timeout_s)')
-        parser.add_argument('--reliability', choices=('reliable', 'best_effort'),
-                            help='override the recorded reliability (parameter reliability)')
-        parser.add_argument('--durability', choices=('volatile', 'transient_local'),
-                            help='override the recorded durability (parameter durability)')
-        parser.add_argument('--qos-depth', type=int, metavar='N',
-                            help='override the recorded history depth (parameter qos_depth)')
-        args = parser.parse_args(own)
+        args = parser().parse_args(own)
         if args.bag is not None and not Path(args.bag).exists():
             raise BagError(f'{args.bag}: no such bag (directory or .mcap file)')
         if args.bag is not None and Path(args.bag).suffix == '.npz':
@@ -276,9 +289,5 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(stop.code or 0)
     except (UsageError, OctoroachError) as error:
         return fail(str(error), start_exit_code(error))
-    flags = {'bag': args.bag, 'rate': args.rate, 'loop': args.loop,
-             'wait_subscribers': args.wait_subscribers, 'wait_timeout_s': args.wait_timeout,
-             'reliability': args.reliability, 'durability': args.durability,
-             'qos_depth': args.qos_depth}
-    defaults = {name: value for name, value in flags.items() if value is not None}
+    defaults = flags_given(args, ReplaySettings, SubscriberWait)
     return run_node(lambda: Replay(defaults), ros, 'replay')

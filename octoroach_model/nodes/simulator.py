@@ -15,7 +15,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-import math
 import sys
 import time
 from typing import Any
@@ -23,11 +22,11 @@ from typing import Any
 from octoroach_model.errors import OctoroachError
 from octoroach_model.nodes.common import (
     current_values, declare_parameters, fail, field_specs, node_parser, ParamSpec, ParamValue,
-    run_node, set_parameters_callback, split_ros_args, UsageError, vicon_qos)
+    run_node, set_parameters_callback, split_ros_args, SubscriberWait, UsageError, vicon_qos)
 from octoroach_model.nodes.messages import (
     fill_transform, planar_rows, PlanarPose, run_marker, transform_message)
 from octoroach_model.run_settings import (
-    EFFECT_PREFIX, EXTENSION_PREFIX, marker_topic, pose_topic, RunSettings)
+    effect_settings, extension_settings, marker_topic, pose_topic, RunSettings)
 
 __all__ = ['RunSettings', 'Simulator', 'main', 'marker_topic', 'pose_topic',
            'simulator_specs']
@@ -52,71 +51,27 @@ TOPICS = (
     ('publishes', '/vicon/SUBJECT/SEGMENT', 'geometry_msgs/msg/TransformStamped, `rate` Hz'),
     ('publishes', '/SUBJECT/run_start', 'std_msgs/msg/UInt32 run index, before each run'),
 )
-_EFFECT_UNITS = {'_deg_s': 'deg/s', '_cm_s': 'cm/s', '_deg': 'deg', '_cm': 'cm'}
-
-
-def _effect_unit(key: str) -> str:
-    return next((unit for suffix, unit in _EFFECT_UNITS.items() if key.endswith(suffix)), '1')
 
 
 def simulator_specs() -> list[ParamSpec]:
     """
-    List the simulator's parameters: RunSettings' fields, and the node's own.
+    List the simulator's parameters: RunSettings' fields, the wait, the model's tables.
 
-    The model's defaults come from config/table2.yaml (through RunSettings).
+    The model's defaults come from config/table2.yaml (through RunSettings); the causes' and
+    the extension terms' parameters from the model's tables (`run_settings.effect_settings`).
     """
-    from octoroach_model.model import EFFECT_PARAMETERS, PARAMETER_RANGES
-    from octoroach_model.model.extensions import DRIFTED
-
-    start_x, start_y, start_heading = (float(v) for v in RunSettings().start_pose)
-    specs = [
+    return [
         *field_specs(RunSettings, ('robots', 'subject', 'segment', 'world_frame', 'rate',
                                    'pause_s', 'runs')),
-        ParamSpec('wait_subscribers', 0, 'before the first run, wait until every pose and '
-                  'marker topic has this many subscribers (1: start a recorder first, lose '
-                  'nothing)', '', 0, 1000),
-        ParamSpec('wait_timeout_s', 10.0, 'longest wait for wait_subscribers, then start',
-                  's', 0.0, 3600.0),
+        *field_specs(SubscriberWait, ('wait_subscribers', 'wait_timeout_s')),
         *field_specs(RunSettings, ('cycles', 'sigma1', 'sigma2', 'stride_frequency', 'draws',
-                                   'seed')),
-        ParamSpec('start_x', start_x, 'x at the start of every run', 'm', -1000.0, 1000.0),
-        ParamSpec('start_y', start_y, 'y at the start of every run', 'm', -1000.0, 1000.0),
-        ParamSpec('start_heading', start_heading, 'heading at the start (pi/2: along +y)',
-                  'rad', -2 * math.pi, 2 * math.pi),
-        *field_specs(RunSettings, ('effect',)),
+                                   'seed', 'start_x', 'start_y', 'start_heading', 'effect')),
+        *(ParamSpec.of(name, default, described)
+          for name, (default, described) in effect_settings().items()),
+        *field_specs(RunSettings, ('extension',)),
+        *(ParamSpec.of(name, default, described)
+          for name, (default, described) in extension_settings().items()),
     ]
-    for key, (low, high) in PARAMETER_RANGES.items():
-        users = ', '.join(name for name, keys in EFFECT_PARAMETERS.items() if key in keys)
-        specs.append(ParamSpec(f'{EFFECT_PREFIX}{key}', 0.0, f'parameter of {users}',
-                               _effect_unit(key), float(low), float(high)))
-    specs.extend(field_specs(RunSettings, ('extension',)))
-    specs.append(ParamSpec(f'{EXTENSION_PREFIX}parameter', DRIFTED[0],
-                           'what run_order_drift moves over the session', choices=DRIFTED))
-    for key, (default, unit, low, high, users) in extension_parameter_table().items():
-        specs.append(ParamSpec(f'{EXTENSION_PREFIX}{key}', default, f'parameter of {users}',
-                               unit, low, high))
-    return specs
-
-
-def extension_parameter_table() -> dict[str, tuple[float, str, float, float, str]]:
-    """
-    Each numeric key of the extension terms: default, unit, widest range, terms using it.
-
-    run_order_drift's `change` takes the unit of what drifts (relative, deg/s or cm/s).
-    """
-    from octoroach_model.model.extensions import TERMS
-
-    table: dict[str, tuple[float, str, float, float, str]] = {}
-    for term in TERMS:
-        for key, unit, (low, high) in zip(term.parameters, term.units, term.ranges):
-            default = float(term.defaults.get(key, 0.0))
-            if key in table:
-                old = table[key]
-                table[key] = (old[0], old[1] if old[1] == unit else 'see the family',
-                              min(old[2], low), max(old[3], high), f'{old[4]}, {term.name}')
-            else:
-                table[key] = (default, unit or '1', low, high, term.name)
-    return table
 
 
 def _reject_reason(values: dict[str, ParamValue]) -> str | None:

@@ -39,6 +39,8 @@ from typing import Any
 
 from octoroach_model.errors import OctoroachError, OutputError, ParameterError
 from octoroach_model.fileio import check_writable
+from octoroach_model.guidance import (
+    check_question, guidance_fields, GuidanceQuestion, GuidanceSettings, Guide)
 from octoroach_model.jsonio import dumps
 from octoroach_model.nodes.common import (
     current_values, declare_parameters, fail, field_specs, node_parser, ParamSpec, ParamValue,
@@ -84,8 +86,7 @@ TOPICS = (
      'answer to `question` after each new run'),
 )
 GUIDANCE_STATUS_NAME = 'octoroach_model/guidance'
-GUIDANCE_PARAMETERS = ('question', 'question_size', 'question_power', 'planned_runs',
-                       'guidance_period_s')
+GUIDANCE_PARAMETERS = tuple(settings_of(GuidanceSettings))
 STATUS_NAME = 'octoroach_model/validation'
 DIAGNOSIS_STATUS_NAME = 'octoroach_model/diagnosis'
 HARDWARE_ID = 'octoroach'
@@ -96,11 +97,6 @@ SERVICES = {'validate': 'validation', 'diagnose': 'diagnosis'}  # service -> job
 DISCOVERY_TIMEOUT_S = 30.0  # --call: longest wait for the service to appear
 BUSY_RETRY_S = 10.0         # "call again in" before the first job of a kind has finished
 
-QUESTIONS = ('', 'validation', 'initial_pose_error', 'measurement_noise',
-             'gait_frequency_variation', 'speed_decay', 'lateral_slip', 'persistent_turning',
-             'run_order_drift:stride_frequency', 'run_order_drift:yaw_rate',
-             'run_order_drift:lateral_velocity', 'heading_random_walk', 'periodic_heading',
-             'change_point', 'run_mixture')
 BAGS = ParamSpec('bags', [], 'bag directories, .mcap files or .npz data sets to validate on; '
                  'at run time only inside data_dirs')
 DATA_DIRS = ParamSpec('data_dirs', [], 'folders `bags` may name when set at run time; empty: '
@@ -113,8 +109,8 @@ def validator_specs() -> list[ParamSpec]:
     """
     List every parameter but the string arrays (declared apart: an empty list has no type).
 
-    Those of a call are the fields of `validation_jobs.Job` and of `ValidationSettings` (their
-    help, unit, range and default); the live guidance's are the node's own.
+    Those of a call are the fields of `validation_jobs.Job` and of `ValidationSettings`, the
+    live guidance's those of `guidance.GuidanceSettings` (their help, unit, range and default).
     """
     from octoroach_model.validation import ValidationSettings
 
@@ -123,24 +119,11 @@ def validator_specs() -> list[ParamSpec]:
                            'nominal', 'draws')),
         *field_specs(ValidationSettings, tuple(settings_of(ValidationSettings))),
         *field_specs(Job, ('sigma1', 'sigma2', 'report_dir')),
-        ParamSpec('question', '', 'live guidance on ~/guidance: a cause or extension term '
-                  "(with question_size), validation (runs for the paper's validation), or "
-                  'empty: none', choices=QUESTIONS),
-        ParamSpec('question_size', 0.0, "the size that matters: the term's main parameter "
-                  '(its distance from no effect; run_mixture: the yaw rate of 30 % of the '
-                  'runs), in its unit', 'as the term', 0.0, 1000.0),
-        ParamSpec('question_power', 0.8, 'probability with which runs_needed names the term at '
-                  'question_size', '', 0.5, 0.99),
-        ParamSpec('planned_runs', 500, 'runs the session is planned to reach: where the live '
-                  'decision is least strict (any count stays valid)', '', 40, 1000000),
-        ParamSpec('guidance_period_s', 0.25, 'how often the files behind bags are looked at '
-                  'for new runs', 's', 0.05, 10.0),
+        *field_specs(GuidanceSettings, GUIDANCE_PARAMETERS),
     ]
 
 
 def _reject_reason(values: dict[str, ParamValue]) -> str | None:
-    from octoroach_model.guidance import check_question
-
     try:
         Job.from_values(values)
     except OctoroachError as error:
@@ -448,7 +431,6 @@ class Validator(Node):
         Polls the stamps of the files behind `bags` (validation_jobs.source_stamps) every
         guidance_period_s; a baseline fitted apart is taken up at the next poll.
         """
-        from octoroach_model.guidance import Guide, GuidanceQuestion
         from octoroach_model.validation_jobs import source_stamps
 
         logger = self.get_logger()
@@ -484,8 +466,6 @@ class Validator(Node):
 
     def _decide(self, guide: Any, bench: Workbench, job: Job, logger: Any) -> None:
         """Read the runs, ask the guide, latch the answer on ~/guidance."""
-        from octoroach_model.guidance import guidance_fields
-
         measured, problem = None, None
         try:
             if job.sources:

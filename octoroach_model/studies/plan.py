@@ -36,6 +36,7 @@ import numpy as np
 from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
+from octoroach_model.settings import setting
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.rows import Status, StudyRow
@@ -55,6 +56,33 @@ MAX_SLOPE = 20.0            # per unit of ln(runs): power 10 % -> 90 % over at l
 RIDGE = 1e-3                # keeps the fit finite when every data set agrees
 HUGE = 1e300                # stands for an infinite run count inside percentiles
 Progress = Callable[[float, str], None]
+
+
+@dataclass(frozen=True)
+class PlanSettings:
+    """
+    What a user sets of a plan: the one source of `plan`'s options and `plan_runs`' defaults.
+
+    `plan_runs` checks the values (power strictly between 0 and 1, a positive budget,
+    max_runs at least MIN_RUNS, ...); the fields say so to the user.
+    """
+
+    power: float = setting(0.8, 'probability of naming the cause', low=0.0, high=1.0,
+                           open_low=True, open_high=True)
+    method: str = setting('model', 'model: a calibrated model of the power curve from two '
+                          'pilot data sets, checked by simulation as --budget-s allows '
+                          '(seconds); simulate: data sets diagnosed in full at several run '
+                          'counts (minutes, the reference); docs/studies.md, "How plan decides"',
+                          choices=METHODS)
+    budget_s: float = setting(BUDGET_S, 'for --method model: seconds the plan may take, pilots '
+                              'and checks', unit='s', low=0.0, open_low=True)
+    replicates: int = setting(6, 'for --method simulate: data sets per run count (more on a '
+                              'cluster: tighter intervals)', low=1)
+    max_runs: int = setting(2000, 'the largest run count tried', low=MIN_RUNS)
+    seed: int = setting(0, 'seed of every data set and of the bootstrap', low=0)
+
+
+PLAN = PlanSettings()
 
 
 class PowerPoint(NamedTuple):
@@ -98,16 +126,16 @@ class PlanResult:
         return plain
 
 
-def plan_runs(cause: str, size: float, *, power: float = 0.8,
+def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
               robot: RobotSpec | Mapping[str, Any] | None = None,
-              parameters: Mapping[str, float] | None = None, replicates: int = 6,
+              parameters: Mapping[str, float] | None = None, replicates: int = PLAN.replicates,
               run_counts: Sequence[int] | None = None, min_runs: int | None = None,
-              max_runs: int = 2000, rounds: int = MAX_ROUNDS, seed: int = 0,
+              max_runs: int = PLAN.max_runs, rounds: int = MAX_ROUNDS, seed: int = PLAN.seed,
               diagnosis: Mapping[str, Any] | None = None, client: Any | None = None,
               scheduler: str | None = None, workers: int | None = None,
               progress: Progress | None = None, out: str | Path | None = None,
-              connect_timeout_s: float = CONNECT_TIMEOUT_S, method: str = 'model',
-              budget_s: float = BUDGET_S) -> PlanResult:
+              connect_timeout_s: float = CONNECT_TIMEOUT_S, method: str = PLAN.method,
+              budget_s: float = PLAN.budget_s) -> PlanResult:
     """
     Find the number of runs needed to name `cause` at `size` with probability `power`.
 
