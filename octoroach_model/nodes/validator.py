@@ -448,7 +448,7 @@ class Validator(Node):
         Polls the stamps of the files behind `bags` (validation_jobs.source_stamps) every
         guidance_period_s; a baseline fitted apart is taken up at the next poll.
         """
-        from octoroach_model.guidance import Guide, GuidanceQuestion
+        from octoroach_model.guidance import Guide, GuidanceQuestion, QuestionKind
         from octoroach_model.validation_jobs import source_stamps
 
         logger = self.get_logger()
@@ -468,7 +468,7 @@ class Validator(Node):
             key = (question, job.sources, job.topic, job.gap_s, job.min_duration_s)
             if key != question_key:
                 question_key, seen = key, None
-                term = question.asked and question.kind != 'validation'
+                term = question.kind == QuestionKind.TERM
                 with self._guide_lock:
                     self._guide = Guide(question, self._refit_pool() if term else None) \
                         if question.asked else None
