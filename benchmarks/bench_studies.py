@@ -23,6 +23,11 @@ from pathlib import Path
 import sys
 import tempfile
 import time
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from octoroach_model.studies.summary_records import (
+        Estimation, InadequateOnNulls, Rate, RateByRuns, Recovery, StudySummary)
 
 REPO = Path(__file__).resolve().parents[1]
 SPECS = REPO / 'studies'
@@ -43,9 +48,9 @@ def measure_scale(workers: tuple[int, ...] = (1, 2)) -> dict[int, dict]:
             result = om.run_study(SPECS / 'scale.yaml', Path(folder) / 'scale', workers=count,
                                   plots=False)
             total = time.perf_counter() - started
-        timing = result.summary['timing']
-        results[count] = {'tasks': result.rows, 'wall_s': timing['wall_time_s'],
-                          'with_start_s': total, 'median_task_s': timing['median_task_s']}
+        timing = result.summary.timing
+        results[count] = {'tasks': result.rows, 'wall_s': timing.wall_time_s,
+                          'with_start_s': total, 'median_task_s': timing.median_task_s}
     return results
 
 
@@ -86,49 +91,48 @@ def run_studies(names: list[str], workers: int | None, scheduler: str | None) ->
         (out / 'bench_wall_time_s.txt').write_text(f'{elapsed:.1f}\n')
 
 
-def _rate(entry: dict) -> str:
-    if entry.get('rate') is None:
+def _rate(rate: Rate | None) -> str:
+    if rate is None or rate.rate is None or rate.interval is None:
         return 'no data'
-    low, high = entry['interval_95']
-    return f'{entry["count"]}/{entry["data_sets"]} = {entry["rate"]:.0%} ({low:.0%}-{high:.0%})'
+    low, high = rate.interval
+    return f'{rate.successes}/{rate.trials} = {rate.rate:.0%} ({low:.0%}-{high:.0%})'
 
 
-def pooled_rate(entries: list[dict]) -> dict:
+def pooled_rate(rates: list[Rate]) -> Rate:
     """Return the rate of several cells together, with its Wilson interval."""
     from octoroach_model.studies.summary import wilson
 
-    return wilson(sum(e['count'] for e in entries),
-                  sum(e['data_sets'] for e in entries)).to_json()
+    return wilson(sum(rate.successes for rate in rates), sum(rate.trials for rate in rates))
 
 
 def _error(value: float | None) -> str:
     return '-' if value is None else f'{100 * value:.1f} %'
 
 
-def _median_error(errors: dict, entry: dict, cause: str) -> str:
+def _median_error(errors: dict[tuple, Estimation], entry: Recovery, cause: str) -> str:
     """Return the median absolute relative error of `cause` in a two-cause entry's data sets."""
-    error = errors.get((entry['arm'], cause, entry['runs']), {})
-    return _error(error.get('median_abs_relative_error'))
+    error = errors.get((entry.arm, cause, entry.runs))
+    return _error(error.median_abs_relative_error if error else None)
 
 
-def _wall(name: str, summary: dict) -> str:
+def _wall(name: str, summary: StudySummary) -> str:
     """
     Return the study's wall time, as this script or the summary measured it.
 
     A resumed or partial study has none: then the sum of its data sets' times.
     """
     path = OUT / name / 'bench_wall_time_s.txt'
-    timing = summary['timing']
-    seconds = float(path.read_text()) if path.exists() else timing.get('wall_time_s')
+    timing = summary.timing
+    seconds = float(path.read_text()) if path.exists() else timing.wall_time_s
     if seconds is not None:
         return f'wall time {seconds / 60:.1f} min'
-    if timing.get('total_task_s'):
-        return (f'{timing["total_task_s"] / 60:.0f} min of single-worker time over its data '
-                f'sets (median {timing["median_task_s"]:.0f} s each)')
+    if timing.total_task_s and timing.median_task_s is not None:
+        return (f'{timing.total_task_s / 60:.0f} min of single-worker time over its data '
+                f'sets (median {timing.median_task_s:.0f} s each)')
     return 'wall time unknown'
 
 
-def table_summary(name: str) -> tuple[dict, str | None]:
+def table_summary(name: str) -> tuple[StudySummary, str | None]:
     """
     Summarize the study's table as it stands (the table is the record; summary.json may be older).
 
@@ -166,133 +170,133 @@ def print_tables(names: list[str]) -> None:
         print(f'\n### {name} (`{command}`, {_wall(name, summary)} on this machine)\n')
         if partial:
             print(f'**Partial**: {partial}\n')
-        counts = summary['status']['counts']
+        counts = summary.status.counts
         if set(counts) - {'ok'}:
-            print(f'data sets without a diagnosis: {counts}\n')
-        fp = summary['false_positive']
-        if fp['data_sets']:
+            print(f'data sets without a diagnosis: {dict(counts)}\n')
+        fp = summary.false_positive
+        if fp.overall.trials:
             print('| null data sets | any cause named (95 % interval) | causes named |')
             print('| --- | --- | --- |')
-            named = ', '.join(f'{k} {v}' for k, v in fp['causes_named'].items()) or 'none'
-            print(f'| {fp["data_sets"]} | {_rate(fp)} | {named} |\n')
-            inadequate = summary.get('inadequate_on_nulls')
-            if inadequate and inadequate['data_sets']:
+            named = ', '.join(f'{k} {v}' for k, v in fp.causes_named.items()) or 'none'
+            print(f'| {fp.overall.trials} | {_rate(fp.overall)} | {named} |\n')
+            inadequate = summary.inadequate_on_nulls
+            if inadequate.overall.trials:
                 print(f'adequacy check false alarms (null data sets called inadequate): '
-                      f'{_rate(inadequate)}\n')
-                print_by_runs(fp, inadequate)
-        if summary['power']:
-            errors = {(e['arm'], e['runs']): e for e in summary['estimation']}
+                      f'{_rate(inadequate.overall)}\n')
+                print_by_runs(fp.by_runs, inadequate)
+        if summary.power:
+            errors = {(e.arm, e.runs): e for e in summary.estimation}
             print('| cause | size | data sets | named (95 % interval) | median abs. rel. error |'
                   ' median rel. error |')
             print('| --- | --- | --- | --- | --- | --- |')
-            for entry in summary['power']:
-                sign = '+-' if entry['sign'] == 'both' else ''
-                arm = f'{entry["cause"]}={sign}{entry["size"]:g}'
-                error = errors.get((arm, entry['runs']), {})
-                print(f'| {entry["cause"]} | {entry["parameter"]} = {sign}{entry["size"]:g} | '
-                      f'{entry["data_sets"]} | {_rate(entry)} | '
-                      f'{_error(error.get("median_abs_relative_error"))} | '
-                      f'{_error(error.get("median_relative_error"))} |')
+            for entry in summary.power:
+                sign = '+-' if entry.sign == 'both' else ''
+                arm = f'{entry.cause}={sign}{entry.size:g}'
+                error = errors.get((arm, entry.runs))
+                print(f'| {entry.cause} | {entry.parameter} = {sign}{entry.size:g} | '
+                      f'{entry.named.trials} | {_rate(entry.named)} | '
+                      f'{_error(error.median_abs_relative_error if error else None)} | '
+                      f'{_error(error.median_relative_error if error else None)} |')
             print()
-        if summary['power_at_limit_multiples']:
-            limits = {(e['cause'], e['runs']): e for e in summary['detection_limits']}
+        if summary.power_at_limit_multiples:
+            limits = {(e.cause, e.runs): e for e in summary.detection_limits}
             print('| cause | median reported limit | named at 1x the limit | at 2x | named or '
                   'undecided at 1x | baseline inadequate at 2x |')
             print('| --- | --- | --- | --- | --- | --- |')
-            entries = summary['power_at_limit_multiples']
-            for cause in dict.fromkeys(e['cause'] for e in entries):
-                mine = {e['limit_multiple']: e for e in entries if e['cause'] == cause}
-                limit = limits.get((cause, mine[min(mine)]['runs']), {})
-                median = limit.get('median_limit')
-                shown = f'{limit["parameter"]} = {median:.3g}' if median is not None else '-'
-                twice = mine.get(2.0, {}).get('baseline_inadequate') or {}
-                either = mine.get(1.0, {}).get('named_or_undecided') or {}
-                print(f'| {cause} | {shown} | {_rate(mine.get(1.0, {}))} | '
-                      f'{_rate(mine.get(2.0, {}))} | {_rate(either)} | {_rate(twice)} |')
-            pooled = [_rate(pooled_rate([e for e in entries if e['limit_multiple'] == multiple]))
+            entries = summary.power_at_limit_multiples
+            for cause in dict.fromkeys(e.cause for e in entries):
+                mine = {e.limit_multiple: e for e in entries if e.cause == cause}
+                limit = limits.get((cause, mine[min(mine)].runs))
+                median = limit.median_limit if limit else None
+                shown = f'{limit.parameter} = {median:.3g}' if limit and median is not None \
+                    else '-'
+                once, twice = mine.get(1.0), mine.get(2.0)
+                print(f'| {cause} | {shown} | {_rate(once.named if once else None)} | '
+                      f'{_rate(twice.named if twice else None)} | '
+                      f'{_rate(once.named_or_undecided if once else None)} | '
+                      f'{_rate(twice.baseline_inadequate if twice else None)} |')
+            pooled = [_rate(pooled_rate([e.named for e in entries
+                                         if e.limit_multiple == multiple]))
                       for multiple in (1.0, 2.0)]
-            either = _rate(pooled_rate([e['named_or_undecided'] for e in entries
-                                        if e['limit_multiple'] == 1.0
-                                        and 'named_or_undecided' in e]))
+            either = _rate(pooled_rate([e.named_or_undecided for e in entries
+                                        if e.limit_multiple == 1.0]))
             print(f'| all causes | | {pooled[0]} | {pooled[1]} | {either} | |')
             print()
             for multiple in (1.0, 2.0):
-                chosen = [e for e in entries if e['limit_multiple'] == multiple]
-                missed = sum(e.get('missed', 0) for e in chosen)
-                flagged = sum(e.get('missed_not_adequate', 0) for e in chosen)
+                chosen = [e for e in entries if e.limit_multiple == multiple]
+                missed = sum(e.missed for e in chosen)
+                flagged = sum(e.missed_not_adequate for e in chosen)
                 if missed:
                     print(f'missed at {multiple:g}x the limit: {missed}, of which reported not '
                           f'adequate (the miss is not silent): {flagged}\n')
-        if summary['two_cause_recovery']:
-            errors = {(e['arm'], e['cause'], e['runs']): e for e in summary['estimation']}
+        if summary.two_cause_recovery:
+            by_cause = {(e.arm, e.cause, e.runs): e for e in summary.estimation}
             print('| causes | data sets | both named (95 % interval) | each named (median abs. '
                   'rel. error) | a third cause named |')
             print('| --- | --- | --- | --- | --- |')
-            for entry in summary['two_cause_recovery']:
+            for recovery in summary.two_cause_recovery:
                 each = ', '.join(
-                    f'{cause} {_rate(rate)} ({_median_error(errors, entry, cause)})'
-                    for cause, rate in entry['each_named'].items())
-                other = _rate(entry['other_named']) if 'other_named' in entry else '-'
-                print(f'| {entry["arm"]} | {entry["data_sets"]} | {_rate(entry)} | {each} | '
-                      f'{other} |')
+                    f'{cause} {_rate(rate)} ({_median_error(by_cause, recovery, cause)})'
+                    for cause, rate in recovery.each_named.items())
+                print(f'| {recovery.arm} | {recovery.all_named.trials} | '
+                      f'{_rate(recovery.all_named)} | {each} | '
+                      f'{_rate(recovery.other_named)} |')
             print()
         print_estimation_at_limits(summary)
         print_confusion(summary)
         print_coverage(summary)
 
 
-def print_by_runs(named: dict, inadequate: dict) -> None:
+def print_by_runs(named: tuple[RateByRuns, ...], inadequate: InadequateOnNulls) -> None:
     """Print the null data sets' rates per run count, where a study has several."""
-    cells = {entry['runs']: entry for entry in named.get('by_runs', [])}
-    alarms = {entry['runs']: entry for entry in inadequate.get('by_runs', [])}
+    cells = {cell.runs: cell.rate for cell in named}
+    alarms = {cell.runs: cell.rate for cell in inadequate.by_runs}
     if len(cells) < 2:
         return
     print('| runs | null data sets | a cause or extension named | called inadequate |')
     print('| --- | --- | --- | --- |')
-    for runs, entry in cells.items():
-        print(f'| {runs} | {entry["data_sets"]} | {_rate(entry)} | '
-              f'{_rate(alarms.get(runs, {}))} |')
+    for runs, rate in cells.items():
+        print(f'| {runs} | {rate.trials} | {_rate(rate)} | {_rate(alarms.get(runs))} |')
     print()
-    if inadequate.get('unexplained'):
+    if inadequate.unexplained:
         which = ', '.join(f'{name} {count}' for name, count in sorted(
-            inadequate['unexplained'].items(), key=lambda item: -item[1]))
+            inadequate.unexplained.items(), key=lambda item: -item[1]))
         print(f'statistics left unexplained on the null data sets: {which}\n')
 
 
-def print_estimation_at_limits(summary: dict) -> None:
+def print_estimation_at_limits(summary: StudySummary) -> None:
     """Print, per cause and limit multiple, the size error and interval coverage where named."""
-    entries = [e for e in summary['estimation'] if '@' in e['arm'] and e['named']]
+    entries = [e for e in summary.estimation if '@' in e.arm and e.named]
     if not entries:
         return
     print('| cause | multiple | named | median abs. rel. error | median rel. error | '
           'intervals that held the truth |')
     print('| --- | --- | --- | --- | --- | --- |')
     for entry in entries:
-        multiple = entry['arm'].split('@', 1)[1].lstrip('+-')
-        print(f'| {entry["cause"]} | {multiple} | {entry["named"]} | '
-              f'{_error(entry["median_abs_relative_error"])} | '
-              f'{_error(entry["median_relative_error"])} | '
-              f'{_rate(entry["interval_coverage"])} |')
+        multiple = entry.arm.split('@', 1)[1].lstrip('+-')
+        print(f'| {entry.cause} | {multiple} | {entry.named} | '
+              f'{_error(entry.median_abs_relative_error)} | '
+              f'{_error(entry.median_relative_error)} | '
+              f'{_rate(entry.interval_coverage)} |')
     print()
 
 
-def print_confusion(summary: dict) -> None:
+def print_confusion(summary: StudySummary) -> None:
     """Print which cause or family was named for which (data sets with one true term)."""
-    confusion = summary.get('confusion') or {}
-    table = confusion.get('named') or {}
+    confusion = summary.confusion
+    table = confusion.named
     if len(table) < 2:
         return
-    columns = sorted({label for counts in (*table.values(),
-                                           *(confusion.get('undecided') or {}).values())
+    columns = sorted({label for counts in (*table.values(), *confusion.undecided.values())
                       for label in counts}, key=lambda label: (label == 'nothing', label))
     print('| true \\ named | data sets | ' + ' | '.join(columns) + ' |')
     print('| --- ' * (len(columns) + 2) + '|')
     for true in sorted(table, key=lambda label: (label != 'none', label)):
         counts = table[true]
-        beside = (confusion.get('undecided') or {}).get(true, {})
+        beside = confusion.undecided.get(true, {})
         cells = ' | '.join(_confusion_cell(counts.get(label, 0), beside.get(label, 0))
                            for label in columns)
-        print(f'| {true} | {confusion["data_sets"][true]} | {cells} |')
+        print(f'| {true} | {confusion.data_sets[true]} | {cells} |')
     print('(+k: in k more data sets reported beside the named term as what the runs cannot '
           'tell it from)\n')
 
@@ -302,23 +306,22 @@ def _confusion_cell(named: int, undecided: int) -> str:
     return f'{text} (+{undecided})' if undecided else text
 
 
-def print_coverage(summary: dict) -> None:
+def print_coverage(summary: StudySummary) -> None:
     """Print how often the reported 95 % intervals held the truth, pooled and per cause."""
     from octoroach_model.studies.summary import wilson
 
     held: dict[str, list[int]] = {}
-    for entry in summary['estimation']:
-        coverage = entry['interval_coverage']
-        counts = held.setdefault(entry['cause'], [0, 0])
-        counts[0] += coverage['count']
-        counts[1] += coverage['data_sets']
+    for entry in summary.estimation:
+        counts = held.setdefault(entry.cause, [0, 0])
+        counts[0] += entry.interval_coverage.successes
+        counts[1] += entry.interval_coverage.trials
     if not sum(total for _, total in held.values()):
         return
     pooled = wilson(sum(c for c, _ in held.values()), sum(t for _, t in held.values()))
     by_cause = ', '.join(f'{cause} {count}/{total}' for cause, (count, total) in held.items()
                          if total)
     print(f'reported 95 % intervals that held the truth (where the cause was named): '
-          f'{_rate(pooled.to_json())}; {by_cause}\n')
+          f'{_rate(pooled)}; {by_cause}\n')
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -26,6 +26,7 @@ from collections.abc import Mapping
 from concurrent.futures import Executor
 from dataclasses import dataclass
 from datetime import datetime
+from enum import StrEnum
 import math
 import time
 from typing import Any
@@ -34,13 +35,43 @@ from octoroach_model.errors import OctoroachError, ParameterError
 from octoroach_model.paths import Paths
 from octoroach_model.settings import setting
 
-VALIDATION = 'validation'
-NO_QUESTION = ''
-QUESTIONS = (NO_QUESTION, VALIDATION, 'initial_pose_error', 'measurement_noise',
-             'gait_frequency_variation', 'speed_decay', 'lateral_slip', 'persistent_turning',
-             'run_order_drift:stride_frequency', 'run_order_drift:yaw_rate',
-             'run_order_drift:lateral_velocity', 'heading_random_walk', 'periodic_heading',
-             'change_point', 'run_mixture')
+
+class QuestionKind(StrEnum):
+    """What the parameter `question` asks: nothing (''), the paper's validation, or a term."""
+
+    NONE = ''
+    VALIDATION = 'validation'
+    TERM = 'term'
+
+    @classmethod
+    def of(cls, question: str) -> QuestionKind:
+        """Return the kind of the parameter's value (any other value names a term)."""
+        return cls(question) if question in (cls.NONE, cls.VALIDATION) else cls.TERM
+
+
+class GuidanceStatus(StrEnum):
+    """Where an answer stands (docs/ros.md, "Live guidance")."""
+
+    WAITING = 'waiting'
+    FITTING = 'fitting'
+    COLLECTING = 'collecting'
+    NAMED = 'named'
+    RULED_OUT = 'ruled_out'
+    ENOUGH_RUNS = 'enough_runs'
+
+
+class NamedBy(StrEnum):
+    """Which decision named a term: the live decision or the last full diagnosis."""
+
+    LIVE = 'live'
+    DIAGNOSIS = 'diagnosis'
+
+
+QUESTIONS = (QuestionKind.NONE.value, QuestionKind.VALIDATION.value, 'initial_pose_error',
+             'measurement_noise', 'gait_frequency_variation', 'speed_decay', 'lateral_slip',
+             'persistent_turning', 'run_order_drift:stride_frequency',
+             'run_order_drift:yaw_rate', 'run_order_drift:lateral_velocity',
+             'heading_random_walk', 'periodic_heading', 'change_point', 'run_mixture')
 
 
 @dataclass(frozen=True)
@@ -52,9 +83,9 @@ class GuidanceSettings:
     `GuidanceQuestion.from_values` reads the values in force, with these defaults.
     """
 
-    question: str = setting(NO_QUESTION, 'live guidance on ~/guidance: a cause or extension '
-                            "term (with question_size), validation (runs for the paper's "
-                            'validation), or empty: none', choices=QUESTIONS)
+    question: str = setting(QuestionKind.NONE.value, 'live guidance on ~/guidance: a cause or '
+                            'extension term (with question_size), validation (runs for the '
+                            "paper's validation), or empty: none", choices=QUESTIONS)
     question_size: float = setting(0.0, "the size that matters: the term's main parameter "
                                    '(its distance from no effect; run_mixture: the yaw rate of '
                                    '30 % of the runs), in its unit', unit='as the term',
@@ -75,7 +106,8 @@ DEFAULTS = GuidanceSettings()
 class GuidanceQuestion:
     """The question the node's parameters name (docs/ros.md, "Live guidance")."""
 
-    kind: str                    # '' (none), 'validation' or a term
+    kind: QuestionKind
+    term: str = ''               # the term asked about (kind TERM)
     size: float = 0.0            # the size that matters (terms)
     power: float = 0.8
     planned_runs: int = 500      # where the live boundaries are tightest
@@ -88,18 +120,20 @@ class GuidanceQuestion:
         from octoroach_model.diagnosis.live import Question
         from octoroach_model.validation import chernoff_sample_size
 
-        kind = str(values.get('question', DEFAULTS.question))
+        asked = str(values.get('question', DEFAULTS.question))
+        kind = QuestionKind.of(asked)
+        term = asked if kind == QuestionKind.TERM else ''
         size = float(values.get('question_size', DEFAULTS.question_size))
         power = float(values.get('question_power', DEFAULTS.question_power))
-        if kind not in (NO_QUESTION, VALIDATION):
-            Question(kind, size if size > 0 else math.nan, power)   # raises with the reason
+        if kind == QuestionKind.TERM:
+            Question(term, size if size > 0 else math.nan, power)   # raises with the reason
         n = chernoff_sample_size(float(values['epsilon']), float(values['delta']))
-        return cls(kind, size, power, int(values.get('planned_runs', DEFAULTS.planned_runs)),
+        return cls(kind, term, size, power, int(values.get('planned_runs', DEFAULTS.planned_runs)),
                    int(values.get('seed', 0)), n * int(values['k']))
 
     @property
     def asked(self) -> bool:
-        return self.kind != NO_QUESTION
+        return self.kind != QuestionKind.NONE
 
 
 class Guide:
@@ -116,8 +150,8 @@ class Guide:
         self.question = question
         self.refits = refits
         self.live = None
-        if question.asked and question.kind != VALIDATION:
-            self.live = LiveDecision(Question(question.kind, question.size, question.power),
+        if question.kind == QuestionKind.TERM:
+            self.live = LiveDecision(Question(question.term, question.size, question.power),
                                      _settings(question.seed), _levels(question))
         self.diagnosis: dict[str, Any] | None = None
         self.ruled_out_at_runs: int | None = None
@@ -131,14 +165,14 @@ class Guide:
             named.append({'term': entry['cause'], 'parameter': parameter,
                           'estimate': (entry.get('parameters') or {}).get(parameter),
                           'interval_95': (entry.get('interval') or {}).get(parameter),
-                          'source': 'diagnosis', 'runs': runs})
+                          'source': NamedBy.DIAGNOSIS, 'runs': runs})
         for entry in report.get('extensions') or []:
             interval = entry.get('interval') or {}
             parameter = next(iter(interval), '')
             named.append({'term': entry.get('term', entry.get('family')),
                           'parameter': parameter,
                           'estimate': (entry.get('parameters') or {}).get(parameter),
-                          'interval_95': interval.get(parameter), 'source': 'diagnosis',
+                          'interval_95': interval.get(parameter), 'source': NamedBy.DIAGNOSIS,
                           'runs': runs})
         self.diagnosis = {'runs': runs, 'named': named,
                           'adequate': bool(report.get('adequate'))}
@@ -148,7 +182,7 @@ class Guide:
     def _with_diagnosis(self, answer: dict[str, Any]) -> dict[str, Any]:
         """Return the answer with the last diagnosis's named terms after the live ones."""
         answer = {**answer, 'named': [entry for entry in answer['named']
-                                      if entry['source'] != 'diagnosis']}
+                                      if entry['source'] != NamedBy.DIAGNOSIS]}
         if self.diagnosis is not None:
             answer['named'] += self.diagnosis['named']
             answer['diagnosis'] = {'runs': self.diagnosis['runs'],
@@ -160,9 +194,10 @@ class Guide:
         started = time.monotonic()
         runs = measured.n_paths if measured is not None else 0
         answer: dict[str, Any] = {'question': self._question_json(), 'runs': runs,
-                                  'status': 'waiting', 'named': [], 'runs_needed': None,
+                                  'status': GuidanceStatus.WAITING, 'named': [],
+                                  'runs_needed': None,
                                   'runs_needed_interval_95': [None, None], 'error': problem}
-        if measured is not None and self.question.kind == VALIDATION:
+        if measured is not None and self.question.kind == QuestionKind.VALIDATION:
             answer.update(self._validation(runs))
         elif measured is not None and self.live is not None:
             try:
@@ -188,7 +223,8 @@ class Guide:
         """
         latest = self.latest
         if latest is None or self.live is None or latest['runs'] == runs \
-                or latest['status'] not in ('collecting', 'named', 'ruled_out'):
+                or latest['status'] not in (GuidanceStatus.COLLECTING, GuidanceStatus.NAMED,
+                                            GuidanceStatus.RULED_OUT):
             return None
         total = latest['runs'] + (latest['runs_needed'] or 0)
         low, high = latest['runs_needed_interval_95']
@@ -206,26 +242,26 @@ class Guide:
 
     def _question_json(self) -> dict[str, Any]:
         question = self.question
-        if question.kind == VALIDATION:
+        if question.kind == QuestionKind.VALIDATION:
             return {'validation': {'runs': question.validation_runs}}
         if not question.asked:
             return {}
         from octoroach_model.diagnosis.causes import BY_NAME
 
-        return {'term': question.kind, 'parameter': BY_NAME[question.kind].parameter,
+        return {'term': question.term, 'parameter': BY_NAME[question.term].parameter,
                 'size': question.size, 'power': question.power,
                 'planned_runs': question.planned_runs}
 
     def _validation(self, runs: int) -> dict[str, Any]:
         needed = max(self.question.validation_runs - runs, 0)
-        return {'status': 'enough_runs' if needed == 0 else 'collecting',
+        return {'status': GuidanceStatus.ENOUGH_RUNS if needed == 0 else GuidanceStatus.COLLECTING,
                 'runs_needed': needed, 'runs_needed_interval_95': [needed, needed]}
 
     def _too_few(self, runs: int, reason: str) -> dict[str, Any]:
         from octoroach_model.diagnosis.diagnose import MIN_RUNS
 
         needed = max(MIN_RUNS - runs, 0)
-        return {'status': 'waiting', 'reason': reason,
+        return {'status': GuidanceStatus.WAITING, 'reason': reason,
                 'runs_needed': needed or None, 'runs_needed_interval_95': [needed or None, None]}
 
     def _term(self, measured: Paths) -> dict[str, Any]:
@@ -235,7 +271,8 @@ class Guide:
         look = self.live.update(measured, self.refits)
         runs = measured.n_paths
         if look is None:
-            return {'status': 'fitting', 'reason': 'fitting the baseline on the first runs'}
+            return {'status': GuidanceStatus.FITTING,
+                    'reason': 'fitting the baseline on the first runs'}
         named_at = self.live.named_at_runs
         if named_at is None and self.ruled_out_at_runs is None \
                 and _reach(look) < self.question.size:
@@ -245,16 +282,19 @@ class Guide:
                                   'held_out_runs': look.held_out_runs,
                                   'power_now': look.power_now}
         if named_at is not None:
-            answer.update(status='named', runs_needed=0, runs_needed_interval_95=[0, 0])
+            answer.update(status=GuidanceStatus.NAMED, runs_needed=0,
+                          runs_needed_interval_95=[0, 0])
             answer['named'] = [{'term': look.term, 'parameter': look.parameter,
                                 'estimate': look.estimate, 'interval_95': list(look.interval_95),
-                                'source': 'live', 'since_runs': named_at}]
+                                'source': NamedBy.LIVE, 'since_runs': named_at}]
         elif self.ruled_out_at_runs is not None:
-            answer.update(status='ruled_out', runs_needed=0, runs_needed_interval_95=[0, 0],
+            answer.update(status=GuidanceStatus.RULED_OUT, runs_needed=0,
+                          runs_needed_interval_95=[0, 0],
                           ruled_out_at_runs=self.ruled_out_at_runs)
         else:
             low, high = look.runs_for_power_interval
-            answer.update(status='collecting', runs_needed=_more(look.runs_for_power, runs),
+            answer.update(status=GuidanceStatus.COLLECTING,
+                          runs_needed=_more(look.runs_for_power, runs),
                           runs_needed_interval_95=[_more(low, runs), _more(high, runs)])
         if self.live.fitting:
             answer['refitting'] = True
@@ -298,23 +338,23 @@ def statement(answer: Mapping[str, Any]) -> str:
     if 'validation' in question:
         target = question['validation']['runs']
         return (f"{runs} runs: enough for the paper's validation (n x k = {target})"
-                if status == 'enough_runs' else
+                if status == GuidanceStatus.ENOUGH_RUNS else
                 f'{runs} runs: {answer["runs_needed"]} more for the paper' + "'s validation "
                 f'(n x k = {target})')
     if not question:
         return f'{runs} runs; no question asked (set the parameter question)'
     term, size = question['term'], question['size']
     what = f'{term} at {question["parameter"]} = {size:g}'
-    if status == 'named':
-        live = next(entry for entry in answer['named'] if entry['source'] == 'live')
+    if status == GuidanceStatus.NAMED:
+        live = next(entry for entry in answer['named'] if entry['source'] == NamedBy.LIVE)
         low, high = live['interval_95']
         return (f'{runs} runs: {term} named (since run {live["since_runs"]}), '
                 f'{live["parameter"]} {live["estimate"]:.3g} (95 % {low:.3g} to {high:.3g})')
-    if status == 'ruled_out':
+    if status == GuidanceStatus.RULED_OUT:
         low, high = answer['decision']['interval_95']
         return (f'{runs} runs: {term}, if there, is smaller than {size:g} (95 % '
                 f'{low:.3g} to {high:.3g}): the size that matters is ruled out')
-    if status in ('waiting', 'fitting'):
+    if status in (GuidanceStatus.WAITING, GuidanceStatus.FITTING):
         return f'{runs} runs: {answer.get("reason") or "waiting for runs"}'
     needed, (low, high) = answer['runs_needed'], answer['runs_needed_interval_95']
     if needed is None:

@@ -4,7 +4,9 @@ The one conversion of results to JSON: numbers, lists and objects only.
 Policy for values JSON has no word for: NaN and +-infinity become null (a missing or
 unbounded value: the field's description says which); numpy scalars and arrays become numbers
 and lists; dataclasses (the typed results) become objects of their fields, in field order,
-except fields marked ``metadata={'json': False}``; paths become strings. Anything else is a
+except fields marked ``metadata={'json': False}`` (and ``{'json_omit_none': True}`` where
+None); ``{'json_name': key}`` writes a field under another key, ``{'json_inline': True}`` a
+record's fields in its place; enums become their values; paths become strings. Anything else is a
 programming error and raises TypeError, so a live object never slips into a report.
 """
 from __future__ import annotations
@@ -52,8 +54,17 @@ def jsonable(value: Any) -> Any:
 
 def fields_jsonable(record: Any) -> dict[str, Any]:
     """Return a dataclass's fields as a JSON object (the default `to_json` of a typed result)."""
-    return {field.name: jsonable(getattr(record, field.name))
-            for field in dataclasses.fields(record) if field.metadata.get('json', True)}
+    plain: dict[str, Any] = {}
+    for field in dataclasses.fields(record):
+        value = getattr(record, field.name)
+        if not field.metadata.get('json', True) \
+                or value is None and field.metadata.get('json_omit_none', False):
+            continue
+        if field.metadata.get('json_inline', False):
+            plain.update(jsonable(value))
+        else:
+            plain[field.metadata.get('json_name', field.name)] = jsonable(value)
+    return plain
 
 
 def dumps(value: Any, *, indent: int | None = None) -> str:

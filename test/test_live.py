@@ -173,7 +173,8 @@ def test_a_question_must_name_a_term_and_a_size_that_matters():
 def test_the_looks_study_applies_each_rule_to_the_same_looks(tmp_path):
     """A look that passes the fixed-sample z but not the anytime boundary: named by one rule."""
     from octoroach_model.studies.looks import (
-        append_row, load_looks, Look, LooksRow, named_at, read_rows, summarize, table_text)
+        append_row, load_looks, Look, LooksRow, named_at, read_rows, Rule, summarize,
+        table_text)
 
     spec_file = tmp_path / 'looks.yaml'
     spec_file.write_text('name: tiny\nruns: [100]\ncauses: [none]\n'
@@ -185,11 +186,11 @@ def test_the_looks_study_applies_each_rule_to_the_same_looks(tmp_path):
     passes_both = [[50, 25, 25, 9.0, 1e-9, False]]
     last_only = [[50, 25, 25, 0.0, 0.5, False], [100, 50, 50, 2.0, 0.005, False]]
     levels = (0.05, 0.01)
-    assert named_at(passes_fixed_only, 'fixed, every look', levels, 100)['named'] == 50
-    assert named_at(passes_fixed_only, 'live', levels, 100)['named'] is None
-    assert named_at(passes_fixed_only, 'fixed, last look', levels, 100)['named'] is None
-    assert named_at(passes_both, 'live', levels, 100) == {'named': 50, 'bound': 50, 'test': 50}
-    assert named_at(last_only, 'fixed, last look', levels, 100)['named'] == 100
+    assert named_at(passes_fixed_only, Rule.FIXED_EVERY_LOOK, levels, 100).named == 50
+    assert named_at(passes_fixed_only, Rule.LIVE, levels, 100).named is None
+    assert named_at(passes_fixed_only, Rule.FIXED_LAST_LOOK, levels, 100).named is None
+    assert named_at(passes_both, Rule.LIVE, levels, 100) == (50, 50, 50)
+    assert named_at(last_only, Rule.FIXED_LAST_LOOK, levels, 100).named == 100
     rows_file = tmp_path / 'rows.csv'
     for replicate, looks in enumerate((passes_fixed_only, passes_both, last_only)):
         append_row(rows_file, LooksRow(f'r{replicate}', replicate, 'lateral_slip',
@@ -198,8 +199,8 @@ def test_the_looks_study_applies_each_rule_to_the_same_looks(tmp_path):
     assert [[list(look) for look in row.looks] for row in rows] == [
         passes_fixed_only, passes_both, last_only]
     summary = summarize(spec, rows)
-    assert summary['rules']['live']['named']['successes'] == 1
-    assert summary['rules']['fixed, every look']['named']['successes'] == 3
+    assert summary.rules[Rule.LIVE].named.successes == 1
+    assert summary.rules[Rule.FIXED_EVERY_LOOK].named.successes == 3
     assert '| live | 1/3 = 33.3 %' in table_text(spec, summary)
 
 

@@ -6,6 +6,7 @@ power-curve fit. No diagnosis runs here (test_studies_dask.py runs whole studies
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 from pathlib import Path
@@ -18,6 +19,7 @@ import yaml
 
 import octoroach_model as om
 from octoroach_model.errors import DataError, ParameterError
+from octoroach_model.jsonio import dumps
 from octoroach_model.recordings.runs.run_set import RunSet
 from octoroach_model.studies.damage import cut_runs_short, damage_paths, drop_frames
 from octoroach_model.studies.design import build_tasks, draw_robot, draw_signs
@@ -356,21 +358,25 @@ def test_the_summary_counts_false_positives_power_recovery_and_errors():
                           all_true_named=replicate % 2 == 0,
                           status='ok' if replicate < 8 else 'error'))
     summary = summarize(spec, rows, wall_time_s=12.0)
-    assert summary['false_positive']['count'] == 2
-    assert summary['false_positive']['data_sets'] == 10
-    assert summary['false_positive']['causes_named'] == {'speed_decay': 2}
-    inadequate = summary['inadequate_on_nulls']
-    assert (inadequate['count'], inadequate['data_sets']) == (1, 9)   # one not judged
-    power = summary['power'][0]
-    assert (power['count'], power['data_sets'], power['runs']) == (7, 10, 50)
-    estimation = next(e for e in summary['estimation'] if e['arm'] == 'persistent_turning=5')
-    assert estimation['named'] == 7
-    assert estimation['median_relative_error'] == pytest.approx(0.0)
-    assert estimation['interval_coverage']['count'] == 7
-    recovery = summary['two_cause_recovery'][0]
-    assert (recovery['count'], recovery['data_sets']) == (4, 8)
-    assert (recovery['other_named']['count'], recovery['other_named']['data_sets']) == (1, 8)
-    assert summary['status']['counts'] == {'ok': 28, 'error': 2}
+    assert summary.false_positive.overall.successes == 2
+    assert summary.false_positive.overall.trials == 10
+    assert summary.false_positive.causes_named == {'speed_decay': 2}
+    inadequate = summary.inadequate_on_nulls.overall
+    assert (inadequate.successes, inadequate.trials) == (1, 9)   # one not judged
+    power = summary.power[0]
+    assert (power.named.successes, power.named.trials, power.runs) == (7, 10, 50)
+    estimation = next(e for e in summary.estimation if e.arm == 'persistent_turning=5')
+    assert estimation.named == 7
+    assert estimation.median_relative_error == pytest.approx(0.0)
+    assert estimation.interval_coverage.successes == 7
+    recovery = summary.two_cause_recovery[0]
+    assert (recovery.all_named.successes, recovery.all_named.trials) == (4, 8)
+    assert (recovery.other_named.successes, recovery.other_named.trials) == (1, 8)
+    assert summary.status.counts == {'ok': 28, 'error': 2}
+    plain = json.loads(dumps(summary))          # summary.json: the rates' keys, in place
+    assert plain['false_positive']['count'] == 2 and plain['power'][0]['data_sets'] == 10
+    assert list(plain['power'][0]) == ['cause', 'parameter', 'size', 'sign', 'runs', 'count',
+                                       'data_sets', 'rate', 'interval_95']
 
 
 def test_power_at_a_limit_multiple_counts_the_misses_and_which_were_not_silent():
@@ -381,10 +387,10 @@ def test_power_at_a_limit_multiple_counts_the_misses_and_which_were_not_silent()
                   named_speed_decay=replicate < 7,
                   adequate=None if replicate == 9 else replicate in (0, 1, 2, 3, 4, 5, 6, 8))
             for replicate in range(10)]
-    entry = summarize(spec, rows)['power_at_limit_multiples'][0]
-    assert (entry['count'], entry['data_sets'], entry['missed']) == (7, 10, 3)
-    assert entry['missed_not_adequate'] == 1        # replicate 7 (8 was adequate, 9 not judged)
-    assert entry['meets_target'] is True
+    entry = summarize(spec, rows).power_at_limit_multiples[0]
+    assert (entry.named.successes, entry.named.trials, entry.missed) == (7, 10, 3)
+    assert entry.missed_not_adequate == 1        # replicate 7 (8 was adequate, 9 not judged)
+    assert entry.meets_target is True
 
 
 # --------------------------------------------------------------------------------------------
@@ -492,9 +498,9 @@ def test_the_adapter_reads_extensions_and_the_confusion_table_counts_them():
             a_row(true_causes=['run_order_drift:yaw_rate'], named=[]),
             a_row(true_causes=[], named=['run_mixture'])]
     table = confusion(rows)
-    assert table['named'] == {'change_point': {'change_point': 1, 'speed_decay': 1},
-                              'run_order_drift': {'nothing': 1}, 'none': {'run_mixture': 1}}
-    assert table['data_sets'] == {'change_point': 2, 'run_order_drift': 1, 'none': 1}
+    assert table.named == {'change_point': {'change_point': 1, 'speed_decay': 1},
+                           'run_order_drift': {'nothing': 1}, 'none': {'run_mixture': 1}}
+    assert table.data_sets == {'change_point': 2, 'run_order_drift': 1, 'none': 1}
 
 
 def test_a_term_the_runs_cannot_tell_from_the_named_one_is_counted_apart():
@@ -518,11 +524,11 @@ def test_a_term_the_runs_cannot_tell_from_the_named_one_is_counted_apart():
                   named_change_point=replicate < 5,
                   undecided=['change_point'] if replicate in (5, 6) else [])
             for replicate in range(10)]
-    entry = summarize(spec, rows)['power_at_limit_multiples'][0]
-    assert (entry['count'], entry['named_or_undecided']['count']) == (5, 7)
+    entry = summarize(spec, rows).power_at_limit_multiples[0]
+    assert (entry.named.successes, entry.named_or_undecided.successes) == (5, 7)
     table = confusion(rows)
-    assert table['named']['change_point'] == {'change_point': 5, 'speed_decay': 5}
-    assert table['undecided']['change_point'] == {'change_point': 2}
+    assert table.named['change_point'] == {'change_point': 5, 'speed_decay': 5}
+    assert table.undecided['change_point'] == {'change_point': 2}
 
 
 def test_plan_takes_an_extension_term_as_its_cause():

@@ -133,15 +133,15 @@ def run(args: argparse.Namespace) -> int:
                          f'{args.out / TABLE_NAME}; --resume completes the study\n')
         raise
     summary = result.summary
-    problems = sum(count for status, count in summary['status']['counts'].items()
+    problems = sum(count for status, count in summary.status.counts.items()
                    if status != 'ok')
     if problems:
         sys.stderr.write(f'study: {problems} of {result.rows} data sets have no diagnosis '
                          f'(status and note in the table)\n')
-    rate = summary['false_positive']
-    if rate['data_sets']:
-        low, high = rate['interval_95']
-        sys.stderr.write(f'false-positive rate: {rate["count"]} of {rate["data_sets"]} null '
+    rate = summary.false_positive.overall
+    if rate.trials and rate.interval is not None:
+        low, high = rate.interval
+        sys.stderr.write(f'false-positive rate: {rate.successes} of {rate.trials} null '
                          f'data sets ({low:.1%} - {high:.1%})\n')
     print(f'table: {result.table}')
     print(f'summary: {result.summary_path}')

@@ -195,9 +195,13 @@ def guidance_array(answer: Mapping[str, Any], values: Sequence[tuple[str, str]],
     """
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-    status = str(answer.get('status'))
-    level = (DiagnosticStatus.OK if status in ('named', 'ruled_out', 'enough_runs')
-             else DiagnosticStatus.WARN if status == 'collecting' else DiagnosticStatus.STALE)
+    from octoroach_model.guidance import GuidanceStatus
+
+    status = answer.get('status')
+    level = (DiagnosticStatus.OK if status in (GuidanceStatus.NAMED, GuidanceStatus.RULED_OUT,
+                                               GuidanceStatus.ENOUGH_RUNS)
+             else DiagnosticStatus.WARN if status == GuidanceStatus.COLLECTING
+             else DiagnosticStatus.STALE)
     return violation_array([DiagnosticStatus(
         level=level, name=name, message=str(answer.get('statement', '')),
         hardware_id=hardware_id, values=[KeyValue(key=key, value=value)

@@ -40,7 +40,7 @@ from typing import Any
 from octoroach_model.errors import OctoroachError, OutputError, ParameterError
 from octoroach_model.fileio import check_writable
 from octoroach_model.guidance import (
-    check_question, guidance_fields, GuidanceQuestion, GuidanceSettings, Guide)
+    check_question, guidance_fields, GuidanceQuestion, GuidanceSettings, Guide, QuestionKind)
 from octoroach_model.jsonio import dumps
 from octoroach_model.nodes.common import (
     current_values, declare_parameters, fail, field_specs, node_parser, ParamSpec, ParamValue,
@@ -450,7 +450,7 @@ class Validator(Node):
             key = (question, job.sources, job.topic, job.gap_s, job.min_duration_s)
             if key != question_key:
                 question_key, seen = key, None
-                term = question.asked and question.kind != 'validation'
+                term = question.kind == QuestionKind.TERM
                 with self._guide_lock:
                     self._guide = Guide(question, self._refit_pool() if term else None) \
                         if question.asked else None

@@ -26,6 +26,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 import csv
 from dataclasses import dataclass, field, fields, replace
+from enum import StrEnum
 import json
 import math
 from pathlib import Path
@@ -38,8 +39,18 @@ from octoroach_model.errors import ParameterError
 from octoroach_model.studies.rows import Status
 from octoroach_model.studies.spec import parse_spec, StudySpec
 from octoroach_model.studies.summary import wilson
+from octoroach_model.studies.summary_records import Rate
 
-RULES = ('live', 'fixed, every look', 'fixed, last look')
+
+class Rule(StrEnum):
+    """A decision rule applied to the looks (see the module docstring)."""
+
+    LIVE = 'live'
+    FIXED_EVERY_LOOK = 'fixed, every look'
+    FIXED_LAST_LOOK = 'fixed, last look'
+
+
+RULES = tuple(Rule)
 
 
 class Look(NamedTuple):
@@ -173,80 +184,103 @@ def _plain(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def named_at(looks: Sequence[Sequence[Any]], rule: str, settings_alpha: tuple[float, float],
-             planned_runs: int) -> dict[str, int | None]:
+class FirstLooks(NamedTuple):
+    """The runs of the first look at which a rule names the term, and meets each criterion."""
+
+    named: int | None
+    bound: int | None
+    test: int | None
+
+
+@dataclass(frozen=True)
+class RuleRates:
+    """Under one rule: the share named at some look, per criterion, and per kind of term."""
+
+    named: Rate
+    bound: Rate
+    test: Rate
+    by_kind: Mapping[str, Rate]
+
+
+@dataclass(frozen=True)
+class LooksSummary:
+    """What a looks study measured: its data sets, its looks, the rates under each rule."""
+
+    data_sets: int
+    errors: int
+    looks: tuple[int, ...]
+    rules: Mapping[Rule, RuleRates]
+
+
+def named_at(looks: Sequence[Sequence[Any]], rule: Rule, settings_alpha: tuple[float, float],
+             planned_runs: int) -> FirstLooks:
     """
     Return the runs of the first look at which a rule names the term (None: never).
 
-    And the same for each of its two criteria alone ('bound', 'test').
+    And the same for each of its two criteria alone (`bound`, `test`).
     """
     from octoroach_model.diagnosis.sequential import Boundary
 
     decision_alpha, alpha = settings_alpha
-    anytime = rule == 'live'
+    anytime = rule == Rule.LIVE
     bound = Boundary(decision_alpha, anytime, planned_runs / 2)
     test = Boundary(alpha, anytime, planned_runs / 2)
-    chosen = looks[-1:] if rule == 'fixed, last look' else looks
-    first: dict[str, int | None] = {'named': None, 'bound': None, 'test': None}
+    chosen = looks[-1:] if rule == Rule.FIXED_LAST_LOOK else looks
+    first = FirstLooks(None, None, None)
     for runs, calibration, held_out, bound_z, p_value, _ in chosen:
         clears = bound_z is not None and bound_z > bound.z(calibration)
         significant = p_value is not None and p_value < test.p(held_out)
-        for name, met in (('bound', clears), ('test', significant),
-                          ('named', clears and significant)):
-            if met and first[name] is None:
-                first[name] = int(runs)
+        first = FirstLooks(*(
+            int(runs) if met and earlier is None else earlier
+            for earlier, met in zip(first, (clears and significant, clears, significant))))
     return first
 
 
-def summarize(spec: LooksSpec, rows: Sequence[LooksRow]) -> dict[str, Any]:
+def summarize(spec: LooksSpec, rows: Sequence[LooksRow]) -> LooksSummary:
     """Return, per rule, the share of data sets named at some look (and per criterion)."""
     settings = spec.study.diagnosis_settings(0)
     levels = (settings.decision_alpha, settings.alpha)
     ok = [row for row in rows if row.ok and row.looks]
-    summary: dict[str, Any] = {'data_sets': len(ok), 'errors': len(rows) - len(ok),
-                               'looks': spec.look_counts(), 'rules': {}}
+    rules = {}
     for rule in RULES:
         firsts = [named_at(row.looks, rule, levels, spec.planned_runs) for row in ok]
-        entry = {}
-        for criterion in ('named', 'bound', 'test'):
-            rate = wilson(sum(first[criterion] is not None for first in firsts), len(ok))
-            entry[criterion] = rate._asdict()
-        entry['by_kind'] = _by_kind(ok, firsts)
-        summary['rules'][rule] = entry
-    return summary
+        named, bound, test = (wilson(sum(getattr(first, criterion) is not None
+                                         for first in firsts), len(ok))
+                              for criterion in FirstLooks._fields)
+        rules[rule] = RuleRates(named, bound, test, _by_kind(ok, firsts))
+    return LooksSummary(len(ok), len(rows) - len(ok), tuple(spec.look_counts()), rules)
 
 
-def _by_kind(rows: Sequence[LooksRow], firsts: Sequence[Mapping[str, Any]]
-             ) -> dict[str, Any]:
+def _by_kind(rows: Sequence[LooksRow], firsts: Sequence[FirstLooks]) -> dict[str, Rate]:
     from octoroach_model.diagnosis.causes import BY_NAME
 
     groups: dict[str, list[bool]] = {}
     for row, first in zip(rows, firsts):
         kind = 'causes' if not BY_NAME[row.term].is_extension else 'extensions'
-        groups.setdefault(kind, []).append(first['named'] is not None)
-    return {kind: wilson(sum(named), len(named))._asdict() for kind, named in groups.items()}
+        groups.setdefault(kind, []).append(first.named is not None)
+    return {kind: wilson(sum(named), len(named)) for kind, named in groups.items()}
 
 
-def table_text(spec: LooksSpec, summary: Mapping[str, Any]) -> str:
+def table_text(spec: LooksSpec, summary: LooksSummary) -> str:
     """Return the summary as the Markdown table README shows."""
-    counts = summary['looks']
-    lines = [f'{summary["data_sets"]} null data sets (one question each, {len(spec.questions)} '
+    counts = summary.looks
+    lines = [f'{summary.data_sets} null data sets (one question each, {len(spec.questions)} '
              f'terms in turn), looks at {counts[0]}, {counts[1]}, ... {counts[-1]} runs '
              f'({len(counts)} looks)', '',
              '| decision | named at some look (95 % interval) | size bound cleared at some '
              'look | test significant at some look |', '| --- | --- | --- | --- |']
     for rule in RULES:
-        entry = summary['rules'][rule]
-        cells = [_rate_text(entry[criterion]) for criterion in ('named', 'bound', 'test')]
+        entry = summary.rules[rule]
+        cells = [_rate_text(rate) for rate in (entry.named, entry.bound, entry.test)]
         lines.append(f'| {rule} | ' + ' | '.join(cells) + ' |')
     return '\n'.join(lines)
 
 
-def _rate_text(rate: Mapping[str, Any]) -> str:
-    if not rate['trials']:
+def _rate_text(rate: Rate) -> str:
+    if not rate.trials or rate.rate is None or rate.interval is None:
         return '-'
-    low, high = rate['interval']
-    return (f'{rate["successes"]}/{rate["trials"]} = {100 * rate["rate"]:.1f} % '
+    low, high = rate.interval
+    return (f'{rate.successes}/{rate.trials} = {100 * rate.rate:.1f} % '
             f'({100 * low:.1f}-{100 * high:.1f} %)')
 
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
+from enum import StrEnum
 import math
 from pathlib import Path
 import time
@@ -48,7 +49,6 @@ from octoroach_model.studies.terms import main_parameter, null_value
 from octoroach_model.workers import check_where, CONNECT_TIMEOUT_S, executor_where, where_to_run
 
 PILOT_RUNS = 200
-METHODS = ('model', 'simulate')
 BUDGET_S = 15.0             # method 'model': seconds a plan may take, pilots and checks
 MAX_ROUNDS = 3
 BOOTSTRAP = 400
@@ -56,6 +56,24 @@ MAX_SLOPE = 20.0            # per unit of ln(runs): power 10 % -> 90 % over at l
 RIDGE = 1e-3                # keeps the fit finite when every data set agrees
 HUGE = 1e300                # stands for an infinite run count inside percentiles
 Progress = Callable[[float, str], None]
+
+
+class PlanMethod(StrEnum):
+    """How a plan finds its answer: a calibrated power model, or many data sets diagnosed."""
+
+    MODEL = 'model'
+    SIMULATE = 'simulate'
+
+
+METHODS = tuple(method.value for method in PlanMethod)      # the --method choices
+
+
+class PlanStatus(StrEnum):
+    """What a plan found: a run count, the fewest runs suffice, or more than the most."""
+
+    FOUND = 'found'
+    AT_MIN_RUNS = 'at_min_runs'
+    ABOVE_MAX_RUNS = 'above_max_runs'
 
 
 @dataclass(frozen=True)
@@ -105,7 +123,7 @@ class PlanResult:
     power: float
     runs_needed: int | None
     runs_needed_interval_95: tuple[float | None, float | None]
-    status: str                   # found, at_min_runs, above_max_runs
+    status: PlanStatus
     statement: str
     curve: tuple[PowerPoint, ...]
     fit: dict
@@ -115,7 +133,7 @@ class PlanResult:
     seed: int
     elapsed_s: float
     rows: tuple[StudyRow, ...] = field(default=(), metadata={'json': False}, repr=False)
-    method: str = 'simulate'
+    method: PlanMethod = PlanMethod.SIMULATE
     checks: tuple = ()            # method 'model': the simulated checks (plan_model.py)
 
     def to_json(self) -> dict:
@@ -157,7 +175,7 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
         raise ParameterError(f'method must be one of {", ".join(METHODS)}, got {method!r}')
     base = _base_spec(cause, size, robot, parameters, replicates, seed, diagnosis,
                       min_runs, max_runs, power)
-    if method == 'model':
+    if method == PlanMethod.MODEL:
         if run_counts is not None:
             raise ParameterError('run counts (--runs) go with --method simulate')
         if not (math.isfinite(budget_s) and budget_s > 0):
@@ -242,15 +260,15 @@ def _model_result(base: StudySpec, cause: str, size: float, power: float, answer
     low, high = (float(max(value, min_runs)) if math.isfinite(value) else None
                  for value in answer.interval)
     if not math.isfinite(answer.runs) or answer.runs > max_runs:
-        status, needed = 'above_max_runs', None
+        status, needed = PlanStatus.ABOVE_MAX_RUNS, None
         statement = (f'more than {max_runs} runs are needed to name {what} with '
                      f'{power:.0%} power ({basis})')
     elif answer.runs <= min_runs:
-        status, needed = 'at_min_runs', min_runs
+        status, needed = PlanStatus.AT_MIN_RUNS, min_runs
         statement = (f'{min_runs} runs (the fewest the diagnosis takes) already name {what} '
                      f'with at least {power:.0%} power ({basis})')
     else:
-        status, needed = 'found', int(math.ceil(answer.runs))
+        status, needed = PlanStatus.FOUND, int(math.ceil(answer.runs))
         statement = (f'about {needed} runs name {what} with {power:.0%} power (95 % '
                      f'interval {_runs_text(low or math.inf)} to '
                      f'{_runs_text(high or math.inf)} runs; {basis})')
@@ -271,7 +289,7 @@ def _model_result(base: StudySpec, cause: str, size: float, power: float, answer
                     'errors of its size and the gains of its held-out test'}
     return PlanResult(cause, parameter, size, power, needed, (low, high), status, statement,
                       tuple(curve), fit_json, pilot, base.robot.to_json(), len(checks), seed,
-                      round(elapsed_s, 2), (), 'model', tuple(answer.checks))
+                      round(elapsed_s, 2), (), PlanMethod.MODEL, tuple(answer.checks))
 
 
 def _base_spec(cause: str, size: float, robot: RobotSpec | Mapping[str, Any] | None,
@@ -465,16 +483,16 @@ def _result(base: StudySpec, cause: str, size: float, power: float,
     what = (f'{cause} with {parameter} {null_value(cause):g} - {size:g}' if null_value(cause)
             else f'{cause} with {parameter} = {size:g}')
     if answer > max_runs or not math.isfinite(answer):
-        status, needed = 'above_max_runs', None
+        status, needed = PlanStatus.ABOVE_MAX_RUNS, None
         statement = (f'more than {max_runs} runs are needed to name {what} with '
                      f'{power:.0%} power (at {fit.counts[-1]} runs: '
                      f'{curve[-1].power:.0%} of {curve[-1].data_sets} data sets)')
     elif answer <= min_runs:
-        status, needed = 'at_min_runs', min_runs
+        status, needed = PlanStatus.AT_MIN_RUNS, min_runs
         statement = (f'{min_runs} runs (the fewest the diagnosis takes) already name {what} '
                      f'with at least {power:.0%} power')
     else:
-        status, needed = 'found', int(math.ceil(answer))
+        status, needed = PlanStatus.FOUND, int(math.ceil(answer))
         low, high = (max(value, min_runs) for value in fit.interval_95)
         statement = (f'about {needed} runs name {what} with {power:.0%} power (95 % '
                      f'interval {_runs_text(low)} to {_runs_text(high)} runs, from '
@@ -516,7 +534,7 @@ def write_plan(result: PlanResult, out: Path) -> dict[str, Path]:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise ParameterError(f'--out {out}: cannot create it ({error.strerror})') from None
-    model = result.method == 'model'
+    model = result.method == PlanMethod.MODEL
     paths = {'plan': out / 'plan.json', 'table': out / ('checks.csv' if model else 'table.csv'),
              'plot': out / 'power_curve.png'}
     paths['plan'].write_text(dumps(result, indent=2) + '\n')

@@ -191,7 +191,7 @@ def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_run
             [check.predicted for check in checks if check.status == Status.OK],
             [check.named for check in checks if check.status == Status.OK],
             f'checks: named in {sum(check.named for check in checks)} of '
-            f'{sum(check.status == "ok" for check in checks)} simulated data sets')
+            f'{sum(check.status == Status.OK for check in checks)} simulated data sets')
         answer = _answer(curve, calibration, question.power, min_runs, max_runs)
     return ModelAnswer(answer[0], answer[1], calibration.shift, calibration.interval_95,
                        calibration.sources, tuple(info for _, info in pilots), tuple(checks),

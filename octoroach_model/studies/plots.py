@@ -11,16 +11,16 @@ A plot whose data the study does not hold is not drawn (and not listed).
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-from octoroach_model.studies.summary import (
-    AT_LIMIT_RANGE, AT_TWICE_MIN, FALSE_POSITIVE_TARGET, POWER_TARGET)
+from octoroach_model.studies.summary import AT_LIMIT_RANGE, AT_TWICE_MIN, POWER_TARGET
+from octoroach_model.studies.summary_records import (
+    FALSE_POSITIVE_TARGET, Rate, RunsCell, StudySummary)
 from octoroach_model.studies.terms import main_parameter
 
 
-def write_plots(summary: Mapping[str, Any], out: Path) -> list[Path]:
+def write_plots(summary: StudySummary, out: Path) -> list[Path]:
     """Every plot the summary has data for, as PNG files in `out` (atomic); their paths."""
     import matplotlib
 
@@ -44,51 +44,61 @@ def write_plots(summary: Mapping[str, Any], out: Path) -> list[Path]:
     return written
 
 
-def _errorbars(entries: Sequence[Mapping[str, Any]]) -> tuple[list, list]:
+def _errorbars(rates: Sequence[Rate]) -> tuple[list, list]:
     """Rates and their asymmetric interval half-widths, for matplotlib's errorbar."""
-    rates = [entry['rate'] for entry in entries]
-    below = [entry['rate'] - entry['interval_95'][0] for entry in entries]
-    above = [entry['interval_95'][1] - entry['rate'] for entry in entries]
-    return rates, [below, above]
+    shares = [_share(rate) for rate in rates]
+    below = [_share(rate) - _bounds(rate)[0] for rate in rates]
+    above = [_bounds(rate)[1] - _share(rate) for rate in rates]
+    return shares, [below, above]
 
 
-def _runs_label(runs: Any) -> str:
+def _share(rate: Rate) -> float:
+    assert rate.rate is not None        # only rates of data sets are drawn
+    return rate.rate
+
+
+def _bounds(rate: Rate) -> tuple[float, float]:
+    assert rate.interval is not None
+    return rate.interval
+
+
+def _runs_label(runs: RunsCell) -> str:
     return f'{runs} runs' if runs != 'drawn' else 'runs drawn per data set'
 
 
 def _false_positive(plt, summary):
-    cells = [entry for entry in summary['false_positive']['by_runs'] if entry['rate'] is not None]
+    cells = [cell for cell in summary.false_positive.by_runs if cell.rate.rate is not None]
     if not cells:
         return None
     figure, axis = plt.subplots(figsize=(6, 4))
     positions = list(range(len(cells)))
-    rates, bars = _errorbars(cells)
+    rates, bars = _errorbars([cell.rate for cell in cells])
     axis.errorbar(positions, rates, yerr=bars, fmt='o', color='tab:red', capsize=4,
                   label='false-positive rate (95 % Wilson interval)')
     axis.axhline(FALSE_POSITIVE_TARGET, color='grey', linestyle='--',
                  label=f'target {FALSE_POSITIVE_TARGET:.0%}')
-    axis.set_xticks(positions, [f'{_runs_label(c["runs"])}\n({c["data_sets"]} data sets)'
+    axis.set_xticks(positions, [f'{_runs_label(c.runs)}\n({c.rate.trials} data sets)'
                                 for c in cells])
     axis.set_xlabel('run count of the null data sets')
     axis.set_ylabel('share of null data sets with a cause named')
-    axis.set_ylim(-0.01, max(0.2, max(c['interval_95'][1] for c in cells) * 1.1))
+    axis.set_ylim(-0.01, max(0.2, max(_bounds(c.rate)[1] for c in cells) * 1.1))
     axis.set_title("False positives: a cause named on data from the paper's model")
     axis.legend(loc='upper right', fontsize=8)
     return figure
 
 
 def _power(plt, summary):
-    entries = [entry for entry in summary['power'] if entry['rate'] is not None]
-    causes = list(dict.fromkeys(entry['cause'] for entry in entries))
+    entries = [entry for entry in summary.power if entry.named.rate is not None]
+    causes = list(dict.fromkeys(entry.cause for entry in entries))
     if not causes:
         return None
     figure, axes = plt.subplots(1, len(causes), figsize=(4.5 * len(causes), 4), squeeze=False)
     for axis, cause in zip(axes[0], causes):
-        mine = [entry for entry in entries if entry['cause'] == cause]
-        for runs in dict.fromkeys(entry['runs'] for entry in mine):
-            line = sorted((e for e in mine if e['runs'] == runs), key=lambda e: e['size'])
-            rates, bars = _errorbars(line)
-            axis.errorbar([e['size'] for e in line], rates, yerr=bars, marker='o', capsize=3,
+        mine = [entry for entry in entries if entry.cause == cause]
+        for runs in dict.fromkeys(entry.runs for entry in mine):
+            line = sorted((e for e in mine if e.runs == runs), key=lambda e: e.size)
+            rates, bars = _errorbars([e.named for e in line])
+            axis.errorbar([e.size for e in line], rates, yerr=bars, marker='o', capsize=3,
                           label=_runs_label(runs))
         axis.axhline(POWER_TARGET, color='grey', linestyle='--',
                      label=f'{POWER_TARGET:.0%} power')
@@ -101,16 +111,16 @@ def _power(plt, summary):
 
 
 def _power_at_limit(plt, summary):
-    entries = [entry for entry in summary['power_at_limit_multiples']
-               if entry['rate'] is not None]
+    entries = [entry for entry in summary.power_at_limit_multiples
+               if entry.named.rate is not None]
     if not entries:
         return None
     figure, axis = plt.subplots(figsize=(6.5, 4.5))
-    for cause, runs in dict.fromkeys((e['cause'], e['runs']) for e in entries):
-        line = sorted((e for e in entries if (e['cause'], e['runs']) == (cause, runs)),
-                      key=lambda e: e['limit_multiple'])
-        rates, bars = _errorbars(line)
-        axis.errorbar([e['limit_multiple'] for e in line], rates, yerr=bars, marker='o',
+    for cause, runs in dict.fromkeys((e.cause, e.runs) for e in entries):
+        line = sorted((e for e in entries if (e.cause, e.runs) == (cause, runs)),
+                      key=lambda e: e.limit_multiple)
+        rates, bars = _errorbars([e.named for e in line])
+        axis.errorbar([e.limit_multiple for e in line], rates, yerr=bars, marker='o',
                       capsize=3, label=f'{cause}, {_runs_label(runs)}')
     axis.fill_between([0.9, 1.1], *AT_LIMIT_RANGE, color='tab:green', alpha=0.2,
                       label=f'honest limit at 1x: {AT_LIMIT_RANGE[0]:.0%}-'
@@ -127,20 +137,20 @@ def _power_at_limit(plt, summary):
 
 
 def _estimation_error(plt, summary):
-    entries = [entry for entry in summary['estimation']
-               if entry['median_abs_relative_error'] is not None]
+    entries = [entry for entry in summary.estimation
+               if entry.median_abs_relative_error is not None]
     if not entries:
         return None
     figure, axis = plt.subplots(figsize=(max(6, 0.6 * len(entries) + 2), 4.5))
     positions = list(range(len(entries)))
-    axis.bar(positions, [100 * e['median_abs_relative_error'] for e in entries],
+    axis.bar(positions, [100 * e.median_abs_relative_error for e in entries],
              color='tab:purple', label='median |relative error|')
-    axis.plot(positions, [100 * e['median_relative_error'] for e in entries], 'k_',
+    axis.plot(positions, [100 * e.median_relative_error for e in entries], 'k_',
               markersize=14, label='median relative error (bias)')
     axis.axhline(0, color='grey', linewidth=0.8)
     axis.set_xticks(positions, [
-        f'{e["arm"]}\n' + (f'{e["cause"]}\n' if e['arm'].count('=') > 1 else '')
-        + f'{_runs_label(e["runs"])}, {e["named"]} named' for e in entries],
+        f'{e.arm}\n' + (f'{e.cause}\n' if e.arm.count('=') > 1 else '')
+        + f'{_runs_label(e.runs)}, {e.named} named' for e in entries],
         rotation=60, ha='right', fontsize=7)
     axis.set_ylabel('error of the main parameter, %')
     axis.set_xlabel('arm (cause = size), run count, data sets where the cause was named')

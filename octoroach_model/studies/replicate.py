@@ -22,7 +22,7 @@ from octoroach_model.studies.damage import damage_paths
 from octoroach_model.studies.design import (
     DAMAGE, draw_robot, draw_signs, replicate_seeds, RobotDraw, Task)
 from octoroach_model.studies.rows import Outcome, Status, StudyRow, TermOutcome
-from octoroach_model.studies.spec import ArmKind, StudySpec
+from octoroach_model.studies.spec import ArmKind, Sign, StudySpec
 from octoroach_model.studies.table import one_line
 from octoroach_model.studies.terms import main_parameter, null_value, term_values, TERMS
 
@@ -110,8 +110,8 @@ def task_effects(task: Task, spec: StudySpec, null_row: StudyRow | None,
     arm = task.arm
     effects = arm.effect_dict()
     if arm.kind in (ArmKind.ABSOLUTE, ArmKind.RELATIVE):
-        sign = {'positive': 1.0, 'negative': -1.0}.get(
-            arm.sign, draw_signs(spec, task.replicate)[arm.cause])
+        sign = arm.sign.sides[0] if arm.sign != Sign.BOTH \
+            else draw_signs(spec, task.replicate)[arm.cause]
         size = arm.size if arm.kind == ArmKind.ABSOLUTE else _limit_size(task, null_row)
         effects[arm.cause] = term_values(arm.cause, sign * size, effects[arm.cause],
                                          duration_s)

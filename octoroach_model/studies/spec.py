@@ -25,8 +25,6 @@ from octoroach_model.studies.terms import (
     main_parameter, parameter_range, parameters as term_parameters, signed, term_named,
     term_of, TERMS)
 
-SIGNS = ('positive', 'negative', 'both')
-SIGN_MARK = {'positive': '', 'negative': '-', 'both': '+-'}
 SIGNED_CAUSES = tuple(term for term in TERMS if signed(term))   # main parameter has a sign
 NULL = 'none'
 # DiagnosisSettings fields a spec may set (the seed comes from each replicate); a replicate
@@ -111,6 +109,24 @@ class ArmKind(StrEnum):
     TOGETHER = 'together'
 
 
+class Sign(StrEnum):
+    """The sign of a cause's size in an arm: as given, negated, or drawn per replicate."""
+
+    POSITIVE = 'positive'
+    NEGATIVE = 'negative'
+    BOTH = 'both'
+
+    @property
+    def mark(self) -> str:
+        """Return the sign as an arm's label writes it before the size."""
+        return {Sign.POSITIVE: '', Sign.NEGATIVE: '-', Sign.BOTH: '+-'}[self]
+
+    @property
+    def sides(self) -> tuple[float, ...]:
+        """Return the factors a size may take (+1, -1 or both)."""
+        return {Sign.POSITIVE: (1.0,), Sign.NEGATIVE: (-1.0,), Sign.BOTH: (1.0, -1.0)}[self]
+
+
 @dataclass(frozen=True)
 class Arm:
     """One kind of data set of the design: its kind, its label, and what it puts into data."""
@@ -121,7 +137,7 @@ class Arm:
     cause: str = ''
     size: float = math.nan
     limit_multiple: float = math.nan
-    sign: str = 'positive'
+    sign: Sign = Sign.POSITIVE
 
     @property
     def causes(self) -> tuple[str, ...]:
@@ -387,10 +403,11 @@ def _arms(value: Any) -> tuple[Arm, ...]:
 def _single(item: Mapping[str, Any], where: str) -> list[Arm]:
     cause = term_of(item, where)
     main = main_parameter(cause)
-    sign = str(item.get('sign', 'positive'))
-    if sign not in SIGNS:
-        raise ParameterError(f'{where}.sign must be one of {", ".join(SIGNS)}, got {sign!r}')
-    if sign != 'positive' and cause not in SIGNED_CAUSES:
+    given = str(item.get('sign', Sign.POSITIVE))
+    if given not in tuple(Sign):
+        raise ParameterError(f'{where}.sign must be one of {", ".join(Sign)}, got {given!r}')
+    sign = Sign(given)
+    if sign != Sign.POSITIVE and cause not in SIGNED_CAUSES:
         raise ParameterError(f'{where}.sign: {cause} has no sign (only '
                              f'{", ".join(SIGNED_CAUSES)} do)')
     extra = _parameters(cause, item.get('parameters', {}), f'{where}.parameters')
@@ -405,11 +422,11 @@ def _single(item: Mapping[str, Any], where: str) -> list[Arm]:
         sizes = _positive_list(item['sizes'], f'{where}.sizes')
         for size in sizes:
             _check_size(cause, size, sign, f'{where}.sizes')
-        return [Arm(ArmKind.ABSOLUTE, f'{cause}={SIGN_MARK[sign]}{size:g}',
+        return [Arm(ArmKind.ABSOLUTE, f'{cause}={sign.mark}{size:g}',
                     ((cause, ((main, size), *extra)),), cause=cause, size=size, sign=sign)
                 for size in sizes]
     multiples = _positive_list(item['limit_multiples'], f'{where}.limit_multiples')
-    return [Arm(ArmKind.RELATIVE, f'{cause}@{SIGN_MARK[sign]}{multiple:g}x', ((cause, extra),),
+    return [Arm(ArmKind.RELATIVE, f'{cause}@{sign.mark}{multiple:g}x', ((cause, extra),),
                 cause=cause, limit_multiple=multiple, sign=sign) for multiple in multiples]
 
 
@@ -459,12 +476,12 @@ def _check_parameter(cause: str, key: str, value: float, where: str) -> None:
                              f'{high:g}]')
 
 
-def _check_size(cause: str, size: float, sign: str, where: str) -> None:
+def _check_size(cause: str, size: float, sign: Sign, where: str) -> None:
     """Check a size (a distance from the value of no effect, with the arm's signs)."""
     from octoroach_model.studies.terms import null_value
 
     main = main_parameter(cause)
-    for side in {'positive': (1.0,), 'negative': (-1.0,), 'both': (1.0, -1.0)}[sign]:
+    for side in sign.sides:
         _check_parameter(cause, main, null_value(cause) + side * size, where)
 
 

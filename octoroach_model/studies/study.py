@@ -30,6 +30,7 @@ from octoroach_model.studies.plots import write_plots
 from octoroach_model.studies.rows import StudyRow
 from octoroach_model.studies.spec import load_spec, parse_spec, StudySpec
 from octoroach_model.studies.summary import summarize
+from octoroach_model.studies.summary_records import StudySummary
 from octoroach_model.studies.table import (
     append_row, MANIFEST_NAME, read_manifest, read_table, start_table, TABLE_NAME, write_manifest,
     write_table)
@@ -50,7 +51,7 @@ class StudyResult:
     plots: tuple[Path, ...]
     rows: int
     computed: int                 # rows computed by this call (the rest were resumed)
-    summary: dict
+    summary: StudySummary
 
 
 def as_spec(spec: StudySpec | str | Path | Mapping[str, Any]) -> StudySpec:

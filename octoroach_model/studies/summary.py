@@ -1,7 +1,8 @@
 """
 What a study measured: false-positive rate, power, estimation error, recovery, confusions.
 
-The confusion table says which cause or extension was named for which.
+The confusion table says which cause or extension was named for which. The summary is a
+typed record (studies/summary_records.py), written as summary.json by octoroach_model/jsonio.py.
 
 Every rate comes with its 95 % Wilson score interval (scipy's `binomtest(...).proportion_ci`),
 which keeps its coverage at the small counts and the rates near 0 or 1 that studies give.
@@ -11,13 +12,15 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 import math
-from typing import Any, NamedTuple
 
 import numpy as np
 
 from octoroach_model.diagnosis.causes import BY_NAME
-from octoroach_model.studies.rows import StudyRow
+from octoroach_model.studies.rows import Status, StudyRow
 from octoroach_model.studies.spec import ArmKind, StudySpec
+from octoroach_model.studies.summary_records import (
+    Confusion, DetectionLimit, Estimation, FalsePositive, InadequateOnNulls, Power, PowerAtLimit,
+    Rate, RateByRuns, Recovery, RunsCell, StatusCounts, StudySummary, Timing)
 from octoroach_model.studies.terms import main_parameter, null_value, TERMS
 
 LEVEL = 0.95
@@ -25,20 +28,6 @@ POWER_TARGET = 0.8
 # issue 14's test of a reported limit: named in 65-95 % of data sets at the limit, >= 90 % at 2x
 AT_LIMIT_RANGE = (0.65, 0.95)
 AT_TWICE_MIN = 0.90
-FALSE_POSITIVE_TARGET = 0.05
-
-
-class Rate(NamedTuple):
-    """k of n, the share, and its 95 % Wilson interval (None for n = 0)."""
-
-    successes: int
-    trials: int
-    rate: float | None
-    interval: tuple[float, float] | None
-
-    def to_json(self) -> dict[str, Any]:
-        return {'count': self.successes, 'data_sets': self.trials, 'rate': self.rate,
-                'interval_95': list(self.interval) if self.interval else None}
 
 
 def wilson(successes: int, trials: int) -> Rate:
@@ -61,60 +50,53 @@ def _median(values: Iterable[float]) -> float | None:
     return float(np.median(finite)) if finite else None
 
 
-def _cell(spec: StudySpec, row: StudyRow) -> int | str:
+def _cell(spec: StudySpec, row: StudyRow) -> RunsCell:
     """Return a row's run-count cell: its count, or 'drawn' (each replicate drew one)."""
     return row.runs if isinstance(spec.runs, tuple) else 'drawn'
 
 
+def _by_cell(spec: StudySpec, rows: Sequence[StudyRow]) -> list[tuple[RunsCell, list[StudyRow]]]:
+    """Return the rows grouped by run-count cell, the cells in the summary's order."""
+    cells = sorted({_cell(spec, row) for row in rows}, key=str)
+    return [(cell_of, [row for row in rows if _cell(spec, row) == cell_of]) for cell_of in cells]
+
+
 def summarize(spec: StudySpec, rows: Sequence[StudyRow],
-              wall_time_s: float | None = None) -> dict[str, Any]:
-    """Return the summary.json of a study (docs/studies.md describes every field)."""
+              wall_time_s: float | None = None) -> StudySummary:
+    """Return what a study measured (summary.json; docs/studies.md describes every field)."""
     ok = [row for row in rows if row.ok]
-    return {
-        'study': spec.name, 'spec_hash': spec.spec_hash, 'seed': spec.seed,
-        'status': _status(rows),
-        'false_positive': _false_positive(spec, ok),
-        'inadequate_on_nulls': _inadequate_on_nulls(spec, ok),
-        'false_causes_with_effects': wilson(
-            sum(bool(row.outcome.false_causes) for row in ok if row.true_causes),
-            sum(1 for row in ok if row.true_causes)).to_json(),
-        'power': _power(spec, ok),
-        'power_at_limit_multiples': _relative_power(spec, ok),
-        'estimation': _estimation(spec, ok),
-        'two_cause_recovery': _recovery(spec, ok),
-        'detection_limits': _limits(spec, ok),
-        'confusion': confusion(ok),
-        'timing': _timing(rows, wall_time_s),
-    }
+    return StudySummary(
+        spec.name, spec.spec_hash, spec.seed, _status(rows), _false_positive(spec, ok),
+        _inadequate_on_nulls(spec, ok),
+        wilson(sum(bool(row.outcome.false_causes) for row in ok if row.true_causes),
+               sum(1 for row in ok if row.true_causes)),
+        _power(spec, ok), _relative_power(spec, ok), _estimation(spec, ok),
+        _recovery(spec, ok), _limits(spec, ok), confusion(ok), _timing(rows, wall_time_s))
 
 
-def _status(rows: Sequence[StudyRow]) -> dict[str, Any]:
-    counts: dict[str, int] = {}
+def _status(rows: Sequence[StudyRow]) -> StatusCounts:
+    counts: dict[Status, int] = {}
     for row in rows:
         counts[row.status] = counts.get(row.status, 0) + 1
     notes = [f'{row.key}: {row.note}' for row in rows if not row.ok]
-    return {'rows': len(rows), 'counts': counts, 'first_problems': notes[:5]}
+    return StatusCounts(len(rows), counts, tuple(notes[:5]))
 
 
-def _false_positive(spec: StudySpec, ok: Sequence[StudyRow]) -> dict[str, Any]:
+def _false_positive(spec: StudySpec, ok: Sequence[StudyRow]) -> FalsePositive:
     nulls = [row for row in ok if row.kind == ArmKind.NULL]
-    overall = wilson(sum(bool(row.outcome.named) for row in nulls), len(nulls))
-    by_cell = []
-    for cell_of in sorted({_cell(spec, row) for row in nulls}, key=str):
-        members = [row for row in nulls if _cell(spec, row) == cell_of]
-        by_cell.append({'runs': cell_of, **wilson(sum(bool(r.outcome.named) for r in members),
-                                                  len(members)).to_json()})
+    by_cell = tuple(RateByRuns(cell_of, wilson(sum(bool(row.outcome.named) for row in members),
+                                               len(members)))
+                    for cell_of, members in _by_cell(spec, nulls))
     named_counts: dict[str, int] = {}
     for row in nulls:
         for cause in row.outcome.named:
             named_counts[cause] = named_counts.get(cause, 0) + 1
-    return {'definition': "share of data sets from the paper's model (no effect) in which "
-                          'any cause or extension was named',
-            **overall.to_json(), 'target': FALSE_POSITIVE_TARGET,
-            'by_runs': by_cell, 'causes_named': named_counts}
+    return FalsePositive(overall=wilson(sum(bool(row.outcome.named) for row in nulls),
+                                        len(nulls)),
+                         by_runs=by_cell, causes_named=named_counts)
 
 
-def _inadequate_on_nulls(spec: StudySpec, ok: Sequence[StudyRow]) -> dict[str, Any]:
+def _inadequate_on_nulls(spec: StudySpec, ok: Sequence[StudyRow]) -> InadequateOnNulls:
     """
     Return the adequacy check's false alarms: nulls called inadequate (the model is exact).
 
@@ -122,68 +104,66 @@ def _inadequate_on_nulls(spec: StudySpec, ok: Sequence[StudyRow]) -> dict[str, A
     """
     judged = [row for row in ok
               if row.kind == ArmKind.NULL and row.outcome.adequate is not None]
-    by_cell = []
-    for cell_of in sorted({_cell(spec, row) for row in judged}, key=str):
-        members = [row for row in judged if _cell(spec, row) == cell_of]
-        by_cell.append({'runs': cell_of, **wilson(
-            sum(row.outcome.adequate is False for row in members), len(members)).to_json()})
+    by_cell = tuple(RateByRuns(cell_of, wilson(
+        sum(row.outcome.adequate is False for row in members), len(members)))
+        for cell_of, members in _by_cell(spec, judged))
     statistics: dict[str, int] = {}
     for row in judged:
         for name in row.outcome.unexplained:
             statistics[name] = statistics.get(name, 0) + 1
-    return {**wilson(sum(row.outcome.adequate is False for row in judged),
-                     len(judged)).to_json(),
-            'by_runs': by_cell, 'unexplained': statistics}
+    return InadequateOnNulls(
+        overall=wilson(sum(row.outcome.adequate is False for row in judged), len(judged)),
+        by_runs=by_cell, unexplained=statistics)
 
 
-def _power(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]:
+def _power(spec: StudySpec, ok: Sequence[StudyRow]) -> tuple[Power, ...]:
     entries = []
     for arm in (arm for arm in spec.arms if arm.kind == ArmKind.ABSOLUTE):
         members = [row for row in ok if row.arm == arm.label]
-        for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
-            group = [row for row in members if _cell(spec, row) == cell_of]
-            entries.append({
-                'cause': arm.cause, 'parameter': main_parameter(arm.cause),
-                'size': arm.size, 'sign': arm.sign, 'runs': cell_of,
-                **wilson(sum(bool(row.terms[arm.cause].named) for row in group),
-                         len(group)).to_json()})
-    return entries
+        for cell_of, group in _by_cell(spec, members):
+            entries.append(Power(
+                cause=arm.cause, parameter=main_parameter(arm.cause), size=arm.size,
+                sign=arm.sign, runs=cell_of,
+                named=wilson(sum(bool(row.terms[arm.cause].named) for row in group),
+                             len(group))))
+    return tuple(entries)
 
 
-def _relative_power(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]:
+def _relative_power(spec: StudySpec, ok: Sequence[StudyRow]) -> tuple[PowerAtLimit, ...]:
     entries = []
     for arm in (arm for arm in spec.arms if arm.kind == ArmKind.RELATIVE):
         members = [row for row in ok if row.arm == arm.label]
         null = null_value(arm.cause)
-        for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
-            group = [row for row in members if _cell(spec, row) == cell_of]
+        for cell_of, group in _by_cell(spec, members):
             rate = wilson(sum(bool(row.terms[arm.cause].named) for row in group), len(group))
             found = wilson(sum(bool(row.terms[arm.cause].named)
                                or arm.cause in row.outcome.undecided
                                for row in group), len(group))
             missed = [row for row in group if not row.terms[arm.cause].named]
-            entry = {'cause': arm.cause, 'limit_multiple': arm.limit_multiple, 'runs': cell_of,
-                     'median_size': _median(abs(row.terms[arm.cause].true - null)
-                                            for row in group),
-                     **rate.to_json(), 'named_or_undecided': found.to_json(),
-                     'missed': len(missed),
-                     'missed_not_adequate': sum(row.outcome.adequate is False
-                                                for row in missed),
-                     'baseline_inadequate': wilson(
-                         sum(row.outcome.baseline_adequate is False for row in group),
-                         sum(row.outcome.baseline_adequate is not None
-                             for row in group)).to_json()}
-            if arm.limit_multiple == 1 and rate.rate is not None:
-                entry['target'] = f'{AT_LIMIT_RANGE[0]:.0%}-{AT_LIMIT_RANGE[1]:.0%}'
-                entry['meets_target'] = AT_LIMIT_RANGE[0] <= rate.rate <= AT_LIMIT_RANGE[1]
-            if arm.limit_multiple == 2 and rate.rate is not None:
-                entry['target'] = f'>= {AT_TWICE_MIN:.0%}'
-                entry['meets_target'] = rate.rate >= AT_TWICE_MIN
-            entries.append(entry)
-    return entries
+            target, meets_target = _limit_target(arm.limit_multiple, rate.rate)
+            entries.append(PowerAtLimit(
+                cause=arm.cause, limit_multiple=arm.limit_multiple, runs=cell_of,
+                median_size=_median(abs(row.terms[arm.cause].true - null) for row in group),
+                named=rate, named_or_undecided=found, missed=len(missed),
+                missed_not_adequate=sum(row.outcome.adequate is False for row in missed),
+                baseline_inadequate=wilson(
+                    sum(row.outcome.baseline_adequate is False for row in group),
+                    sum(row.outcome.baseline_adequate is not None for row in group)),
+                target=target, meets_target=meets_target))
+    return tuple(entries)
 
 
-def _estimation(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]:
+def _limit_target(limit_multiple: float, rate: float | None) -> tuple[str | None, bool | None]:
+    """Return issue 14's target at 1 x and 2 x the limit, and whether `rate` meets it."""
+    if limit_multiple == 1 and rate is not None:
+        return (f'{AT_LIMIT_RANGE[0]:.0%}-{AT_LIMIT_RANGE[1]:.0%}',
+                AT_LIMIT_RANGE[0] <= rate <= AT_LIMIT_RANGE[1])
+    if limit_multiple == 2 and rate is not None:
+        return f'>= {AT_TWICE_MIN:.0%}', rate >= AT_TWICE_MIN
+    return None, None
+
+
+def _estimation(spec: StudySpec, ok: Sequence[StudyRow]) -> tuple[Estimation, ...]:
     """
     Summarise the main parameter's errors where the true cause was named.
 
@@ -193,58 +173,53 @@ def _estimation(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]
     for arm in (arm for arm in spec.arms if arm.kind != ArmKind.NULL):
         members = [row for row in ok if row.arm == arm.label]
         for cause in arm.causes:
-            for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
-                named = [row for row in members if _cell(spec, row) == cell_of
-                         and row.terms[cause].named]
+            for cell_of, group in _by_cell(spec, members):
+                named = [row for row in group if row.terms[cause].named]
                 errors = _finite(row.terms[cause].rel_error for row in named)
                 with_interval = [row for row in named if math.isfinite(row.terms[cause].low)]
                 covered = sum(row.terms[cause].low <= row.terms[cause].true
                               <= row.terms[cause].high for row in with_interval)
-                entries.append({
-                    'arm': arm.label, 'cause': cause, 'runs': cell_of, 'named': len(named),
-                    'median_abs_relative_error': _median(abs(e) for e in errors),
-                    'median_relative_error': _median(errors),
-                    'interval_coverage': wilson(covered, len(with_interval)).to_json()})
-    return entries
+                entries.append(Estimation(
+                    arm=arm.label, cause=cause, runs=cell_of, named=len(named),
+                    median_abs_relative_error=_median(abs(e) for e in errors),
+                    median_relative_error=_median(errors),
+                    interval_coverage=wilson(covered, len(with_interval))))
+    return tuple(entries)
 
 
-def _recovery(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]:
+def _recovery(spec: StudySpec, ok: Sequence[StudyRow]) -> tuple[Recovery, ...]:
     entries = []
     for arm in (arm for arm in spec.arms if arm.kind == ArmKind.TOGETHER):
         members = [row for row in ok if row.arm == arm.label]
-        for cell_of in sorted({_cell(spec, row) for row in members}, key=str):
-            group = [row for row in members if _cell(spec, row) == cell_of]
-            entries.append({
-                'arm': arm.label, 'causes': list(arm.causes), 'runs': cell_of,
-                'definition': 'share of data sets in which every true cause was named',
-                **wilson(sum(bool(row.outcome.all_true_named) for row in group),
-                         len(group)).to_json(),
-                'each_named': {cause: wilson(sum(bool(row.terms[cause].named)
-                                                 for row in group), len(group)).to_json()
-                               for cause in arm.causes},
-                'other_named': wilson(sum(bool(row.outcome.false_causes) for row in group),
-                                      len(group)).to_json()})
-    return entries
+        for cell_of, group in _by_cell(spec, members):
+            entries.append(Recovery(
+                arm=arm.label, causes=tuple(arm.causes), runs=cell_of,
+                all_named=wilson(sum(bool(row.outcome.all_true_named) for row in group),
+                                 len(group)),
+                each_named={cause: wilson(sum(bool(row.terms[cause].named) for row in group),
+                                          len(group)) for cause in arm.causes},
+                other_named=wilson(sum(bool(row.outcome.false_causes) for row in group),
+                                   len(group))))
+    return tuple(entries)
 
 
-def _limits(spec: StudySpec, ok: Sequence[StudyRow]) -> list[dict[str, Any]]:
+def _limits(spec: StudySpec, ok: Sequence[StudyRow]) -> tuple[DetectionLimit, ...]:
     """Median detection limit each cause reported on null data sets, per run count."""
     nulls = [row for row in ok if row.kind == ArmKind.NULL]
     entries = []
-    for cell_of in sorted({_cell(spec, row) for row in nulls}, key=str):
-        group = [row for row in nulls if _cell(spec, row) == cell_of]
+    for cell_of, group in _by_cell(spec, nulls):
         for cause in TERMS:
             limits = _finite(row.terms[cause].limit for row in group)
-            entries.append({'cause': cause, 'parameter': main_parameter(cause), 'runs': cell_of,
-                            'median_limit': _median(limits), 'reported': len(limits),
-                            'data_sets': len(group)})
-    return entries
+            entries.append(DetectionLimit(
+                cause=cause, parameter=main_parameter(cause), runs=cell_of,
+                median_limit=_median(limits), reported=len(limits), data_sets=len(group)))
+    return tuple(entries)
 
 
 NOTHING = 'nothing'
 
 
-def confusion(ok: Sequence[StudyRow]) -> dict[str, Any]:
+def confusion(ok: Sequence[StudyRow]) -> Confusion:
     """
     Return, for each cause or family put alone into data, how often each one was named.
 
@@ -270,13 +245,9 @@ def confusion(ok: Sequence[StudyRow]) -> dict[str, Any]:
             if term in BY_NAME:
                 beside = undecided.setdefault(true_label, {})
                 beside[BY_NAME[term].label] = beside.get(BY_NAME[term].label, 0) + 1
-    return {'definition': 'data sets with one true cause or extension family (or none): how '
-                          'many named each cause or family; `undecided`: how many reported '
-                          'each beside the named one as what the runs cannot tell it from',
-            'data_sets': totals, 'named': table, 'undecided': undecided}
+    return Confusion(data_sets=totals, named=table, undecided=undecided)
 
 
-def _timing(rows: Sequence[StudyRow], wall_time_s: float | None) -> dict[str, Any]:
+def _timing(rows: Sequence[StudyRow], wall_time_s: float | None) -> Timing:
     elapsed = _finite(row.elapsed_s for row in rows)
-    return {'wall_time_s': wall_time_s, 'median_task_s': _median(elapsed),
-            'total_task_s': float(sum(elapsed)) if elapsed else None}
+    return Timing(wall_time_s, _median(elapsed), float(sum(elapsed)) if elapsed else None)
