@@ -33,6 +33,7 @@ import math
 import numpy as np
 from scipy import stats
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.features import INDEX, OUTCOMES, RESOLUTION
 
 ENERGY_FRACTIONS = (0.2, 0.4, 0.6, 0.8, 1.0)
@@ -46,17 +47,18 @@ NUMERICAL_NOISE = 1e-6    # per-run score differences below this are rounding, n
 class Scores:
     """Per held-out run scores of one model."""
 
-    log: np.ndarray                 # feature log score, nats (higher is better)
-    energy_cm: np.ndarray           # position energy score, cm (lower is better)
+    log: FloatArray                 # feature log score, nats (higher is better)
+    energy_cm: FloatArray           # position energy score, cm (lower is better)
 
 
-def feature_scales(calibration_features: np.ndarray) -> np.ndarray:
+def feature_scales(calibration_features: FloatArray) -> FloatArray:
     """Each feature's spread over the calibration runs (never below its resolution)."""
-    return np.maximum(np.std(calibration_features, axis=0, ddof=1), RESOLUTION)
+    scales: FloatArray = np.maximum(np.std(calibration_features, axis=0, ddof=1), RESOLUTION)
+    return scales
 
 
-def feature_log_score(sample: np.ndarray, observed: np.ndarray, by_position: bool = False
-                      ) -> np.ndarray:
+def feature_log_score(sample: FloatArray, observed: FloatArray, by_position: bool = False
+                      ) -> FloatArray:
     """
     Return the summed normal log density of each observed row under the sample.
 
@@ -79,20 +81,22 @@ def feature_log_score(sample: np.ndarray, observed: np.ndarray, by_position: boo
         mean = outcomes.mean(axis=0)
         spread = np.maximum(outcomes.std(axis=0, ddof=1), FLOOR)
     z = np.clip((observed_outcomes - mean) / spread, -CAP, CAP)
-    return (stats.norm.logpdf(z) - np.log(spread)).sum(axis=1)
+    log_score: FloatArray = (stats.norm.logpdf(z) - np.log(spread)).sum(axis=1)
+    return log_score
 
 
-def energy_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
+def energy_score(sample: FloatArray, observed: FloatArray) -> FloatArray:
     """Energy score of each observed row against the sample rows (lower is better)."""
     distances = np.sqrt(((sample[None, :, :] - observed[:, None, :]) ** 2).sum(axis=-1))
     to_observed = distances.mean(axis=1)
     pairs = sample[:PAIR_RUNS]
     half = len(pairs) // 2
     spread = np.sqrt(((pairs[:half] - pairs[half:2 * half]) ** 2).sum(axis=-1)).mean()
-    return to_observed - 0.5 * spread
+    energy: FloatArray = to_observed - 0.5 * spread
+    return energy
 
 
-def position_points_cm(positions: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+def position_points_cm(positions: FloatArray, lengths: FloatArray) -> FloatArray:
     """
     Return positions (cm) at fractions of each run's duration.
 
@@ -105,9 +109,9 @@ def position_points_cm(positions: np.ndarray, lengths: np.ndarray) -> np.ndarray
     return np.concatenate(points, axis=1) * 100.0
 
 
-def score_model(model_features: np.ndarray, model_points_cm: np.ndarray,
-                observed_features: np.ndarray, observed_points_cm: np.ndarray,
-                scales: np.ndarray, by_position: bool = False) -> Scores:
+def score_model(model_features: FloatArray, model_points_cm: FloatArray,
+                observed_features: FloatArray, observed_points_cm: FloatArray,
+                scales: FloatArray, by_position: bool = False) -> Scores:
     """Scores of the observed (held-out) runs under a model's simulated runs."""
     return Scores(feature_log_score(model_features / scales, observed_features / scales,
                                     by_position),
@@ -123,7 +127,7 @@ class PairedGain:
     p_value: float
 
     @classmethod
-    def of(cls, improvement: np.ndarray) -> PairedGain:
+    def of(cls, improvement: FloatArray) -> PairedGain:
         """`improvement` per run (positive: the second model predicts the run better)."""
         improvement = np.asarray(improvement, dtype=float)
         mean = float(improvement.mean())

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.fitting.nominal import MeanPathSettings, NominalFit, simulated_runs
 from octoroach_model.fitting.target import AverageTarget, residual_vector
 
 
-def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: np.ndarray,
+def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: FloatArray,
                     mean: MeanPathSettings, seed: int, n_boot: int = 60
-                    ) -> tuple[np.ndarray, np.ndarray]:
+                    ) -> tuple[FloatArray, FloatArray]:
     """
     Return the covariance of the fit's vector from the measured and from the simulated runs.
 
@@ -32,7 +33,7 @@ def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: np.ndarra
     model_sway = sway.of_runs(full, fit.parameters.stride_frequency)
     runs = full[:, :len(target.t)]
 
-    def vector(xy, turn, sway):
+    def vector(xy: FloatArray, turn: FloatArray, sway: FloatArray) -> FloatArray:
         return residual_vector(xy, turn, sway, fit.heading_weight_m, mean.scales)
 
     rng = np.random.default_rng([seed, 17])

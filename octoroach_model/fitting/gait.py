@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.model.trig import cos_sin
 from octoroach_model.paths import Paths
 
@@ -19,12 +20,12 @@ BAND_POINTS = 33          # DFT frequencies across the band (then a parabolic re
 SPECTRUM_RUNS = 400       # runs averaged for the set's stride frequency (plenty for a peak)
 
 
-def valid_mask(values: np.ndarray) -> np.ndarray:
+def valid_mask(values: FloatArray) -> FloatArray:
     """(n, T) True where a run has a sample (runs are NaN after their end)."""
     return np.isfinite(values)
 
 
-def hann_windows(lengths: np.ndarray, n_samples: int) -> np.ndarray:
+def hann_windows(lengths: FloatArray, n_samples: int) -> FloatArray:
     """(n, T) a Hann window over each run's own samples, zero after its end."""
     distinct, which = np.unique(lengths, return_inverse=True)   # most runs share a length
     index = np.arange(n_samples)[None, :]
@@ -33,7 +34,7 @@ def hann_windows(lengths: np.ndarray, n_samples: int) -> np.ndarray:
     return np.where(index < distinct[:, None], window, 0.0)[which.reshape(-1)]
 
 
-def detrended(values: np.ndarray, t: np.ndarray) -> np.ndarray:
+def detrended(values: FloatArray, t: FloatArray) -> FloatArray:
     """Each run minus its own least-squares line over its samples; 0 after its end."""
     mask = valid_mask(values)
     weight = mask.astype(float)
@@ -47,7 +48,7 @@ def detrended(values: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.where(mask, filled - v_mean - slope * (t - t_mean), 0.0)
 
 
-def band_spectrum(signal: np.ndarray, t: np.ndarray, frequencies: np.ndarray) -> np.ndarray:
+def band_spectrum(signal: FloatArray, t: FloatArray, frequencies: FloatArray) -> FloatArray:
     """
     |DFT| of each (windowed, zero-filled) run at `frequencies` (Hz): (n, K).
 
@@ -59,16 +60,16 @@ def band_spectrum(signal: np.ndarray, t: np.ndarray, frequencies: np.ndarray) ->
     return np.hypot(signal @ cosine, signal @ sine)
 
 
-def windowed_sway(heading: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def windowed_sway(heading: FloatArray, t: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Return each run's heading, its own line removed, times its Hann window; and the window."""
     lengths = valid_mask(heading).sum(axis=1)
     window = hann_windows(lengths, heading.shape[1])
     return detrended(heading, t) * window, window
 
 
-def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float,
-                 windowed: tuple[np.ndarray, np.ndarray] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def heading_sway(heading: FloatArray, t: FloatArray, nominal_hz: float,
+                 windowed: tuple[FloatArray, FloatArray] | None = None
+                 ) -> tuple[FloatArray, FloatArray]:
     """
     Per-run stride frequency (Hz) and sway amplitude (rad) of the heading.
 
@@ -95,8 +96,8 @@ def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float,
     return frequencies[peak] + shift * step, amplitude
 
 
-def lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
-                 frequency: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def lateral_sway(xy: FloatArray, heading: FloatArray, t: FloatArray,
+                 frequency: FloatArray) -> tuple[FloatArray, FloatArray]:
     """
     Measure the sideways sway of G (m) at each run's stride frequency and twice it.
 
@@ -113,24 +114,25 @@ def lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
     angle = 2 * np.pi * frequency[:, None] * t[None, :]
     cos, sin = cos_sin(angle)      # real arithmetic: a complex exp costs 3x
 
-    def amplitude(cosine: np.ndarray, sine: np.ndarray) -> np.ndarray:
+    def amplitude(cosine: FloatArray, sine: FloatArray) -> FloatArray:
         projections = (np.einsum('ij,ij->i', residual, cosine),
                        np.einsum('ij,ij->i', residual, sine))
-        return 2 * np.hypot(*projections) / norm
+        amplitudes: FloatArray = 2 * np.hypot(*projections) / norm
+        return amplitudes
 
     first = amplitude(cos, sin)
     return first, amplitude(cos * cos - sin * sin, 2 * sin * cos)     # twice the angle
 
 
-def sway_features(t: np.ndarray, xy: np.ndarray, heading: np.ndarray,
-                  guess_hz: float) -> np.ndarray:
+def sway_features(t: FloatArray, xy: FloatArray, heading: FloatArray,
+                  guess_hz: float) -> FloatArray:
     """(n, 3) per run: heading sway amplitude (rad), sideways sway at f and 2f (m)."""
     frequency, amplitude = heading_sway(heading, t, guess_hz)
     first, second = lateral_sway(xy, heading, t, frequency)
     return np.column_stack([amplitude, first, second])
 
 
-def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
+def stride_frequency_estimate(heading: FloatArray, t: FloatArray) -> float:
     """
     Estimate the stride frequency (Hz) of a set of runs, with no prior guess.
 
@@ -160,7 +162,7 @@ def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
 
 
 def aligned_runs(measured: Paths, guess_hz: float
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+                 ) -> tuple[FloatArray, FloatArray, FloatArray, float]:
     """
     Put every run on a common gait clock.
 
@@ -187,7 +189,7 @@ def aligned_runs(measured: Paths, guess_hz: float
     return grid, aligned[..., :2], turn, mean_frequency
 
 
-def _interp_rows(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
+def _interp_rows(at: FloatArray, t: FloatArray, values: FloatArray) -> FloatArray:
     """
     Interpolate values (n, T) sampled at t linearly, row by row, at times at (n, G).
 

@@ -11,7 +11,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-Statistic = Callable[[np.ndarray], float]
+from octoroach_model.arrays import FloatArray
+
+Statistic = Callable[[FloatArray], float]
 
 
 def read_line(points: dict[float, float], target: float) -> float:
@@ -33,7 +35,7 @@ def read_line(points: dict[float, float], target: float) -> float:
     return float(u0 + (target - s0) * (u1 - u0) / (s1 - s0))
 
 
-def paired_relative_se(statistic: Statistic, without: np.ndarray, with_cause: np.ndarray,
+def paired_relative_se(statistic: Statistic, without: FloatArray, with_cause: FloatArray,
                        rng: np.random.Generator, n_boot: int) -> float:
     """
     Return the relative error of S(with) - S(without) on the same simulated runs.
@@ -51,7 +53,7 @@ def paired_relative_se(statistic: Statistic, without: np.ndarray, with_cause: np
     return float(np.std(values, ddof=1)) / difference
 
 
-def bootstrap_se(statistic: Statistic, features: np.ndarray, rng: np.random.Generator,
+def bootstrap_se(statistic: Statistic, features: FloatArray, rng: np.random.Generator,
                  n_boot: int) -> float:
     """Return the standard error of `statistic` over the runs (rows) of `features`."""
     n = features.shape[0]

@@ -16,13 +16,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import replace
 import math
-from typing import Protocol
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
 from octoroach_model.model.extensions import (
-    positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext)
+    NormalSource, positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext)
 from octoroach_model.model.trig import cos_sin
 
 # Canonical order of application; also the order of their random streams.
@@ -81,16 +81,9 @@ def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
     return {name: checked[name] for name in MODEL_TERMS if name in checked}
 
 
-class NormalSource(Protocol):
-    """Where an effect draws its normals: a numpy Generator, or one giving antithetic pairs."""
-
-    def standard_normal(self, size: int | tuple[int, ...]) -> np.ndarray:
-        """Draw standard normals of shape `size`."""
-
-
-def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
-                rngs: Mapping[str, NormalSource], positions: np.ndarray | None = None
-                ) -> np.ndarray:
+def warped_time(effects: Effects, t: FloatArray, n_runs: int,
+                rngs: Mapping[str, NormalSource], positions: FloatArray | None = None
+                ) -> FloatArray:
     """
     Give the (n, T) gait clock: the times at which the unwarped model is evaluated.
 
@@ -101,7 +94,7 @@ def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
     """
     duration = float(t[-1]) if len(t) else 0.0
 
-    def decayed(times: np.ndarray) -> np.ndarray:
+    def decayed(times: FloatArray) -> FloatArray:
         if 'speed_decay' in effects and duration > 0:
             return times - effects['speed_decay']['fraction'] * times ** 2 / (2.0 * duration)
         return times
@@ -128,7 +121,7 @@ def _terms(effects: Effects, stage: str) -> list[tuple[str, Mapping[str, float]]
             if name in effects and TERM_BY_NAME[name].stage == stage]
 
 
-def _context(t: np.ndarray, n_runs: int, positions: np.ndarray | None, duration: float
+def _context(t: FloatArray, n_runs: int, positions: FloatArray | None, duration: float
              ) -> TermContext:
     places = positions_in_order(n_runs) if positions is None else np.asarray(positions, float)
     return TermContext(np.asarray(t, dtype=float), places, duration, None)
@@ -153,9 +146,9 @@ def mean_gait_rate(effects: Effects, duration_s: float | None = None) -> float:
     return before + float(change['speed_factor']) * after
 
 
-def apply_pose_effects(poses: np.ndarray, t: np.ndarray, effects: Effects,
-                       rngs: Mapping[str, NormalSource], positions: np.ndarray | None = None,
-                       phase: np.ndarray | None = None) -> np.ndarray:
+def apply_pose_effects(poses: FloatArray, t: FloatArray, effects: Effects,
+                       rngs: Mapping[str, NormalSource], positions: FloatArray | None = None,
+                       phase: FloatArray | None = None) -> FloatArray:
     """
     Apply the non-warp effects to runs, in canonical order. poses: (n, T, 3), SI.
 
@@ -194,7 +187,7 @@ def apply_pose_effects(poses: np.ndarray, t: np.ndarray, effects: Effects,
     return poses
 
 
-def rotate_about_start(poses: np.ndarray, dheading: np.ndarray) -> np.ndarray:
+def rotate_about_start(poses: FloatArray, dheading: FloatArray) -> FloatArray:
     """Rotate each run by its own angle about its first position."""
     start = poses[:, :1, :2]
     rel = poses[..., :2] - start
@@ -206,7 +199,7 @@ def rotate_about_start(poses: np.ndarray, dheading: np.ndarray) -> np.ndarray:
     return out
 
 
-def turn_persistently(poses: np.ndarray, t: np.ndarray, yaw_rate: np.ndarray) -> np.ndarray:
+def turn_persistently(poses: FloatArray, t: FloatArray, yaw_rate: FloatArray) -> FloatArray:
     """
     Turn each run at its rate w: theta + w t, p(0) + integral of R(w s) p_dot(s) ds.
 
@@ -223,7 +216,7 @@ def turn_persistently(poses: np.ndarray, t: np.ndarray, yaw_rate: np.ndarray) ->
     return out
 
 
-def perturb_heading(poses: np.ndarray, perturbation: np.ndarray) -> np.ndarray:
+def perturb_heading(poses: FloatArray, perturbation: FloatArray) -> FloatArray:
     """
     Turn each run by a(t): theta + a, p(0) + integral of R(a(s)) p_dot(s) ds.
 
@@ -241,8 +234,8 @@ def perturb_heading(poses: np.ndarray, perturbation: np.ndarray) -> np.ndarray:
     return out
 
 
-def slip_sideways(poses: np.ndarray, t: np.ndarray, velocity: float | np.ndarray
-                  ) -> np.ndarray:
+def slip_sideways(poses: FloatArray, t: FloatArray, velocity: float | FloatArray
+                  ) -> FloatArray:
     """
     Add a sideways drift: p + integral of v r(theta) ds, r = (sin theta, -cos theta).
 

@@ -12,13 +12,15 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from octoroach_model.arrays import FloatArray
+
 
 def t_multiplier(k: int, gamma: float) -> float:
     """Half-width of the prediction interval in units of the sample standard deviation."""
     return float(stats.t.ppf(0.5 * (1.0 + gamma), df=k - 1) * np.sqrt(1.0 + 1.0 / k))
 
 
-def prediction_region(samples: np.ndarray, gamma: float) -> tuple[np.ndarray, np.ndarray]:
+def prediction_region(samples: FloatArray, gamma: float) -> tuple[FloatArray, FloatArray]:
     """
     Centre and half-width of the region.
 
@@ -31,7 +33,7 @@ def prediction_region(samples: np.ndarray, gamma: float) -> tuple[np.ndarray, np
     return centre, t_multiplier(k, gamma) * spread
 
 
-def violations(model_runs: np.ndarray, centre: np.ndarray, half_width: np.ndarray) -> np.ndarray:
+def violations(model_runs: FloatArray, centre: FloatArray, half_width: FloatArray) -> FloatArray:
     """
     Decide g for each model run: 1 if it leaves its region anywhere.
 
