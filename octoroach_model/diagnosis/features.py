@@ -80,7 +80,20 @@ RESOLUTION_NOISE_M2 = 70.0 * MEDIAN_CHI2_1 * POSITION_RESOLUTION_M ** 2
 
 
 def noise_variance_m2(log_noise: FloatArray) -> FloatArray:
-    """Position noise variance (m^2) beyond the resolution, per run (the inverse of log_noise)."""
+    """
+    Position noise variance (m^2) beyond the resolution, per run (the inverse of log_noise).
+
+    Parameters
+    ----------
+    log_noise : array, shape (n,)
+        The log_noise feature.
+
+    Returns
+    -------
+    array, shape (n,)
+        m^2.
+
+    """
     return (np.exp(log_noise) - RESOLUTION_NOISE_M2) / (70.0 * MEDIAN_CHI2_1)
 
 
@@ -90,8 +103,24 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     """
     (n, len(FEATURES)) features of each run; see the module table.
 
-    `positions` (n,): each run's place in the recording (default 0); `wobble_hz`: where the
-    heading's wobble is measured (default: not measured, 0).
+    Parameters
+    ----------
+    paths : Paths
+        The runs.
+    stride_frequency : float
+        Hz.
+    reference_heading : float
+        rad.
+    positions : array, shape (n,), or None
+        Each run's place in the recording, 0..1 (default 0).
+    wobble_hz : float or None
+        Where the heading's wobble is measured, Hz (default: not measured, 0).
+
+    Returns
+    -------
+    array, shape (n, len(FEATURES))
+        In the units of the module table (columns by `INDEX`).
+
     """
     t, poses = paths.t, paths.poses
     n = poses.shape[0]
@@ -159,13 +188,47 @@ def _stride_length_variance(xy: FloatArray, cycle: int) -> FloatArray:
 
 
 def wobble_amplitude(heading: FloatArray, t: FloatArray, frequency_hz: float) -> FloatArray:
-    """Amplitude (rad) of each run's heading at `frequency_hz`: trend removed, Hann window."""
+    """
+    Amplitude (rad) of each run's heading at `frequency_hz`: trend removed, Hann window.
+
+    Parameters
+    ----------
+    heading : array, shape (n, T)
+        rad, NaN after a run's end.
+    t : array, shape (T,)
+        s.
+    frequency_hz : float
+        Hz.
+
+    Returns
+    -------
+    array, shape (n,)
+        rad.
+
+    """
     return heading_amplitudes(heading, t, np.array([frequency_hz]))[:, 0]
 
 
 def heading_amplitudes(heading: FloatArray, t: FloatArray, frequencies: FloatArray
                        ) -> FloatArray:
-    """(n, K) amplitude (rad) of each run's heading at each frequency (Hz), as above."""
+    """
+    (n, K) amplitude (rad) of each run's heading at each frequency (Hz), as above.
+
+    Parameters
+    ----------
+    heading : array, shape (n, T)
+        rad, NaN after a run's end.
+    t : array, shape (T,)
+        s.
+    frequencies : array, shape (K,)
+        Hz.
+
+    Returns
+    -------
+    array, shape (n, K)
+        rad.
+
+    """
     return _amplitudes(*windowed_sway(heading, t), t, frequencies)
 
 

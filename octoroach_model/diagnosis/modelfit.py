@@ -176,7 +176,7 @@ class RunData:
         return SwayTarget((amplitude, first, second), self.paths.t, self.lengths)
 
     @property
-    def lengths(self) -> FloatArray:
+    def lengths(self) -> IntArray:
         return self.paths.lengths
 
     @property
@@ -226,19 +226,19 @@ class Simulator:
     cache: dict[str, object] = field(default_factory=dict)
 
     def features(self, model: FittedModel, n_runs: int, purpose: int,
-                 effects: Effects | None = None, lengths: FloatArray | None = None
+                 effects: Effects | None = None, lengths: IntArray | None = None
                  ) -> FloatArray:
         """Features of `n_runs` runs of `model` for a purpose (its own random numbers)."""
         paths, positions = self.runs(model, n_runs, purpose, effects, lengths)
         return self.data.features_of(paths, positions)
 
     def paths(self, model: FittedModel, n_runs: int, purpose: int,
-              effects: Effects | None = None, lengths: FloatArray | None = None) -> Paths:
+              effects: Effects | None = None, lengths: IntArray | None = None) -> Paths:
         """`n_runs` runs of `model`, cut to lengths drawn from the data's."""
         return self.runs(model, n_runs, purpose, effects, lengths)[0]
 
     def runs(self, model: FittedModel, n_runs: int, purpose: int,
-             effects: Effects | None = None, lengths: FloatArray | None = None
+             effects: Effects | None = None, lengths: IntArray | None = None
              ) -> tuple[Paths, FloatArray]:
         """
         Return runs of `model` and each one's place in the recording.

@@ -33,7 +33,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from octoroach_model.arrays import FloatArray
+from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.features import INDEX, OUTCOMES, RESOLUTION
 
 ENERGY_FRACTIONS = (0.2, 0.4, 0.6, 0.8, 1.0)
@@ -52,7 +52,20 @@ class Scores:
 
 
 def feature_scales(calibration_features: FloatArray) -> FloatArray:
-    """Each feature's spread over the calibration runs (never below its resolution)."""
+    """
+    Each feature's spread over the calibration runs (never below its resolution).
+
+    Parameters
+    ----------
+    calibration_features : array, shape (n, F)
+        Run features in SI units (`features.run_features`).
+
+    Returns
+    -------
+    array, shape (F,)
+        Spreads, in the features' units.
+
+    """
     scales: FloatArray = np.maximum(np.std(calibration_features, axis=0, ddof=1), RESOLUTION)
     return scales
 
@@ -66,6 +79,21 @@ def feature_log_score(sample: FloatArray, observed: FloatArray, by_position: boo
     never below FLOOR, the distance never beyond CAP spreads); columns in data spreads.
     `by_position`: the mean and spread are those of the sample's least-squares line against
     the position column, taken at each observed row's position (module docstring).
+
+    Parameters
+    ----------
+    sample : array, shape (m, F)
+        Simulated runs' features, in data spreads.
+    observed : array, shape (n, F)
+        Held-out runs' features, in data spreads.
+    by_position : bool
+        Condition on the position column (module docstring).
+
+    Returns
+    -------
+    array, shape (n,)
+        Log score of each observed run, nats.
+
     """
     outcomes, observed_outcomes = sample[:, OUTCOMES], observed[:, OUTCOMES]
     if by_position:
@@ -86,7 +114,22 @@ def feature_log_score(sample: FloatArray, observed: FloatArray, by_position: boo
 
 
 def energy_score(sample: FloatArray, observed: FloatArray) -> FloatArray:
-    """Energy score of each observed row against the sample rows (lower is better)."""
+    """
+    Energy score of each observed row against the sample rows (lower is better).
+
+    Parameters
+    ----------
+    sample : array, shape (m, P)
+        Simulated runs' points, cm.
+    observed : array, shape (n, P)
+        Held-out runs' points, cm.
+
+    Returns
+    -------
+    array, shape (n,)
+        Energy score of each observed run, cm.
+
+    """
     distances = np.sqrt(((sample[None, :, :] - observed[:, None, :]) ** 2).sum(axis=-1))
     to_observed = distances.mean(axis=1)
     pairs = sample[:PAIR_RUNS]
@@ -96,11 +139,22 @@ def energy_score(sample: FloatArray, observed: FloatArray) -> FloatArray:
     return energy
 
 
-def position_points_cm(positions: FloatArray, lengths: FloatArray) -> FloatArray:
+def position_points_cm(positions: FloatArray, lengths: IntArray) -> FloatArray:
     """
-    Return positions (cm) at fractions of each run's duration.
+    Return positions (cm) at fractions of each run's duration, relative to the run's start.
 
-    Shape (n, 2 x len(ENERGY_FRACTIONS)), relative to the run's start.
+    Parameters
+    ----------
+    positions : array, shape (n, T, 2)
+        x, y, m (NaN after a run's end).
+    lengths : array of int, shape (n,)
+        Samples of each run.
+
+    Returns
+    -------
+    array, shape (n, 2 len(ENERGY_FRACTIONS))
+        Points, cm.
+
     """
     rows = np.arange(positions.shape[0])
     last = np.maximum(lengths - 1, 0)
@@ -112,7 +166,21 @@ def position_points_cm(positions: FloatArray, lengths: FloatArray) -> FloatArray
 def score_model(model_features: FloatArray, model_points_cm: FloatArray,
                 observed_features: FloatArray, observed_points_cm: FloatArray,
                 scales: FloatArray, by_position: bool = False) -> Scores:
-    """Scores of the observed (held-out) runs under a model's simulated runs."""
+    """
+    Scores of the observed (held-out) runs under a model's simulated runs.
+
+    Parameters
+    ----------
+    model_features, observed_features : arrays, shapes (m, F) and (n, F)
+        Run features, SI units.
+    model_points_cm, observed_points_cm : arrays, shapes (m, P) and (n, P)
+        `position_points_cm`, cm.
+    scales : array, shape (F,)
+        `feature_scales`.
+    by_position : bool
+        As in `feature_log_score`.
+
+    """
     return Scores(feature_log_score(model_features / scales, observed_features / scales,
                                     by_position),
                   energy_score(model_points_cm, observed_points_cm))

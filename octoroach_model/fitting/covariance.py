@@ -24,6 +24,12 @@ def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: FloatArra
     `target` is what the fit matched, `data_sway` (n, 3) each measured run's sway (its mean
     the sway target), `mean` the fit's simulated runs (with the sway matched), `seed` that
     of the resamples.
+
+    Returns
+    -------
+    measured, simulated : arrays, shape (p, p)
+        Covariances of the fit's p parameters (the fit's vector's units).
+
     """
     assert fit.jacobian is not None, 'a fit by least squares has its Jacobian'
     pseudo_inverse = np.linalg.pinv(fit.jacobian)

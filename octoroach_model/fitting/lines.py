@@ -41,6 +41,18 @@ def paired_relative_se(statistic: Statistic, without: FloatArray, with_cause: Fl
     Return the relative error of S(with) - S(without) on the same simulated runs.
 
     Runs are resampled in pairs: run i of both sets shares its random numbers.
+
+    Parameters
+    ----------
+    statistic : function of an (n, F) array
+        S.
+    without, with_cause : arrays, shape (n, F)
+        Features of the same simulated runs without and with the cause.
+    rng : numpy Generator
+        Draws the resamples.
+    n_boot : int
+        Resamples.
+
     """
     n = min(without.shape[0], with_cause.shape[0])
     difference = statistic(with_cause[:n]) - statistic(without[:n])
@@ -55,7 +67,21 @@ def paired_relative_se(statistic: Statistic, without: FloatArray, with_cause: Fl
 
 def bootstrap_se(statistic: Statistic, features: FloatArray, rng: np.random.Generator,
                  n_boot: int) -> float:
-    """Return the standard error of `statistic` over the runs (rows) of `features`."""
+    """
+    Return the standard error of `statistic` over the runs (rows) of `features`.
+
+    Parameters
+    ----------
+    statistic : function of an (n, F) array
+        The statistic.
+    features : array, shape (n, F)
+        Run features, SI units.
+    rng : numpy Generator
+        Draws the resamples.
+    n_boot : int
+        Resamples.
+
+    """
     n = features.shape[0]
     values = [statistic(features[rng.integers(0, n, n)]) for _ in range(n_boot)]
     return float(np.std(values, ddof=1))

@@ -39,7 +39,6 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 import math
-from typing import Any
 
 import numpy as np
 from scipy import optimize
@@ -152,13 +151,32 @@ class NominalFitSettings:
 
 
 def simulated_runs(parameters: ModelParameters, start_pose: tuple[float, float, float],
-                   t: FloatArray,
-                   effects: Mapping[str, Any] | None, settings: MeanPathSettings) -> FloatArray:
+                   t: FloatArray, effects: Mapping[str, Mapping[str, float]] | None,
+                   settings: MeanPathSettings) -> FloatArray:
     """
     Simulate the (runs, T, 3) runs of a mean path.
 
     Common random numbers, drawn in antithetic pairs so that their mean has no random tilt of
     its own.
+
+    Parameters
+    ----------
+    parameters : ModelParameters
+        The geometry.
+    start_pose : tuple of 3 floats
+        x (m), y (m), heading (rad).
+    t : array, shape (T,)
+        s.
+    effects : {cause: {parameter: value}} or None
+        Effects in the model.
+    settings : MeanPathSettings
+        Runs, spreads and seed.
+
+    Returns
+    -------
+    array, shape (settings.runs, T, 3)
+        x (m), y (m), heading (rad).
+
     """
     runs: FloatArray = model_poses(parameters, RandomStreams(settings.seed, antithetic=True),
                                    settings.runs, t, settings.sigmas[0], settings.sigmas[1],
@@ -168,8 +186,22 @@ def simulated_runs(parameters: ModelParameters, start_pose: tuple[float, float, 
 
 def deterministic_path(parameters: ModelParameters, start_pose: tuple[float, float, float],
                        t: FloatArray,
-                       effects: Mapping[str, Any] | None = None) -> FloatArray:
-    """(T, 3) pose of the model with every angle at its nominal value."""
+                       effects: Mapping[str, Mapping[str, float]] | None = None) -> FloatArray:
+    """
+    (T, 3) pose of the model with every angle at its nominal value.
+
+    Parameters
+    ----------
+    parameters : ModelParameters
+        The geometry.
+    start_pose : tuple of 3 floats
+        x (m), y (m), heading (rad).
+    t : array, shape (T,)
+        s.
+    effects : {cause: {parameter: value}} or None
+        Effects in the model.
+
+    """
     if effects:
         path: FloatArray = model_poses(parameters, RandomStreams(0), 1, t, 0.0, 0.0, 'stance',
                                        effects, None, start_pose)[0]
@@ -183,7 +215,19 @@ def deterministic_path(parameters: ModelParameters, start_pose: tuple[float, flo
 
 
 def stride_frequency_guess(average_path: FloatArray, t: FloatArray, fallback: float) -> float:
-    """Half the dominant frequency of the average speed (one speed peak per stance)."""
+    """
+    Half the dominant frequency of the average speed (one speed peak per stance).
+
+    Parameters
+    ----------
+    average_path : array, shape (G, 2)
+        m.
+    t : array, shape (G,)
+        s.
+    fallback : float
+        Hz, where no peak is found.
+
+    """
     if len(t) < 16:
         return fallback
     dt = float(t[1] - t[0])
@@ -319,7 +363,17 @@ class NominalProblem:
 
 
 def solve(problem: NominalProblem, start: FloatArray) -> optimize.OptimizeResult:
-    """Run least squares from `start`: in one stage with `refine`, else in two."""
+    """
+    Run least squares from `start`: in one stage with `refine`, else in two.
+
+    Parameters
+    ----------
+    problem : NominalProblem
+        What is fitted.
+    start : array, shape (p,)
+        The fit's vector (geometry, frequency, free effects).
+
+    """
     lower, upper, x_scale = problem.bounds()
     tolerance = problem.settings.tolerance
     if problem.settings.refine:
@@ -359,7 +413,21 @@ def two_stage_least_squares(residuals: Callable[[FloatArray], FloatArray], start
                             lower: Sequence[float], upper: Sequence[float],
                             x_scale: Sequence[float], tolerance: float = 1e-8
                             ) -> optimize.OptimizeResult:
-    """Least squares with the stride frequency (index FREQUENCY) held first, then released."""
+    """
+    Least squares with the stride frequency (index FREQUENCY) held first, then released.
+
+    Parameters
+    ----------
+    residuals : function of an array of shape (p,)
+        Returns the residual vector.
+    start : array, shape (p,)
+        Where the search starts.
+    lower, upper, x_scale : sequences of p floats
+        Bounds and scales of the vector's entries.
+    tolerance : float
+        ftol and xtol of least_squares.
+
+    """
     frequency = start[FREQUENCY]
     free = [i for i in range(len(start)) if i != FREQUENCY]
 

@@ -32,7 +32,7 @@ class SwayTarget:
 
     values: tuple[float, float, float]
     t: FloatArray
-    lengths: FloatArray
+    lengths: IntArray
 
     def of_runs(self, runs: FloatArray, guess_hz: float) -> FloatArray:
         """Return the (runs, 3) sway of simulated runs on `t`, cut like the data's runs."""
@@ -68,6 +68,25 @@ def residual_vector(path_gap: FloatArray, turn_gap: FloatArray | None,
 
     In standard errors with `scales`, else in cm (heading through `heading_weight_m`, sway
     through `sway_weights`).
+
+    Parameters
+    ----------
+    path_gap : array, shape (G, 2)
+        Model minus data average path, m.
+    turn_gap : array, shape (G,), or None
+        Heading change gap, rad.
+    sway_gap : array, shape (3,), or None
+        Sway gap (rad, m, m).
+    heading_weight_m : float
+        m per rad of heading, without `scales`.
+    scales : ResidualScales or None
+        Standard errors of the gaps.
+
+    Returns
+    -------
+    array, shape (2 G,), plus G with `turn_gap`, plus 3 with `sway_gap`
+        The parts given, flattened in that order.
+
     """
     if scales is not None:
         parts = [(path_gap / scales.path).ravel()]
@@ -93,6 +112,12 @@ def sway_weights(heading_weight_m: float, samples: int) -> FloatArray:
     outweighs the sway and the fitted angles leave the heading sway several standard errors
     off on robots away from Table II; at 5 it is matched within its error (and the angles
     come closer to the truth).
+
+    Returns
+    -------
+    array, shape (3,)
+        Of the heading sway (m per rad), then of the two sideways sways (m per m).
+
     """
     return np.array([max(heading_weight_m, 0.0), 1.0, 1.0]) * SWAY_WEIGHT * math.sqrt(samples)
 

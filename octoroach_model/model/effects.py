@@ -91,6 +91,25 @@ def warped_time(effects: Effects, t: FloatArray, n_runs: int,
     multiply), then each run's gait_frequency_variation and run-order stretch scale the
     result: clock = (1 + e) (t - fraction t^2 / (2 T)). `positions` (n,): each run's place in
     the recording (extensions.py).
+
+    Parameters
+    ----------
+    effects : {name: {parameter: value}}
+        Checked effects.
+    t : array, shape (T,)
+        Sample times, s.
+    n_runs : int
+        n.
+    rngs : {name: NormalSource}
+        Each term's stream.
+    positions : array, shape (n_runs,), or None
+        Places in the recording, 0..1.
+
+    Returns
+    -------
+    array, shape (n_runs, T)
+        Gait clock, s.
+
     """
     duration = float(t[-1]) if len(t) else 0.0
 
@@ -155,6 +174,27 @@ def apply_pose_effects(poses: FloatArray, t: FloatArray, effects: Effects,
     The extensions' heading perturbations come after persistent_turning (their sum turns
     heading and velocity together), their sideways drifts after lateral_slip. `positions`:
     each run's place in the recording; `phase`: the stance phase (n, T) or (T,).
+
+    Parameters
+    ----------
+    poses : array, shape (n, T, 3)
+        x (m), y (m), heading (rad).
+    t : array, shape (T,)
+        Sample times, s.
+    effects : {name: {parameter: value}}
+        Checked effects.
+    rngs : {name: NormalSource}
+        Each term's stream.
+    positions : array, shape (n,), or None
+        Places in the recording, 0..1.
+    phase : array, shape (n, T) or (T,), or None
+        Stance phase.
+
+    Returns
+    -------
+    array, shape (n, T, 3)
+        The poses with the effects, same units.
+
     """
     poses = poses.copy()
     n_runs = poses.shape[0]
@@ -188,7 +228,21 @@ def apply_pose_effects(poses: FloatArray, t: FloatArray, effects: Effects,
 
 
 def rotate_about_start(poses: FloatArray, dheading: FloatArray) -> FloatArray:
-    """Rotate each run by its own angle about its first position."""
+    """
+    Rotate each run by its own angle about its first position.
+
+    Parameters
+    ----------
+    poses : array, shape (n, T, 3)
+        x (m), y (m), heading (rad).
+    dheading : array, shape (n,)
+        Angle of each run, rad.
+
+    Returns
+    -------
+    array, shape (n, T, 3)
+
+    """
     start = poses[:, :1, :2]
     rel = poses[..., :2] - start
     cos_d, sin_d = (value[:, None] for value in cos_sin(dheading))
@@ -204,6 +258,20 @@ def turn_persistently(poses: FloatArray, t: FloatArray, yaw_rate: FloatArray) ->
     Turn each run at its rate w: theta + w t, p(0) + integral of R(w s) p_dot(s) ds.
 
     The integral is a sum over sample steps, each step rotated by w at its midpoint time.
+
+    Parameters
+    ----------
+    poses : array, shape (n, T, 3)
+        x (m), y (m), heading (rad).
+    t : array, shape (T,)
+        Sample times, s.
+    yaw_rate : array, shape (n,)
+        w, rad/s.
+
+    Returns
+    -------
+    array, shape (n, T, 3)
+
     """
     steps = np.diff(poses[..., :2], axis=1)
     mid_angle = yaw_rate[:, None] * 0.5 * (t[1:] + t[:-1])[None, :]
@@ -222,6 +290,18 @@ def perturb_heading(poses: FloatArray, perturbation: FloatArray) -> FloatArray:
 
     `perturbation` (n, T); each sample step is rotated by a at its midpoint (as
     turn_persistently, of which this is the general form).
+
+    Parameters
+    ----------
+    poses : array, shape (n, T, 3)
+        x (m), y (m), heading (rad).
+    perturbation : array, shape (n, T)
+        a(t), rad.
+
+    Returns
+    -------
+    array, shape (n, T, 3)
+
     """
     steps = np.diff(poses[..., :2], axis=1)
     mid_angle = 0.5 * (perturbation[:, 1:] + perturbation[:, :-1])
@@ -241,6 +321,20 @@ def slip_sideways(poses: FloatArray, t: FloatArray, velocity: float | FloatArray
 
     The integral follows the trapezoid rule on the sample times; `velocity` is one number or
     one per run, shaped (n, 1, 1).
+
+    Parameters
+    ----------
+    poses : array, shape (n, T, 3)
+        x (m), y (m), heading (rad).
+    t : array, shape (T,)
+        Sample times, s.
+    velocity : float or array, shape (n, 1, 1)
+        v, m/s.
+
+    Returns
+    -------
+    array, shape (n, T, 3)
+
     """
     heading = poses[..., 2]
     cos_h, sin_h = cos_sin(heading)

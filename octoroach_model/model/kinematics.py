@@ -25,7 +25,23 @@ Point = tuple[FloatArray, FloatArray]
 
 def feet_in_body(rear_angle: Floats, front_angle: Floats, mirror: Floats,
                  leg_length: float, hip_distance: float) -> tuple[Point, Point]:
-    """Rear and front foot positions (x, y) in the body frame; arrays broadcast."""
+    """
+    Rear and front foot positions (x, y) in the body frame; arrays broadcast.
+
+    Parameters
+    ----------
+    rear_angle, front_angle : float or array, any shapes that broadcast
+        Leg angles, rad.
+    mirror : float or array
+        +1 right pair, -1 left pair.
+    leg_length, hip_distance : float
+        l and d, m.
+
+    Returns
+    -------
+    rear, front : (x, y) pairs of arrays, the broadcast shape, m.
+
+    """
     half = 0.5 * hip_distance
     rear = (-mirror * leg_length * np.cos(rear_angle),
             -half + leg_length * np.sin(rear_angle))
@@ -44,6 +60,19 @@ def solve_front_angle(rear_angle: Floats, span: Floats, leg_length: float,
     reachable set (|c| > hypot(a, b)) the leg is held at the closest reachable angle and the
     front foot slides: at the Table III spreads this happens in about 0.3 % of right stances
     (about 3 % of 10-cycle runs touch it; docs/model.md, section 11), more at larger spreads.
+
+    Parameters
+    ----------
+    rear_angle, span, branch : float or array, any shapes that broadcast
+        Rear angle (rad), foot-to-foot distance a (m), root (+1 or -1).
+    leg_length, hip_distance : float
+        l and d, m.
+
+    Returns
+    -------
+    array, the broadcast shape
+        Front angle, rad.
+
     """
     # P = B - rear foot, seen in the pair's own (mirrored) frame: one equation for both.
     px = leg_length * np.cos(rear_angle)
@@ -62,6 +91,19 @@ def closure_branch(rear_angle: Floats, front_angle: Floats, leg_length: float,
 
     The closure is the same equation for both pairs once the left pair is mirrored, so the
     mirror sign does not enter here.
+
+    Parameters
+    ----------
+    rear_angle, front_angle : float or array, any shapes that broadcast
+        Touchdown angles, rad.
+    leg_length, hip_distance : float
+        l and d, m.
+
+    Returns
+    -------
+    array, the broadcast shape
+        +1.0 or -1.0.
+
     """
     px = leg_length * np.cos(rear_angle)
     py = hip_distance - leg_length * np.sin(rear_angle)
@@ -118,7 +160,20 @@ def stance_angles(nominal_angles: npt.ArrayLike, normals: FloatArray, sigma1: fl
     """
     Random angles xi = eta + diag(sigma1 I4, sigma2 I2) Y (eq. 11).
 
-    normals : (..., 6) standard normal draws Y. Returns (..., 6) angles in radians.
+    Parameters
+    ----------
+    nominal_angles : array_like, shape (6,)
+        eta, rad.
+    normals : array, shape (..., 6)
+        Standard normal draws Y.
+    sigma1, sigma2 : float
+        Spreads of the touchdown and the liftoff angles, rad.
+
+    Returns
+    -------
+    array, shape (..., 6)
+        Angles, rad.
+
     """
     scale = np.array([sigma1] * 4 + [sigma2] * 2, dtype=float)
     angles: FloatArray = np.asarray(nominal_angles, dtype=float) + normals * scale

@@ -165,8 +165,35 @@ def model_poses(parameters: ModelParameters, streams: RandomStreams, n_runs: int
     """
     (n, T, 3) poses; the array-level core of `simulate` (no validation of arguments).
 
-    `positions` (n,): each run's place in the recording, 0 (first) to 1 (last); default
-    i / (n - 1), the runs in the order drawn. Only the run-order terms read it.
+    Parameters
+    ----------
+    parameters : ModelParameters
+        Geometry, nominal angles, timing.
+    streams : RandomStreams
+        Every draw.
+    n_runs : int
+        n.
+    t : array, shape (T,)
+        Sample times, s.
+    sigma1, sigma2 : float
+        Spreads of the touchdown and liftoff angles, rad.
+    draws : {'stance', 'run'}
+        New angles at every stance or once per run.
+    effects : {name: {parameter: value}} or None
+        Checked effects.
+    cycles : float or None
+        Gait cycles drawn for (default: t's span).
+    start_pose : sequence of 3 floats
+        x (m), y (m), heading (rad).
+    positions : array, shape (n_runs,), or None
+        Each run's place in the recording, 0 (first) to 1 (last), read by the run-order
+        terms only; default i / (n - 1), the runs in the order drawn.
+
+    Returns
+    -------
+    array, shape (n_runs, T, 3)
+        x (m), y (m), heading (rad).
+
     """
     effects = effects or {}
     positions = positions_in_order(n_runs) if positions is None else positions

@@ -17,7 +17,15 @@ def chernoff_sample_size(epsilon: float, delta: float) -> int:
 
 
 def disjoint_multisamples(n_runs: int, n: int, k: int, rng: np.random.Generator) -> IntArray:
-    """(n, k) run indices: a random grouping of distinct runs, no run in two groups."""
+    """
+    (n, k) run indices: a random grouping of distinct runs, no run in two groups.
+
+    Returns
+    -------
+    array of int, shape (n, k)
+        Run indices in 0..n_runs-1.
+
+    """
     if k < 2:
         raise ParameterError(f'k must be at least 2 for a spread estimate, got {k}')
     needed = n * k

@@ -24,8 +24,18 @@ def prediction_region(samples: FloatArray, gamma: float) -> tuple[FloatArray, Fl
     """
     Centre and half-width of the region.
 
-    samples : (..., k, T, C) measured runs of each multisample (C coordinates).
-    Returns centre and half-width, each (..., T, C).
+    Parameters
+    ----------
+    samples : array, shape (..., k, T, C)
+        Measured runs of each multisample (C coordinates, m).
+    gamma : float
+        Coverage of the region, in (0, 1).
+
+    Returns
+    -------
+    centre, half_width : arrays, shape (..., T, C)
+        In the units of `samples`.
+
     """
     k = samples.shape[-3]
     centre = samples.mean(axis=-3)
@@ -37,7 +47,18 @@ def violations(model_runs: FloatArray, centre: FloatArray, half_width: FloatArra
     """
     Decide g for each model run: 1 if it leaves its region anywhere.
 
-    model_runs: (..., T, C), centre and half_width broadcastable to it.
+    Parameters
+    ----------
+    model_runs : array, shape (..., T, C)
+        Model runs, in the units of the region.
+    centre, half_width : arrays, broadcastable to (..., T, C)
+        `prediction_region`.
+
+    Returns
+    -------
+    array, shape (...,)
+        1.0 where a run leaves its region, else 0.0.
+
     """
     outside = np.abs(model_runs - centre) > half_width
     return outside.any(axis=(-2, -1)).astype(float)
