@@ -57,6 +57,7 @@ from enum import StrEnum
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.features import (
     INDEX, noise_variance_m2, POSITION_RESOLUTION_M)
 from octoroach_model.model import EFFECT_NAMES, EFFECT_PARAMETERS
@@ -115,12 +116,12 @@ class Cause:
     unit: str
     kind: EstimateKind
     statistic_name: str
-    statistic: Callable[[np.ndarray], float] | None
+    statistic: Callable[[FloatArray], float] | None
     reference: float
     floor: Callable[[RunScale], float]
     signed: bool = False
     bounds: tuple[float, float] = (0.0, 1.0)    # sizes a fit may take (path causes)
-    signature: Callable[[np.ndarray], float] | None = None   # path causes: where to start
+    signature: Callable[[FloatArray], float] | None = None   # path causes: where to start
     family: str = ''
     main: str = ''                              # main parameter (default: the term's first)
     null: float = 0.0
@@ -150,17 +151,17 @@ class Cause:
         return {self.name: {self.parameter: float(size)}}
 
 
-def _variance_of(column: str) -> Callable[[np.ndarray], float]:
+def _variance_of(column: str) -> Callable[[FloatArray], float]:
     index = INDEX[column]
     return lambda features: float(np.var(features[:, index], ddof=1))
 
 
-def _mean_of(column: str) -> Callable[[np.ndarray], float]:
+def _mean_of(column: str) -> Callable[[FloatArray], float]:
     index = INDEX[column]
     return lambda features: float(np.mean(features[:, index]))
 
 
-def _noise_variance(features: np.ndarray) -> float:
+def _noise_variance(features: FloatArray) -> float:
     """Position noise variance (m^2) read from the median 4th differences (module features)."""
     return float(np.mean(noise_variance_m2(features[:, INDEX['log_noise']])))
 
@@ -190,18 +191,18 @@ CAUSES: tuple[Cause, ...] = (
 )
 
 
-def _trend_of(column: str) -> Callable[[np.ndarray], float]:
+def _trend_of(column: str) -> Callable[[FloatArray], float]:
     """Return the least-squares slope of a feature against the run's place in the recording."""
     index, place = INDEX[column], INDEX['position']
 
-    def slope(features: np.ndarray) -> float:
+    def slope(features: FloatArray) -> float:
         x = features[:, place] - features[:, place].mean()
         denominator = float(x @ x)
         return float(x @ features[:, index]) / denominator if denominator > 0 else 0.0
     return slope
 
 
-def _mean_exp_of(column: str) -> Callable[[np.ndarray], float]:
+def _mean_exp_of(column: str) -> Callable[[FloatArray], float]:
     index = INDEX[column]
     return lambda features: float(np.mean(np.exp(features[:, index])))
 

@@ -20,7 +20,7 @@ Method (docs/diagnosis.md has it in full):
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 import math
@@ -29,6 +29,7 @@ import time
 import numpy as np
 from scipy import stats
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.causes import (
     BY_NAME, CANDIDATES, Cause, CAUSES, EstimateKind, FAMILIES, MIXTURE_FRACTION,
     periodic_limit_hz, RunScale)
@@ -116,8 +117,8 @@ class _Halves:
     every: RunData
     train: RunData
     test: RunData
-    scales: np.ndarray
-    test_points_cm: np.ndarray
+    scales: FloatArray
+    test_points_cm: FloatArray
     ideal: Scores
     run_scale: RunScale
 
@@ -254,7 +255,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     return report
 
 
-def _places(halves: _Halves) -> np.ndarray:
+def _places(halves: _Halves) -> FloatArray:
     """Return every run's place in the recording (RunData always sets them)."""
     places = halves.every.positions
     assert places is not None, 'RunData sets its places'
@@ -394,11 +395,12 @@ def choose_wobble_hz(train: RunData, baseline: FittedModel, settings: DiagnosisS
     return chosen, (float(min(low, chosen)), float(max(high, chosen)))
 
 
-def _excess(data: np.ndarray, model: np.ndarray) -> np.ndarray:
+def _excess(data: FloatArray, model: FloatArray) -> FloatArray:
     """Mean of each column of `data` above `model`'s, in standard errors."""
     error = np.sqrt(data.var(axis=0, ddof=1) / len(data) + model.var(axis=0, ddof=1)
                     / len(model))
-    return (data.mean(axis=0) - model.mean(axis=0)) / np.maximum(error, 1e-300)
+    excess: FloatArray = (data.mean(axis=0) - model.mean(axis=0)) / np.maximum(error, 1e-300)
+    return excess
 
 
 def _baseline(halves: _Halves, settings: DiagnosisSettings,
@@ -454,7 +456,7 @@ class Evaluation:
 
     cause: str
     model: FittedModel
-    estimates: dict
+    estimates: dict[str, SizeEstimate]
     scores: Scores
     gain: PairedGain
     gain_cm: float
@@ -585,9 +587,9 @@ def candidate_result(evaluation: Evaluation, verdict: SizeVerdict, step: int,
     MIXTURE_FRACTION's runs.
     """
     cause = BY_NAME[evaluation.cause]
-    values = dict(evaluation.model.effects[evaluation.cause])
-    if cause.is_extension:
-        values = family_form(evaluation.cause, values)[1]
+    effect = evaluation.model.effects[evaluation.cause]
+    values: dict[str, float | str] = (family_form(evaluation.cause, effect)[1]
+                                      if cause.is_extension else dict(effect))
     limit = verdict.limit
     if cause.kind == EstimateKind.MIXTURE and limit is not None:
         limit /= math.sqrt(MIXTURE_FRACTION * (1 - MIXTURE_FRACTION))
@@ -627,9 +629,9 @@ def _rival(chosen: Evaluation, eligible: list[Evaluation], alpha: float) -> Riva
     if p_two_sided < alpha:
         return None
     cause = BY_NAME[other.cause]
-    values = dict(other.model.effects[other.cause])
-    if cause.is_extension:
-        values = family_form(other.cause, values)[1]
+    effect = other.model.effects[other.cause]
+    values: dict[str, float | str] = (family_form(other.cause, effect)[1]
+                                      if cause.is_extension else dict(effect))
     return Rival(other.cause, cause.label, values, other.gain.mean, p_two_sided)
 
 
@@ -650,7 +652,7 @@ def _step_message(result: StepResult) -> str:
 def fit_errors(simulator: Simulator, model: FittedModel,
                uncertainty: GeometryUncertainty | None, n_runs: int,
                data_share: float = 1.0, independent: Sequence[FittedModel] = ()
-               ) -> np.ndarray | None:
+               ) -> FloatArray | None:
     """
     Return each statistic's error from the model's fitted parameters.
 
@@ -665,7 +667,7 @@ def fit_errors(simulator: Simulator, model: FittedModel,
         return None
     base = statistic_values(simulator.features(model, n_runs, DISCREPANCY_PURPOSE))
 
-    def change(moved: FittedModel) -> np.ndarray:
+    def change(moved: FittedModel) -> FloatArray:
         return statistic_values(simulator.features(moved, n_runs, DISCREPANCY_PURPOSE)) - base
 
     variance = np.zeros_like(base)
@@ -715,7 +717,7 @@ def independent_moves(simulator: Simulator, fit: CausesFit, halves: _Halves,
 
 def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
            seen: CandidateResult, settings: DiagnosisSettings,
-           base: np.ndarray | None = None) -> Limit:
+           base: FloatArray | None = None) -> Limit:
     """
     Compute a cause's detection limit against `model` without it (a pool task).
 
@@ -796,7 +798,8 @@ def _pruned(fit: CausesFit, halves: _Halves, settings: DiagnosisSettings
         fit = fit_causes(halves.every, start, start.causes, settings.fit(1))
 
 
-def _named(steps, final: FittedModel, estimates: dict, halves: _Halves,
+def _named(steps: Sequence[StepResult], final: FittedModel,
+           estimates: Mapping[str, SizeEstimate], halves: _Halves,
            settings: DiagnosisSettings) -> tuple[list[NamedCause], list[NamedExtension]]:
     """Return the named causes of the table and the named extensions, refit on all runs."""
     causes, extensions = [], []
@@ -823,9 +826,9 @@ def _named(steps, final: FittedModel, estimates: dict, halves: _Halves,
     return causes, extensions
 
 
-def extension_intervals(cause: Cause, values: dict, estimate: SizeEstimate | None,
-                        verdict, entry: CandidateResult, halves: _Halves
-                        ) -> tuple[dict, dict]:
+def extension_intervals(cause: Cause, values: Mapping[str, float], estimate: SizeEstimate | None,
+                        verdict: SizeVerdict | None, entry: CandidateResult, halves: _Halves
+                        ) -> tuple[dict[str, list[float]], dict[str, float]]:
     """
     Return the 95 % interval and standard error of each fitted parameter of an extension.
 

@@ -24,6 +24,7 @@ import math
 import numpy as np
 from scipy import stats
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.features import INDEX, noise_variance_m2
 
 DEG = 180.0 / math.pi
@@ -52,75 +53,75 @@ class Statistic:
 
     name: str
     unit: str
-    function: Callable[[np.ndarray], float]
+    function: Callable[[FloatArray], float]
     resolution: float
     kind: Materiality
     material: float = 0.1
     feature: str = ''
 
 
-def _std(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+def _std(column: str, scale: float = 1.0) -> Callable[[FloatArray], float]:
     index = INDEX[column]
     return lambda f: float(np.std(f[:, index], ddof=1) * scale)
 
 
-def _mean(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+def _mean(column: str, scale: float = 1.0) -> Callable[[FloatArray], float]:
     index = INDEX[column]
     return lambda f: float(np.mean(f[:, index]) * scale)
 
 
-def _start_position_spread_cm(f: np.ndarray) -> float:
+def _start_position_spread_cm(f: FloatArray) -> float:
     return float(np.sqrt(0.5 * (f[:, INDEX['start_x']].var(ddof=1)
                                 + f[:, INDEX['start_y']].var(ddof=1))) * 100)
 
 
-def _noise_cm(f: np.ndarray) -> float:
+def _noise_cm(f: FloatArray) -> float:
     return float(np.sqrt(max(float(np.mean(noise_variance_m2(f[:, INDEX['log_noise']]))), 0.0))
                  * 100)
 
 
-def _trend(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+def _trend(column: str, scale: float = 1.0) -> Callable[[FloatArray], float]:
     """Return the change of a feature from the first run to the last (least squares)."""
     index, place = INDEX[column], INDEX['position']
 
-    def change(f: np.ndarray) -> float:
+    def change(f: FloatArray) -> float:
         x = f[:, place] - f[:, place].mean()
         denominator = float(x @ x)
         return float(x @ f[:, index]) / denominator * scale if denominator > 0 else 0.0
     return change
 
 
-def _rms(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+def _rms(column: str, scale: float = 1.0) -> Callable[[FloatArray], float]:
     """Return the root of the mean of exp(feature): an amplitude from its log square."""
     index = INDEX[column]
     return lambda f: float(np.sqrt(np.mean(np.exp(f[:, index]))) * scale)
 
 
-def _root_mean(column: str, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+def _root_mean(column: str, scale: float = 1.0) -> Callable[[FloatArray], float]:
     index = INDEX[column]
-    return lambda f: float(np.sqrt(max(np.mean(f[:, index]), 0.0)) * scale)
+    return lambda f: float(np.sqrt(max(float(np.mean(f[:, index])), 0.0)) * scale)
 
 
-def _kurtosis(column: str) -> Callable[[np.ndarray], float]:
+def _kurtosis(column: str) -> Callable[[FloatArray], float]:
     """Excess kurtosis across runs: two groups of runs make it negative, heavy tails positive."""
     index = INDEX[column]
 
-    def kurtosis(f: np.ndarray) -> float:
+    def kurtosis(f: FloatArray) -> float:
         values = f[:, index] - f[:, index].mean()
         variance = float(np.mean(values ** 2))
         return float(np.mean(values ** 4)) / variance ** 2 - 3.0 if variance > 0 else 0.0
     return kurtosis
 
 
-def _growth_exponent(f: np.ndarray) -> float:
+def _growth_exponent(f: FloatArray) -> float:
     """
     Return the slope of log(lateral spread) against log(time).
 
     Fitted from a quarter of the run to its end: about 1
     for a fixed heading error, 1.5 for a random-walk heading, 2 for steady turning.
     """
-    late = np.std(f[:, INDEX['end_lateral']], ddof=1)
-    early = np.std(f[:, INDEX['quarter_lateral']], ddof=1)
+    late = float(np.std(f[:, INDEX['end_lateral']], ddof=1))
+    early = float(np.std(f[:, INDEX['quarter_lateral']], ddof=1))
     return float(math.log(max(late, 1e-12) / max(early, 1e-12)) / math.log(4.0))
 
 
@@ -195,8 +196,8 @@ class Discrepancy:
         return self.data - self.model
 
 
-def values_with_errors(features: np.ndarray, rng: np.random.Generator, n_boot: int
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def values_with_errors(features: FloatArray, rng: np.random.Generator, n_boot: int
+                       ) -> tuple[FloatArray, FloatArray]:
     """Every statistic's value and bootstrap standard error over runs."""
     values = statistic_values(features)
     n = features.shape[0]
@@ -205,14 +206,14 @@ def values_with_errors(features: np.ndarray, rng: np.random.Generator, n_boot: i
     return values, np.std(boot, axis=0, ddof=1)
 
 
-def statistic_values(features: np.ndarray) -> np.ndarray:
+def statistic_values(features: FloatArray) -> FloatArray:
     """Every statistic of STATISTICS, in order."""
     return np.array([s.function(features) for s in STATISTICS])
 
 
-def discrepancies(data_features: np.ndarray, model_features: np.ndarray,
+def discrepancies(data_features: FloatArray, model_features: FloatArray,
                   rng: np.random.Generator, n_boot: int,
-                  fit_se: np.ndarray | None = None) -> list[Discrepancy]:
+                  fit_se: FloatArray | None = None) -> list[Discrepancy]:
     """
     Every statistic of data against model, largest |z| first.
 
@@ -241,7 +242,7 @@ def discrepancies(data_features: np.ndarray, model_features: np.ndarray,
 
 
 def _material(statistic: Statistic, difference: float, value: float,
-              features: np.ndarray) -> bool:
+              features: FloatArray) -> bool:
     if statistic.kind == MEAN:
         spread = float(np.std(features[:, INDEX[statistic.feature]], ddof=1))
         scale = spread * _unit_factor(statistic)

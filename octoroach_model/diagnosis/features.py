@@ -53,6 +53,7 @@ import warnings
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.fitting.gait import (
     heading_sway, lateral_sway, valid_mask, windowed_sway)
 from octoroach_model.paths import Paths
@@ -78,19 +79,48 @@ POSITION_RESOLUTION_M = 1e-4     # what motion capture resolves; no size below i
 RESOLUTION_NOISE_M2 = 70.0 * MEDIAN_CHI2_1 * POSITION_RESOLUTION_M ** 2
 
 
-def noise_variance_m2(log_noise: np.ndarray) -> np.ndarray:
-    """Position noise variance (m^2) beyond the resolution, per run (the inverse of log_noise)."""
+def noise_variance_m2(log_noise: FloatArray) -> FloatArray:
+    """
+    Position noise variance (m^2) beyond the resolution, per run (the inverse of log_noise).
+
+    Parameters
+    ----------
+    log_noise : array, shape (n,)
+        The log_noise feature.
+
+    Returns
+    -------
+    array, shape (n,)
+        m^2.
+
+    """
     return (np.exp(log_noise) - RESOLUTION_NOISE_M2) / (70.0 * MEDIAN_CHI2_1)
 
 
 def run_features(paths: Paths, stride_frequency: float, reference_heading: float,
-                 positions: np.ndarray | None = None, wobble_hz: float | None = None
-                 ) -> np.ndarray:
+                 positions: FloatArray | None = None, wobble_hz: float | None = None
+                 ) -> FloatArray:
     """
     (n, len(FEATURES)) features of each run; see the module table.
 
-    `positions` (n,): each run's place in the recording (default 0); `wobble_hz`: where the
-    heading's wobble is measured (default: not measured, 0).
+    Parameters
+    ----------
+    paths : Paths
+        The runs.
+    stride_frequency : float
+        Hz.
+    reference_heading : float
+        rad.
+    positions : array, shape (n,), or None
+        Each run's place in the recording, 0..1 (default 0).
+    wobble_hz : float or None
+        Where the heading's wobble is measured, Hz (default: not measured, 0).
+
+    Returns
+    -------
+    array, shape (n, len(FEATURES))
+        In the units of the module table (columns by `INDEX`).
+
     """
     t, poses = paths.t, paths.poses
     n = poses.shape[0]
@@ -100,7 +130,7 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     last = np.maximum(lengths - 1, 0)
     rows = np.arange(n)
     complete = bool(lengths.min() == len(t))
-    values: dict[str, np.ndarray | float] = {'start_heading': heading[:, 0],
+    values: dict[str, FloatArray | float] = {'start_heading': heading[:, 0],
                                              'start_x': xy[:, 0, 0], 'start_y': xy[:, 0, 1]}
     fourth = np.diff(xy, n=4, axis=1) ** 2
     median = np.median(fourth, axis=(1, 2)) if complete else _nanmedian_rows(fourth)
@@ -142,11 +172,11 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     return out
 
 
-def _log_ratio(numerator: np.ndarray, denominator: np.ndarray) -> np.ndarray:
+def _log_ratio(numerator: FloatArray, denominator: FloatArray) -> FloatArray:
     return np.log(np.maximum(numerator, 1e-9) / np.maximum(denominator, 1e-9))
 
 
-def _stride_length_variance(xy: np.ndarray, cycle: int) -> np.ndarray:
+def _stride_length_variance(xy: FloatArray, cycle: int) -> FloatArray:
     """Half the mean squared change of the distance covered per cycle, over each run."""
     later = xy[:, cycle::cycle]
     distance = np.linalg.norm(later - xy[:, :-cycle:cycle][:, :later.shape[1]], axis=-1)
@@ -157,43 +187,81 @@ def _stride_length_variance(xy: np.ndarray, cycle: int) -> np.ndarray:
     return np.where(count > 0, 0.5 * total / np.maximum(count, 1), 0.0)
 
 
-def wobble_amplitude(heading: np.ndarray, t: np.ndarray, frequency_hz: float) -> np.ndarray:
-    """Amplitude (rad) of each run's heading at `frequency_hz`: trend removed, Hann window."""
+def wobble_amplitude(heading: FloatArray, t: FloatArray, frequency_hz: float) -> FloatArray:
+    """
+    Amplitude (rad) of each run's heading at `frequency_hz`: trend removed, Hann window.
+
+    Parameters
+    ----------
+    heading : array, shape (n, T)
+        rad, NaN after a run's end.
+    t : array, shape (T,)
+        s.
+    frequency_hz : float
+        Hz.
+
+    Returns
+    -------
+    array, shape (n,)
+        rad.
+
+    """
     return heading_amplitudes(heading, t, np.array([frequency_hz]))[:, 0]
 
 
-def heading_amplitudes(heading: np.ndarray, t: np.ndarray, frequencies: np.ndarray
-                       ) -> np.ndarray:
-    """(n, K) amplitude (rad) of each run's heading at each frequency (Hz), as above."""
+def heading_amplitudes(heading: FloatArray, t: FloatArray, frequencies: FloatArray
+                       ) -> FloatArray:
+    """
+    (n, K) amplitude (rad) of each run's heading at each frequency (Hz), as above.
+
+    Parameters
+    ----------
+    heading : array, shape (n, T)
+        rad, NaN after a run's end.
+    t : array, shape (T,)
+        s.
+    frequencies : array, shape (K,)
+        Hz.
+
+    Returns
+    -------
+    array, shape (n, K)
+        rad.
+
+    """
     return _amplitudes(*windowed_sway(heading, t), t, frequencies)
 
 
-def _amplitudes(residual: np.ndarray, window: np.ndarray, t: np.ndarray,
-                frequencies: np.ndarray) -> np.ndarray:
+def _amplitudes(residual: FloatArray, window: FloatArray, t: FloatArray,
+                frequencies: FloatArray) -> FloatArray:
     angle = 2 * np.pi * np.asarray(frequencies)[:, None] * t[None, :]       # (K, T)
     cosine = residual @ np.cos(angle).T
     sine = residual @ np.sin(angle).T
-    return 2 * np.hypot(cosine, sine) / np.maximum(window.sum(axis=1), 1e-12)[:, None]
+    amplitudes: FloatArray = 2 * np.hypot(cosine, sine) / np.maximum(window.sum(axis=1),
+                                                                     1e-12)[:, None]
+    return amplitudes
 
 
-def _nanmedian_rows(values: np.ndarray) -> np.ndarray:
+def _nanmedian_rows(values: FloatArray) -> FloatArray:
     flat = values.reshape(values.shape[0], -1)
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', RuntimeWarning)     # a run too short: NaN, then 0
         return np.nanmedian(flat, axis=1)
 
 
-def _slope(values: np.ndarray, t: np.ndarray) -> np.ndarray:
+def _slope(values: FloatArray, t: FloatArray) -> FloatArray:
     """Least-squares slope of each run over its own samples."""
     mask = valid_mask(values)
     weight = mask.astype(float)
     count = np.maximum(weight.sum(axis=1, keepdims=True), 1)
     filled = np.where(mask, values, 0.0)
     centred_t = (t - (weight * t).sum(axis=1, keepdims=True) / count) * weight
-    return (centred_t * filled).sum(axis=1) / np.maximum((centred_t ** 2).sum(axis=1), 1e-300)
+    slope: FloatArray = (centred_t * filled).sum(axis=1) / np.maximum((centred_t ** 2).sum(axis=1),
+                                                                      1e-300)
+    return slope
 
 
-def _increment_moments(increments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _increment_moments(increments: FloatArray) -> tuple[FloatArray, FloatArray]:
     """
     Return within-run variance and lag-1 autocorrelation of per-cycle heading changes.
 
@@ -212,7 +280,7 @@ def _increment_moments(increments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return variance, autocorr
 
 
-def _slip_angle(xy: np.ndarray, heading: np.ndarray, cycle: int) -> np.ndarray:
+def _slip_angle(xy: FloatArray, heading: FloatArray, cycle: int) -> FloatArray:
     """Mean over cycle-long windows of (direction of travel - mean heading in the window)."""
     step = xy[:, cycle:] - xy[:, :-cycle]
     travel = np.arctan2(step[..., 1], step[..., 0])
@@ -222,7 +290,8 @@ def _slip_angle(xy: np.ndarray, heading: np.ndarray, cycle: int) -> np.ndarray:
     offset = np.remainder(travel - mean_heading + np.pi, 2 * np.pi) - np.pi   # to [-pi, pi)
     usable = np.isfinite(step[..., 0])
     count = np.maximum(usable.sum(axis=1), 1)
-    return np.where(usable, offset, 0.0).sum(axis=1) / count
+    mean_offset: FloatArray = np.where(usable, offset, 0.0).sum(axis=1) / count
+    return mean_offset
 
 
 __all__ = ['COVARIATES', 'FEATURES', 'INDEX', 'OUTCOMES', 'POSITION_RESOLUTION_M', 'RESOLUTION',

@@ -34,7 +34,7 @@ find").
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 import math
 from typing import NamedTuple
@@ -42,6 +42,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import stats
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind
 from octoroach_model.diagnosis.decide import POWER, se_u_if_true
 from octoroach_model.diagnosis.features import INDEX
@@ -101,19 +102,19 @@ def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float) -> 
 
 
 def _features(simulator: Simulator, model: FittedModel, runs: int, purpose: int,
-              scales: np.ndarray) -> np.ndarray:
+              scales: FloatArray) -> FloatArray:
     return simulator.features(model, runs, purpose) / scales
 
 
-def limit_base(simulator: Simulator, without: FittedModel, scales: np.ndarray,
-               score_runs: int) -> np.ndarray:
+def limit_base(simulator: Simulator, without: FittedModel, scales: FloatArray,
+               score_runs: int) -> FloatArray:
     """Return the scored runs of the model without the cause: features in data spreads."""
     return _features(simulator, without, score_runs, MODEL_PURPOSE, scales)
 
 
-def expected_t(simulator: Simulator, without: FittedModel, without_features: np.ndarray,
-               cause: Cause, size: float, scales: np.ndarray, held_out: int,
-               score_runs: int, fitted_values: dict | None = None,
+def expected_t(simulator: Simulator, without: FittedModel, without_features: FloatArray,
+               cause: Cause, size: float, scales: FloatArray, held_out: int,
+               score_runs: int, fitted_values: Mapping[str, float] | None = None,
                fit: FitSettings | None = None) -> TestPoint:
     """
     Return the expected t statistic of the held-out test for a cause of `size`, and P3.
@@ -131,19 +132,20 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: np.
     return TestPoint(float(gain.mean() / spread * math.sqrt(held_out)), identified)
 
 
-def held_out_gains(simulator: Simulator, without: FittedModel, without_features: np.ndarray,
-                   cause: Cause, size: float, scales: np.ndarray, score_runs: int,
-                   fitted_values: dict | None = None, fit: FitSettings | None = None
-                   ) -> np.ndarray:
+def held_out_gains(simulator: Simulator, without: FittedModel, without_features: FloatArray,
+                   cause: Cause, size: float, scales: FloatArray, score_runs: int,
+                   fitted_values: Mapping[str, float] | None = None, fit: FitSettings | None = None
+                   ) -> FloatArray:
     """Return the per-run gains of runs simulated with the cause at `size` (expected_t)."""
     return simulated_gains(simulator, without, without_features, cause, size, scales,
                            score_runs, fitted_values, fit)[0]
 
 
-def simulated_gains(simulator: Simulator, without: FittedModel, without_features: np.ndarray,
-                    cause: Cause, size: float, scales: np.ndarray, score_runs: int,
-                    fitted_values: dict | None = None, fit: FitSettings | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def simulated_gains(simulator: Simulator, without: FittedModel, without_features: FloatArray,
+                    cause: Cause, size: float, scales: FloatArray, score_runs: int,
+                    fitted_values: Mapping[str, float] | None = None,
+                    fit: FitSettings | None = None
+                    ) -> tuple[FloatArray, FloatArray]:
     """
     Return (per-run gains, the pseudo-data runs' features in SI units) at `size`.
 
@@ -169,7 +171,7 @@ def simulated_gains(simulator: Simulator, without: FittedModel, without_features
 
 
 def spread_absorbed(simulator: Simulator, without: FittedModel, extended: FittedModel,
-                    runs: np.ndarray, fit: FitSettings) -> FittedModel | None:
+                    runs: FloatArray, fit: FitSettings) -> FittedModel | None:
     """
     Return `without` with its spread scale refit to `runs`, where a term moves that scale.
 
@@ -186,7 +188,7 @@ def spread_absorbed(simulator: Simulator, without: FittedModel, extended: Fitted
     return replace(without, sigma_scale=fit_spread(simulator, without, fit, runs))
 
 
-def two_groups_power(without_runs: np.ndarray, runs: np.ndarray, half: int) -> float:
+def two_groups_power(without_runs: FloatArray, runs: FloatArray, half: int) -> float:
     """
     Return P3: how often calibration halves of `runs` show two groups of heading rates.
 
@@ -210,9 +212,10 @@ def two_groups_power(without_runs: np.ndarray, runs: np.ndarray, half: int) -> f
 
 
 def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEstimate,
-                    floor: float, z_bound: float, z_test: float, scales: np.ndarray,
+                    floor: float, z_bound: float, z_test: float, scales: FloatArray,
                     held_out: int, score_runs: int, start: float | None,
-                    fitted_values: dict | None = None, base: np.ndarray | None = None,
+                    fitted_values: Mapping[str, float] | None = None,
+                    base: FloatArray | None = None,
                     fit: FitSettings | None = None) -> Limit:
     """
     Return the size at which the cause is named with POWER (module docstring).

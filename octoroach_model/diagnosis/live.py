@@ -40,7 +40,9 @@ from dataclasses import dataclass, field, replace
 import math
 
 import numpy as np
+import numpy.typing as npt
 
+from octoroach_model.arrays import BoolArray, FloatArray, IntArray
 from octoroach_model.diagnosis.causes import (
     BY_NAME, CANDIDATES, EstimateKind, MIXTURE_FRACTION, periodic_limit_hz, RunScale)
 from octoroach_model.diagnosis.decide import judge
@@ -127,9 +129,9 @@ class Held:
     run_scale: RunScale
     model: FittedModel
     calibration_runs: int
-    gains: np.ndarray | None     # held-out gains at the question's size (power.gain_sample)
+    gains: FloatArray | None     # held-out gains at the question's size (power.gain_sample)
     # the baseline's scored runs (features, position points), kept by `baseline_scores`
-    scored: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    scored: tuple[FloatArray, FloatArray] | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -162,7 +164,7 @@ class Look:
     extended: FittedModel | None = field(default=None, metadata={'json': False}, repr=False)
 
 
-def calibration_mask(measured: Paths, seed: int) -> np.ndarray:
+def calibration_mask(measured: Paths, seed: int) -> BoolArray:
     """
     Return which runs belong to the calibration half (True) and which are held out.
 
@@ -178,10 +180,11 @@ def calibration_mask(measured: Paths, seed: int) -> np.ndarray:
     else:
         keys = np.arange(n, dtype=np.uint64)
     mixed = _splitmix64(keys ^ _splitmix64(np.array([seed, SPLIT_PURPOSE], np.uint64))[0])
-    return (mixed >> np.uint64(63)) == 0
+    in_calibration: BoolArray = (mixed >> np.uint64(63)) == 0
+    return in_calibration
 
 
-def _splitmix64(values: np.ndarray) -> np.ndarray:
+def _splitmix64(values: npt.NDArray[np.uint64]) -> npt.NDArray[np.uint64]:
     """SplitMix64's finaliser: a fast hash of 64-bit integers, every bit mixed."""
     with np.errstate(over='ignore'):
         z = values.astype(np.uint64) + np.uint64(0x9E3779B97F4A7C15)
@@ -210,7 +213,7 @@ def live_halves(measured: Paths, held: Held | None, seed: int) -> _Halves:
     if mask.sum() < 3 or (~mask).sum() < 3:
         raise DataError('too few runs in one of the halves to decide')
 
-    def half(index: np.ndarray) -> RunData:
+    def half(index: IntArray) -> RunData:
         return RunData(measured.subset(index), frequency, heading, positions[index],
                        wobble_hz, wobble_interval)
     train, test = half(np.flatnonzero(mask)), half(np.flatnonzero(~mask))
@@ -261,7 +264,7 @@ def fit_held(measured: Paths, question: Question, settings: DiagnosisSettings,
 
 
 def question_gains(halves: _Halves, baseline: FittedModel, question: Question,
-                   settings: DiagnosisSettings) -> np.ndarray:
+                   settings: DiagnosisSettings) -> FloatArray:
     """
     Return the held-out test's gains of runs simulated with the term at the question's size.
 
@@ -270,7 +273,7 @@ def question_gains(halves: _Halves, baseline: FittedModel, question: Question,
     there).
     """
     cause = BY_NAME[question.term]
-    fitted: dict = {}
+    fitted: dict[str, float] = {}
     if cause.kind == EstimateKind.MIXTURE:
         fitted['fraction'] = MIXTURE_FRACTION
     if cause.name == 'periodic_heading':
@@ -285,7 +288,7 @@ def question_gains(halves: _Halves, baseline: FittedModel, question: Question,
 
 def decide(measured: Paths, held: Held, question: Question, settings: DiagnosisSettings,
            levels: Levels, calibration: Calibration | None = None,
-           t_values: np.ndarray | None = None, warm: FittedModel | None = None) -> Look:
+           t_values: FloatArray | None = None, warm: FittedModel | None = None) -> Look:
     """
     Decide the question on the runs so far, against the held baseline (module docstring).
 
@@ -473,8 +476,8 @@ class LiveDecision:
         self.calibration = calibration or Calibration.for_term(question.term)
         self.held: Held | None = None
         self.named_at_runs: int | None = None
-        self._pending: Future | None = None
-        self._t_values: np.ndarray | None = None    # the held baseline's, computed once
+        self._pending: Future[Held] | None = None
+        self._t_values: FloatArray | None = None    # the held baseline's, computed once
         self._warm: FittedModel | None = None       # the last look's extended model
 
     def due(self, measured: Paths) -> bool:

@@ -21,6 +21,7 @@ import math
 import numpy as np
 from scipy import stats
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.scoring import feature_log_score
 from octoroach_model.paths import Paths
 
@@ -87,8 +88,8 @@ class Misfit:
         return lines
 
 
-def locate(data: Paths, data_features: np.ndarray, places: np.ndarray, model: Paths,
-           model_features: np.ndarray, scales: np.ndarray, by_position: bool,
+def locate(data: Paths, data_features: FloatArray, places: FloatArray, model: Paths,
+           model_features: FloatArray, scales: FloatArray, by_position: bool,
            rng: np.random.Generator) -> Misfit:
     """
     Return where the model (its simulated runs and their features) misses the data.
@@ -129,7 +130,7 @@ def _part(data: Paths, model: Paths, rng: np.random.Generator) -> PartMisfit | N
     return best
 
 
-def _at_parts(paths: Paths) -> np.ndarray:
+def _at_parts(paths: Paths) -> FloatArray:
     """
     Return (n, PARTS, 3): lateral position, progress [cm], heading change [deg] per tenth.
 
@@ -152,6 +153,6 @@ def _at_parts(paths: Paths) -> np.ndarray:
     return out
 
 
-def _spread_se(values: np.ndarray, rng: np.random.Generator) -> float:
+def _spread_se(values: FloatArray, rng: np.random.Generator) -> float:
     picks = rng.integers(0, len(values), (PART_BOOTSTRAP, len(values)))
     return float(np.std(np.std(values[picks], axis=1, ddof=1), ddof=1))

@@ -19,13 +19,14 @@ the intervals and the detection limits follow (decide.py).
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 import math
 from typing import Any
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind, MIXTURE_FRACTION
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.fitting.covariance import path_covariance
@@ -38,9 +39,19 @@ from octoroach_model.fitting.target import (
 from octoroach_model.model import model_poses, ModelParameters, nominal_sigmas, RandomStreams
 from octoroach_model.model.effects import mean_gait_rate
 from octoroach_model.model.extensions import TERM_BY_NAME
+from octoroach_model.model.parameters import ParameterTable, StartPoseTable
 from octoroach_model.paths import Paths
 
 Effects = Mapping[str, Mapping[str, float]]
+
+
+class ModelTable(ParameterTable):
+    """A fitted model as the report prints it (`FittedModel.table`)."""
+
+    start_pose: StartPoseTable
+    sigma_scale: float
+    sigma1: float
+    sigma2: float
 
 
 @dataclass(frozen=True)
@@ -50,7 +61,8 @@ class FittedModel:
     parameters: ModelParameters
     start_pose: tuple[float, float, float]
     sigma_scale: float
-    effects: dict = field(default_factory=dict)     # {cause: {parameter: value}}
+    effects: dict[str, dict[str, float]] = field(default_factory=dict)   # {cause: {parameter:
+    #                                                                        value}}
 
     @property
     def sigmas(self) -> tuple[float, float]:
@@ -65,9 +77,9 @@ class FittedModel:
     def with_effect(self, cause: str, values: Mapping[str, float]) -> FittedModel:
         return replace(self, effects={**self.effects, cause: dict(values)})
 
-    def poses(self, n_runs: int, t: np.ndarray, seed: np.random.SeedSequence,
-              effects: Effects | None = None, positions: np.ndarray | None = None
-              ) -> np.ndarray:
+    def poses(self, n_runs: int, t: FloatArray, seed: np.random.SeedSequence,
+              effects: Effects | None = None, positions: FloatArray | None = None
+              ) -> FloatArray:
         """
         (n, T, 3) runs of the model (with `effects` instead of its own, if given).
 
@@ -82,7 +94,7 @@ class FittedModel:
         """Return whether a term of the model depends on the run's place in the recording."""
         return any(BY_NAME[name].order_dependent for name in self.effects if name in BY_NAME)
 
-    def table(self) -> dict:
+    def table(self) -> ModelTable:
         """Geometry, start pose and spreads as the report prints them (cm, deg, rad)."""
         return {**self.parameters.table(),
                 'start_pose': {'x_cm': self.start_pose[0] * 100,
@@ -117,10 +129,10 @@ class RunData:
     paths: Paths
     stride_frequency: float
     reference_heading: float
-    positions: np.ndarray | None = None
+    positions: FloatArray | None = None
     wobble_hz: float | None = None
     wobble_interval: tuple[float, float] | None = None    # 95 %, of the choice
-    features: np.ndarray = field(init=False)
+    features: FloatArray = field(init=False)
     target: AverageTarget = field(init=False)
 
     def __post_init__(self) -> None:
@@ -130,12 +142,12 @@ class RunData:
         start = (0.0, 0.0, self.reference_heading)
         self.target = average_target(self.paths, start, self.stride_frequency, align_gait=False)
 
-    def features_of(self, paths: Paths, positions: np.ndarray | None) -> np.ndarray:
+    def features_of(self, paths: Paths, positions: FloatArray | None) -> FloatArray:
         """Features of any runs measured with this data's ruler (module features)."""
         return run_features(paths, self.stride_frequency, self.reference_heading, positions,
                             self.wobble_hz)
 
-    def subset(self, index: np.ndarray) -> RunData:
+    def subset(self, index: IntArray) -> RunData:
         """Return the runs picked by `index`, with their places and this ruler."""
         assert self.positions is not None
         return RunData(self.paths.subset(index), self.stride_frequency,
@@ -164,7 +176,7 @@ class RunData:
         return SwayTarget((amplitude, first, second), self.paths.t, self.lengths)
 
     @property
-    def lengths(self) -> np.ndarray:
+    def lengths(self) -> IntArray:
         return self.paths.lengths
 
     @property
@@ -211,23 +223,23 @@ class Simulator:
 
     data: RunData
     seed: int
-    cache: dict = field(default_factory=dict)
+    cache: dict[str, object] = field(default_factory=dict)
 
     def features(self, model: FittedModel, n_runs: int, purpose: int,
-                 effects: Effects | None = None, lengths: np.ndarray | None = None
-                 ) -> np.ndarray:
+                 effects: Effects | None = None, lengths: IntArray | None = None
+                 ) -> FloatArray:
         """Features of `n_runs` runs of `model` for a purpose (its own random numbers)."""
         paths, positions = self.runs(model, n_runs, purpose, effects, lengths)
         return self.data.features_of(paths, positions)
 
     def paths(self, model: FittedModel, n_runs: int, purpose: int,
-              effects: Effects | None = None, lengths: np.ndarray | None = None) -> Paths:
+              effects: Effects | None = None, lengths: IntArray | None = None) -> Paths:
         """`n_runs` runs of `model`, cut to lengths drawn from the data's."""
         return self.runs(model, n_runs, purpose, effects, lengths)[0]
 
     def runs(self, model: FittedModel, n_runs: int, purpose: int,
-             effects: Effects | None = None, lengths: np.ndarray | None = None
-             ) -> tuple[Paths, np.ndarray]:
+             effects: Effects | None = None, lengths: IntArray | None = None
+             ) -> tuple[Paths, FloatArray]:
         """
         Return runs of `model` and each one's place in the recording.
 
@@ -263,7 +275,7 @@ class GeometryUncertainty:
     """
 
     free: tuple[tuple[str, str], ...]
-    covariance: np.ndarray
+    covariance: FloatArray
     cost: float = 0.0            # the fit's least-squares cost (compares restarts)
 
     def perturbed(self, model: FittedModel, index: int, step: float) -> FittedModel:
@@ -297,7 +309,7 @@ class CausesFit:
     """
 
     model: FittedModel
-    estimates: dict
+    estimates: dict[str, SizeEstimate]
     geometry: GeometryUncertainty | None = None
 
 
@@ -402,7 +414,7 @@ def _values(model: FittedModel, cause: Cause, estimate: SizeEstimate, data: RunD
     return values
 
 
-def _start_variance(features: np.ndarray) -> float:
+def _start_variance(features: FloatArray) -> float:
     return 0.5 * float(features[:, INDEX['start_x']].var(ddof=1)
                        + features[:, INDEX['start_y']].var(ddof=1))
 
@@ -542,7 +554,8 @@ def free_parameters(cause: Cause, data: RunData) -> list[tuple[str, tuple[float,
     return free
 
 
-def _other_errors(free, errors: np.ndarray, cause: str) -> dict[str, float]:
+def _other_errors(free: Sequence[FreeEffect], errors: FloatArray, cause: str
+                  ) -> dict[str, float]:
     """Return the standard errors of a path cause's parameters other than its main one."""
     return {item.parameter: float(errors[6 + offset]) for offset, item in enumerate(free)
             if item.cause == cause and item.parameter != BY_NAME[cause].parameter}
@@ -587,9 +600,10 @@ def change_point_step(simulator: Simulator, model: FittedModel, n_boot: int = 0
     simulated = simulator.paths(model, CHANGE_POINT_RUNS, MOMENTS, without)
     cycle = max(2, int(round(1.0 / (data.stride_frequency * float(t[1] - t[0])))))
 
-    def cycle_speeds(paths: Paths) -> np.ndarray:
+    def cycle_speeds(paths: Paths) -> FloatArray:
         xy = paths.positions
-        return np.linalg.norm(xy[:, cycle:] - xy[:, :-cycle], axis=-1)
+        speeds: FloatArray = np.linalg.norm(xy[:, cycle:] - xy[:, :-cycle], axis=-1)
+        return speeds
 
     with np.errstate(invalid='ignore'):
         model_speed = np.nanmean(cycle_speeds(simulated), axis=0)
@@ -597,7 +611,7 @@ def change_point_step(simulator: Simulator, model: FittedModel, n_boot: int = 0
     middle = t[:len(model_speed)] + 0.5 * cycle * float(t[1] - t[0])
     duration = float(t[-1])
 
-    def step(rows: np.ndarray) -> tuple[float, float]:
+    def step(rows: FloatArray) -> tuple[float, float]:
         with np.errstate(invalid='ignore'):
             ratio = np.nanmean(rows, axis=0) / np.maximum(model_speed, 1e-12)
         usable = np.isfinite(ratio)
@@ -610,7 +624,7 @@ def change_point_step(simulator: Simulator, model: FittedModel, n_boot: int = 0
     return {'time_s': time, 'speed_factor': float(np.clip(factor, 0.25, 2.9))}, error
 
 
-def _best_step(ratio: np.ndarray, middle: np.ndarray, duration: float) -> tuple[float, float]:
+def _best_step(ratio: FloatArray, middle: FloatArray, duration: float) -> tuple[float, float]:
     """
     Return (time, factor) of the step that fits `ratio` best: a level before, another after.
 
@@ -661,7 +675,7 @@ def spread_statistic(model: FittedModel) -> str:
 
 
 def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings,
-               features: np.ndarray | None = None) -> float:
+               features: FloatArray | None = None) -> float:
     """
     Fit the spread scale to its statistic (`spread_statistic`) on a line.
 
@@ -719,12 +733,12 @@ class _LineStart:
     without the cause; `rng` goes on to draw the line's other bootstraps.
     """
 
-    statistic: Callable[[np.ndarray], float]
+    statistic: Callable[[FloatArray], float]
     rng: np.random.Generator
     data_value: float
     data_se: float
-    without: dict
-    zero: np.ndarray
+    without: dict[str, dict[str, float]]
+    zero: FloatArray
 
     @classmethod
     def of(cls, simulator: Simulator, model: FittedModel, cause: Cause,
@@ -877,7 +891,7 @@ def fit_mixture(simulator: Simulator, model: FittedModel, cause: Cause,
                                                     spread)}), values
 
 
-def two_groups_evidence(deviation: np.ndarray, shift: float, separation: float,
+def two_groups_evidence(deviation: FloatArray, shift: float, separation: float,
                         fraction: float, spread: float) -> float:
     """
     Return how much better two groups fit than one normal of free centre and spread (nats).
@@ -895,8 +909,8 @@ def two_groups_evidence(deviation: np.ndarray, shift: float, separation: float,
     return two - one
 
 
-def turning_runs(deviation: np.ndarray, separation: float, fraction: float, spread: float,
-                 positions: np.ndarray | None) -> list[int]:
+def turning_runs(deviation: FloatArray, separation: float, fraction: float, spread: float,
+                 positions: FloatArray | None) -> list[int]:
     """Return the runs more likely in the turning group than not, numbered in recording order."""
     first = (1 - fraction) * np.exp(-0.5 * (deviation / spread) ** 2)
     second = fraction * np.exp(-0.5 * ((deviation - separation) / spread) ** 2)
@@ -907,7 +921,7 @@ def turning_runs(deviation: np.ndarray, separation: float, fraction: float, spre
     return sorted(int(i) for i in order[turning])
 
 
-def two_groups(values: np.ndarray, centre: float, spread: float,
+def two_groups(values: FloatArray, centre: float, spread: float,
                start: tuple[float, float, float] | None = None, others: bool = True
                ) -> tuple[float, float, float]:
     """

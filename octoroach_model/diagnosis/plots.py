@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -20,11 +21,18 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from octoroach_model.arrays import FloatArray  # noqa: E402
 from octoroach_model.diagnosis.discrepancies import Discrepancy  # noqa: E402
 from octoroach_model.diagnosis.features import (  # noqa: E402
     heading_amplitudes, INDEX, run_features)
 from octoroach_model.paths import Paths  # noqa: E402
 from octoroach_model.validation.region import t_multiplier  # noqa: E402
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from octoroach_model.diagnosis.modelfit import FittedModel
+    from octoroach_model.diagnosis.records import DiagnosisReport, NamedExtension
 
 N_SHOWN = 45
 DEG = 180.0 / math.pi
@@ -42,7 +50,8 @@ DECIDING = {
 }
 
 
-def write_plots(report, measured: Paths, out: Path) -> tuple[dict[str, Path], dict[str, str]]:
+def write_plots(report: DiagnosisReport, measured: Paths, out: Path
+                ) -> tuple[dict[str, Path], dict[str, str]]:
     """Draw every plot; returns the files written and, per plot not drawn, the reason."""
     jobs = {'paths_plot': (_paths_plot, out / 'paths.png'),
             'violation_plot': (_violation_plot, out / 'violation_grid.png'),
@@ -61,19 +70,20 @@ def write_plots(report, measured: Paths, out: Path) -> tuple[dict[str, Path], di
     return written, errors
 
 
-def _simulate(model, measured: Paths, n: int, positions: np.ndarray | None = None) -> Paths:
+def _simulate(model: FittedModel, measured: Paths, n: int,
+              positions: FloatArray | None = None) -> Paths:
     poses = model.poses(n, measured.t, np.random.SeedSequence(7), positions=positions)
     return Paths(measured.t, poses)
 
 
-def _at_places(model, measured: Paths, n: int) -> tuple[Paths, np.ndarray]:
+def _at_places(model: FittedModel, measured: Paths, n: int) -> tuple[Paths, FloatArray]:
     """`n` runs of `model` at places drawn from the measured runs' (run-order terms)."""
     places = measured.recording_positions()[0]
     picks = np.random.default_rng(7).integers(0, len(places), n)
     return _simulate(model, measured, n, places[picks]), places[picks]
 
 
-def _paths_plot(report, measured: Paths, path: Path) -> bool:
+def _paths_plot(report: DiagnosisReport, measured: Paths, path: Path) -> bool:
     checked = report.baseline.validation
     k = checked.k if checked is not None else 11
     with np.errstate(invalid='ignore'):
@@ -109,7 +119,7 @@ def _paths_plot(report, measured: Paths, path: Path) -> bool:
     return True
 
 
-def _violation_plot(report, measured: Paths, path: Path) -> bool:
+def _violation_plot(report: DiagnosisReport, measured: Paths, path: Path) -> bool:
     panels = [(name, section.validation) for name, section in
               (('baseline', report.baseline), ('extended', report.extended))
               if section.validation is not None and section.validation.grid is not None]
@@ -118,6 +128,7 @@ def _violation_plot(report, measured: Paths, path: Path) -> bool:
     fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 5), squeeze=False)
     for ax, (name, section) in zip(axes[0], panels):
         grid = section.grid
+        assert grid is not None, 'only panels with a grid were kept'
         values = np.array(grid.violation)
         image = ax.pcolormesh(grid.sigma2, grid.sigma1, values, vmin=0, vmax=1,
                               cmap='viridis', shading='nearest')
@@ -138,7 +149,7 @@ def _violation_plot(report, measured: Paths, path: Path) -> bool:
     return True
 
 
-def _bins(*samples: np.ndarray, count: int = 40) -> np.ndarray:
+def _bins(*samples: FloatArray, count: int = 40) -> list[float]:
     """Shared histogram edges that also work when every value is (almost) the same."""
     values = np.concatenate([s[np.isfinite(s)] for s in samples])
     low, high = (float(values.min()), float(values.max())) if values.size else (0.0, 1.0)
@@ -146,10 +157,11 @@ def _bins(*samples: np.ndarray, count: int = 40) -> np.ndarray:
     if not width > 1e-12 * max(1.0, abs(high)):
         pad = max(abs(high) * 1e-3, 1e-9)
         low, high = low - pad, high + pad
-    return np.linspace(low, high, count + 1)
+    edges: list[float] = np.linspace(low, high, count + 1).tolist()   # as matplotlib types bins
+    return edges
 
 
-def _statistic_plot(report, measured: Paths, path: Path) -> bool:
+def _statistic_plot(report: DiagnosisReport, measured: Paths, path: Path) -> bool:
     causes = [c.cause for c in report.causes]
     if not causes and report.extensions:
         return False            # the extensions' own plot shows their evidence
@@ -183,7 +195,7 @@ def _statistic_plot(report, measured: Paths, path: Path) -> bool:
     return True
 
 
-def _discrepancy_plot(report, measured: Paths, path: Path) -> bool:
+def _discrepancy_plot(report: DiagnosisReport, measured: Paths, path: Path) -> bool:
     rows: list[Discrepancy] = list(report.discrepancies)
     names = [row.statistic for row in rows]
     after = {row.statistic: row for row in report.extended_discrepancies}
@@ -220,7 +232,7 @@ DRIFT_AXES = {
 MODEL_RUNS = 600
 
 
-def _extension_plot(report, measured: Paths, path: Path) -> bool:
+def _extension_plot(report: DiagnosisReport, measured: Paths, path: Path) -> bool:
     """One panel per named extension: its evidence where a person would look for it."""
     named = list(report.extensions)
     if not named:
@@ -241,13 +253,14 @@ def _extension_plot(report, measured: Paths, path: Path) -> bool:
     return True
 
 
-def _features_of(report, paths: Paths, places: np.ndarray | None) -> np.ndarray:
+def _features_of(report: DiagnosisReport, paths: Paths, places: FloatArray | None) -> FloatArray:
     frequency = report.nominal['stride_frequency_hz']
     heading = math.radians(report.nominal['start_pose']['heading_deg'])
     return run_features(paths, frequency, heading, places)
 
 
-def _drift_panel(ax, report, measured: Paths, extension) -> None:
+def _drift_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
+                 extension: NamedExtension) -> None:
     feature, scale, label = DRIFT_AXES[extension.term]
     column = INDEX[feature]
     places = measured.recording_positions()[0]
@@ -267,17 +280,19 @@ def _drift_panel(ax, report, measured: Paths, extension) -> None:
     ax.set_ylabel(label)
 
 
-def _walk_panel(ax, report, measured: Paths, extension) -> None:
+def _walk_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
+                extension: NamedExtension) -> None:
     frequency = report.nominal['stride_frequency_hz']
     stance_s = 0.5 / frequency
     dt = float(measured.t[1] - measured.t[0])
     picks = np.arange(0, len(measured.t), max(1, int(round(stance_s / dt))))
     stances = picks * dt / stance_s
 
-    def spread(paths: Paths) -> np.ndarray:
+    def spread(paths: Paths) -> FloatArray:
         change = paths.poses[:, picks, 2] - paths.poses[:, :1, 2]
         with np.errstate(invalid='ignore'):
-            return np.nanstd(change, axis=0, ddof=1) * DEG
+            spread_deg: FloatArray = np.nanstd(change, axis=0, ddof=1) * DEG
+        return spread_deg
 
     ax.plot(stances, spread(measured), 'k.-', label='measured runs')
     ax.plot(stances, spread(_simulate(report.baseline_model, measured, MODEL_RUNS)),
@@ -288,14 +303,16 @@ def _walk_panel(ax, report, measured: Paths, extension) -> None:
     ax.set_ylabel('spread of the heading change across runs [deg]')
 
 
-def _spectrum_panel(ax, report, measured: Paths, extension) -> None:
+def _spectrum_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
+                    extension: NamedExtension) -> None:
     frequency = float(extension.parameters['frequency_hz'])
     stride = report.nominal['stride_frequency_hz']
     grid = np.linspace(0.05 * stride, 1.9 * stride, 120)
 
-    def amplitude(paths: Paths) -> np.ndarray:
-        return np.sqrt((heading_amplitudes(paths.poses[..., 2], paths.t, grid) ** 2)
-                       .mean(axis=0)) * DEG
+    def amplitude(paths: Paths) -> FloatArray:
+        rms_deg: FloatArray = np.sqrt((heading_amplitudes(paths.poses[..., 2], paths.t, grid)
+                                       ** 2).mean(axis=0)) * DEG
+        return rms_deg
 
     ax.plot(grid, amplitude(measured), 'k', lw=1.5, label='measured runs')
     ax.plot(grid, amplitude(_simulate(report.baseline_model, measured, MODEL_RUNS)),
@@ -308,15 +325,17 @@ def _spectrum_panel(ax, report, measured: Paths, extension) -> None:
     ax.set_ylabel('rms amplitude of the heading (trend removed) [deg]')
 
 
-def _speed_panel(ax, report, measured: Paths, extension) -> None:
+def _speed_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
+                 extension: NamedExtension) -> None:
     frequency = report.nominal['stride_frequency_hz']
     dt = float(measured.t[1] - measured.t[0])
     cycle = max(2, int(round(1.0 / (frequency * dt))))
 
-    def speed(paths: Paths) -> np.ndarray:
+    def speed(paths: Paths) -> FloatArray:
         step = np.linalg.norm(paths.positions[:, cycle:] - paths.positions[:, :-cycle], axis=-1)
         with np.errstate(invalid='ignore'):
-            return np.nanmean(step, axis=0) / (cycle * dt) * 100
+            speed_cm_s: FloatArray = np.nanmean(step, axis=0) / (cycle * dt) * 100
+        return speed_cm_s
 
     middle = measured.t[:-cycle] + 0.5 * cycle * dt
     ax.plot(middle, speed(measured), 'k', lw=1.5, label='measured runs')
@@ -330,7 +349,8 @@ def _speed_panel(ax, report, measured: Paths, extension) -> None:
     ax.set_ylabel('mean speed over a stride cycle [cm/s]')
 
 
-def _groups_panel(ax, report, measured: Paths, extension) -> None:
+def _groups_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
+                  extension: NamedExtension) -> None:
     column = INDEX['heading_rate']
     data = _features_of(report, measured, None)[:, column] * DEG
     base = _features_of(report, _simulate(report.baseline_model, measured, MODEL_RUNS),

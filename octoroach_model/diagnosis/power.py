@@ -34,13 +34,14 @@ units), updated by the group's counts and by any checks of the caller
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 import math
 
 import numpy as np
 from scipy import stats
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.causes import BY_NAME, EstimateKind
 from octoroach_model.diagnosis.decide import POWER
 from octoroach_model.diagnosis.limits import bound_power, held_out_gains, limit_base
@@ -102,10 +103,11 @@ class Calibration:
             total += _binomial(int(bool(outcome)), 1, np.full_like(SHIFTS, power))
         return Calibration(tuple(total), (*self.sources, what))
 
-    def _posterior(self) -> np.ndarray:
+    def _posterior(self) -> FloatArray:
         log_p = np.array(self.log_likelihood)
         weights = np.exp(log_p - log_p.max())
-        return weights / weights.sum()
+        posterior: FloatArray = weights / weights.sum()
+        return posterior
 
     @property
     def shift(self) -> float:
@@ -122,12 +124,14 @@ class Calibration:
         return float(np.interp(q, cumulative, SHIFTS))
 
 
-def _binomial(named: int, total: int, predicted: np.ndarray) -> np.ndarray:
+def _binomial(named: int, total: int, predicted: FloatArray) -> FloatArray:
     """Log-likelihood over SHIFTS of `named` of `total` at the shifted predicted powers."""
     probability = stats.norm.cdf(stats.norm.ppf(np.clip(predicted, 1e-12, 1 - 1e-12))
                                  + SHIFTS)
     probability = np.clip(probability, 1e-300, 1 - 1e-16)
-    return named * np.log(probability) + (total - named) * np.log1p(-probability)
+    log_likelihood: FloatArray = named * np.log(probability) + (total - named) * np.log1p(
+        -probability)
+    return log_likelihood
 
 
 def shifted(power: float, shift: float) -> float:
@@ -150,8 +154,8 @@ class PowerModel:
     floor: float
     estimate: SizeEstimate
     calibration_runs: int
-    gains: np.ndarray = field(repr=False)
-    _t_values: np.ndarray | None = field(default=None, repr=False, compare=False)
+    gains: FloatArray = field(repr=False)
+    _t_values: FloatArray | None = field(default=None, repr=False, compare=False)
 
     def estimate_at(self, calibration_runs: float) -> SizeEstimate:
         """Return the estimate with the errors it would have on `calibration_runs` runs."""
@@ -200,7 +204,7 @@ class PowerModel:
         t_values = self.t_values()[:, held_out - 1]
         return float(np.mean(t_values > stats.t.isf(critical, held_out - 1)))
 
-    def t_values(self) -> np.ndarray:
+    def t_values(self) -> FloatArray:
         """
         Return the t statistics of RESAMPLES samples of the gains, for 1 ... RESAMPLED_RUNS runs.
 
@@ -256,8 +260,9 @@ class PowerModel:
 
 
 def gain_sample(test: RunData, without: FittedModel, term: str, size: float,
-                scales: np.ndarray, score_runs: int, seed: int,
-                fitted_values: dict | None = None, repeats: int = GAIN_REPEATS) -> np.ndarray:
+                scales: FloatArray, score_runs: int, seed: int,
+                fitted_values: Mapping[str, float] | None = None,
+                repeats: int = GAIN_REPEATS) -> FloatArray:
     """
     Return held-out gains of runs simulated with the term at `size` (limits.held_out_gains).
 

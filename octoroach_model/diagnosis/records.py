@@ -9,9 +9,10 @@ file edge only (`jsonio`, report_files.py); summary.py says the report in words.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from enum import Enum
-from typing import Any, TYPE_CHECKING
+from typing import Any, TYPE_CHECKING, TypedDict
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from octoroach_model.paths import Paths
 if TYPE_CHECKING:
     from octoroach_model.diagnosis.decide import SizeVerdict
     from octoroach_model.diagnosis.misfit import Misfit
-    from octoroach_model.diagnosis.modelfit import FittedModel
+    from octoroach_model.diagnosis.modelfit import FittedModel, ModelTable
     from octoroach_model.diagnosis.scoring import Scores
     from octoroach_model.validation.validate import SearchGrid
 
@@ -68,19 +69,19 @@ class CandidateResult:
     """One cause at the last step it was weighed: its size, evidence and limit."""
 
     cause: str
-    parameters: dict
+    parameters: dict[str, float | str]   # fitted values (an extension: in its family's form)
     gain: float                  # held-out feature log score gain, nats per run
     gain_se: float
     p_value: float
     relative: float              # share of the current model's gap to the ideal closed
     gain_cm: float               # held-out position energy score gain, cm per run
-    interval: dict               # main parameter: 95 % interval (calibration half)
+    interval: dict[str, list[float]]   # main parameter: 95 % interval (calibration half)
     standard_error: float
     lower_bound: float           # one-sided, at the step's level
     floor: float
-    detectable: dict             # main parameter: 80 %-power limit (None: none found)
+    detectable: dict[str, float | None]   # main parameter: 80 %-power limit (None: none found)
     detectable_method: LimitMethod
-    detectable_power: dict       # at the limit: P(size bound clears), P(held-out test)
+    detectable_power: dict[str, float]   # at the limit: P(size bound clears), P(held-out test)
     clears_floor: bool
     significant: bool
     named_here: bool
@@ -110,7 +111,7 @@ class Rival:
 
     cause: str
     family: str
-    parameters: dict
+    parameters: dict[str, float | str]
     gain: float
     p_difference: float
 
@@ -132,9 +133,9 @@ class NamedCause:
     """A cause the diagnosis names: its sizes refit on all runs, with a 95 % interval."""
 
     cause: str
-    parameters: dict
-    interval: dict
-    standard_error: dict
+    parameters: dict[str, float]
+    interval: dict[str, list[float]]
+    standard_error: dict[str, float]
     gain: float
     p_value: float
     relative: float
@@ -142,7 +143,7 @@ class NamedCause:
     step: int
 
     @classmethod
-    def of(cls, cause: str, values: dict, verdict: SizeVerdict | None,
+    def of(cls, cause: str, values: Mapping[str, float], verdict: SizeVerdict | None,
            entry: CandidateResult) -> NamedCause:
         parameter = BY_NAME[cause].parameter
         interval = {parameter: list(verdict.interval)} if verdict else entry.interval
@@ -163,9 +164,9 @@ class NamedExtension:
 
     family: str
     term: str
-    parameters: dict
-    interval: dict
-    standard_error: dict
+    parameters: dict[str, float | str]
+    interval: dict[str, list[float]]
+    standard_error: dict[str, float]
     gain: float
     p_value: float
     relative: float
@@ -173,6 +174,16 @@ class NamedExtension:
     step: int
     description: str
     rival: Rival | None = None
+
+
+class EnergyScores(TypedDict):
+    """Held-out position energy scores, cm per run (lower is better), as the report has them."""
+
+    metric: str
+    baseline: float
+    extended: float
+    ideal: float
+    relative: float
 
 
 @dataclass(frozen=True)
@@ -184,7 +195,7 @@ class ScoreSummary:
     extended: float
     ideal: float
     relative: float
-    energy_score_cm: dict
+    energy_score_cm: EnergyScores
 
     @classmethod
     def of(cls, baseline: Scores, extended: Scores, ideal: Scores) -> ScoreSummary:
@@ -200,9 +211,9 @@ class ScoreSummary:
                    "model. relative: the share of the baseline's gap to the ideal that the "
                    'extended model closes',
                    b, e, i, share(b, e, i),
-                   {'metric': 'held-out energy score of positions at 20/40/60/80/100 % of '
-                              'each run, cm per run, lower is better',
-                    'baseline': bc, 'extended': ec, 'ideal': ic, 'relative': share(bc, ec, ic)})
+                   EnergyScores(metric='held-out energy score of positions at 20/40/60/80/100 '
+                                       '% of each run, cm per run, lower is better',
+                                baseline=bc, extended=ec, ideal=ic, relative=share(bc, ec, ic)))
 
 
 @dataclass(frozen=True)
@@ -216,7 +227,7 @@ class DecisionRules:
     adequacy_z: float
 
     def to_json(self) -> dict[str, Any]:
-        return jsonable({
+        rules: dict[str, Any] = jsonable({
             'selection': 'forward: each step adds the cause that qualifies with the largest '
                          'held-out gain, every included size refit together; stops when none '
                          'qualifies',
@@ -231,6 +242,7 @@ class DecisionRules:
                         'difference is material',
             'adequacy_alpha': self.adequacy_alpha,
         })
+        return rules
 
 
 @dataclass(frozen=True)
@@ -275,7 +287,7 @@ class ModelSummary:
     fitted_sigma1: float
     fitted_sigma2: float
     sigma_scale: float
-    effects: dict
+    effects: dict[str, dict[str, float]]
     validation: PaperValidation | None = None
     not_validated: str | None = None
 
@@ -304,7 +316,8 @@ class ModelSummary:
             reason = f': {self.not_validated})' if self.not_validated is not None else ')'
             summary.update(sigma1=self.fitted_sigma1, sigma2=self.fitted_sigma2,
                            sigma_source=self.sigma_source.value + reason)
-        return jsonable(summary)
+        plain: dict[str, Any] = jsonable(summary)
+        return plain
 
 
 @dataclass(frozen=True)
@@ -314,9 +327,9 @@ class DiagnosisReport:
     paths: int
     duration_s: float
     seed: int
-    split: dict
+    split: dict[str, int]
     runs: RunLengths
-    nominal: dict
+    nominal: ModelTable
     baseline: ModelSummary
     extended: ModelSummary
     discrepancies: tuple[Discrepancy, ...]
@@ -345,7 +358,7 @@ class DiagnosisReport:
         return self.causes[0].cause if self.causes else 'none'
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> dict[str, float | str]:
         """Return the parameters of the leading cause, empty when there is none."""
         return dict(self.causes[0].parameters) if self.causes else {}
 

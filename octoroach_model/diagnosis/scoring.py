@@ -33,6 +33,7 @@ import math
 import numpy as np
 from scipy import stats
 
+from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.features import INDEX, OUTCOMES, RESOLUTION
 
 ENERGY_FRACTIONS = (0.2, 0.4, 0.6, 0.8, 1.0)
@@ -46,17 +47,31 @@ NUMERICAL_NOISE = 1e-6    # per-run score differences below this are rounding, n
 class Scores:
     """Per held-out run scores of one model."""
 
-    log: np.ndarray                 # feature log score, nats (higher is better)
-    energy_cm: np.ndarray           # position energy score, cm (lower is better)
+    log: FloatArray                 # feature log score, nats (higher is better)
+    energy_cm: FloatArray           # position energy score, cm (lower is better)
 
 
-def feature_scales(calibration_features: np.ndarray) -> np.ndarray:
-    """Each feature's spread over the calibration runs (never below its resolution)."""
-    return np.maximum(np.std(calibration_features, axis=0, ddof=1), RESOLUTION)
+def feature_scales(calibration_features: FloatArray) -> FloatArray:
+    """
+    Each feature's spread over the calibration runs (never below its resolution).
+
+    Parameters
+    ----------
+    calibration_features : array, shape (n, F)
+        Run features in SI units (`features.run_features`).
+
+    Returns
+    -------
+    array, shape (F,)
+        Spreads, in the features' units.
+
+    """
+    scales: FloatArray = np.maximum(np.std(calibration_features, axis=0, ddof=1), RESOLUTION)
+    return scales
 
 
-def feature_log_score(sample: np.ndarray, observed: np.ndarray, by_position: bool = False
-                      ) -> np.ndarray:
+def feature_log_score(sample: FloatArray, observed: FloatArray, by_position: bool = False
+                      ) -> FloatArray:
     """
     Return the summed normal log density of each observed row under the sample.
 
@@ -64,6 +79,21 @@ def feature_log_score(sample: np.ndarray, observed: np.ndarray, by_position: boo
     never below FLOOR, the distance never beyond CAP spreads); columns in data spreads.
     `by_position`: the mean and spread are those of the sample's least-squares line against
     the position column, taken at each observed row's position (module docstring).
+
+    Parameters
+    ----------
+    sample : array, shape (m, F)
+        Simulated runs' features, in data spreads.
+    observed : array, shape (n, F)
+        Held-out runs' features, in data spreads.
+    by_position : bool
+        Condition on the position column (module docstring).
+
+    Returns
+    -------
+    array, shape (n,)
+        Log score of each observed run, nats.
+
     """
     outcomes, observed_outcomes = sample[:, OUTCOMES], observed[:, OUTCOMES]
     if by_position:
@@ -79,24 +109,52 @@ def feature_log_score(sample: np.ndarray, observed: np.ndarray, by_position: boo
         mean = outcomes.mean(axis=0)
         spread = np.maximum(outcomes.std(axis=0, ddof=1), FLOOR)
     z = np.clip((observed_outcomes - mean) / spread, -CAP, CAP)
-    return (stats.norm.logpdf(z) - np.log(spread)).sum(axis=1)
+    log_score: FloatArray = (stats.norm.logpdf(z) - np.log(spread)).sum(axis=1)
+    return log_score
 
 
-def energy_score(sample: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    """Energy score of each observed row against the sample rows (lower is better)."""
+def energy_score(sample: FloatArray, observed: FloatArray) -> FloatArray:
+    """
+    Energy score of each observed row against the sample rows (lower is better).
+
+    Parameters
+    ----------
+    sample : array, shape (m, P)
+        Simulated runs' points, cm.
+    observed : array, shape (n, P)
+        Held-out runs' points, cm.
+
+    Returns
+    -------
+    array, shape (n,)
+        Energy score of each observed run, cm.
+
+    """
     distances = np.sqrt(((sample[None, :, :] - observed[:, None, :]) ** 2).sum(axis=-1))
     to_observed = distances.mean(axis=1)
     pairs = sample[:PAIR_RUNS]
     half = len(pairs) // 2
     spread = np.sqrt(((pairs[:half] - pairs[half:2 * half]) ** 2).sum(axis=-1)).mean()
-    return to_observed - 0.5 * spread
+    energy: FloatArray = to_observed - 0.5 * spread
+    return energy
 
 
-def position_points_cm(positions: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+def position_points_cm(positions: FloatArray, lengths: IntArray) -> FloatArray:
     """
-    Return positions (cm) at fractions of each run's duration.
+    Return positions (cm) at fractions of each run's duration, relative to the run's start.
 
-    Shape (n, 2 x len(ENERGY_FRACTIONS)), relative to the run's start.
+    Parameters
+    ----------
+    positions : array, shape (n, T, 2)
+        x, y, m (NaN after a run's end).
+    lengths : array of int, shape (n,)
+        Samples of each run.
+
+    Returns
+    -------
+    array, shape (n, 2 len(ENERGY_FRACTIONS))
+        Points, cm.
+
     """
     rows = np.arange(positions.shape[0])
     last = np.maximum(lengths - 1, 0)
@@ -105,10 +163,24 @@ def position_points_cm(positions: np.ndarray, lengths: np.ndarray) -> np.ndarray
     return np.concatenate(points, axis=1) * 100.0
 
 
-def score_model(model_features: np.ndarray, model_points_cm: np.ndarray,
-                observed_features: np.ndarray, observed_points_cm: np.ndarray,
-                scales: np.ndarray, by_position: bool = False) -> Scores:
-    """Scores of the observed (held-out) runs under a model's simulated runs."""
+def score_model(model_features: FloatArray, model_points_cm: FloatArray,
+                observed_features: FloatArray, observed_points_cm: FloatArray,
+                scales: FloatArray, by_position: bool = False) -> Scores:
+    """
+    Scores of the observed (held-out) runs under a model's simulated runs.
+
+    Parameters
+    ----------
+    model_features, observed_features : arrays, shapes (m, F) and (n, F)
+        Run features, SI units.
+    model_points_cm, observed_points_cm : arrays, shapes (m, P) and (n, P)
+        `position_points_cm`, cm.
+    scales : array, shape (F,)
+        `feature_scales`.
+    by_position : bool
+        As in `feature_log_score`.
+
+    """
     return Scores(feature_log_score(model_features / scales, observed_features / scales,
                                     by_position),
                   energy_score(model_points_cm, observed_points_cm))
@@ -123,7 +195,7 @@ class PairedGain:
     p_value: float
 
     @classmethod
-    def of(cls, improvement: np.ndarray) -> PairedGain:
+    def of(cls, improvement: FloatArray) -> PairedGain:
         """`improvement` per run (positive: the second model predicts the run better)."""
         improvement = np.asarray(improvement, dtype=float)
         mean = float(improvement.mean())

@@ -10,19 +10,26 @@ from __future__ import annotations
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.fitting.nominal import MeanPathSettings, NominalFit, simulated_runs
 from octoroach_model.fitting.target import AverageTarget, residual_vector
 
 
-def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: np.ndarray,
+def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: FloatArray,
                     mean: MeanPathSettings, seed: int, n_boot: int = 60
-                    ) -> tuple[np.ndarray, np.ndarray]:
+                    ) -> tuple[FloatArray, FloatArray]:
     """
     Return the covariance of the fit's vector from the measured and from the simulated runs.
 
     `target` is what the fit matched, `data_sway` (n, 3) each measured run's sway (its mean
     the sway target), `mean` the fit's simulated runs (with the sway matched), `seed` that
     of the resamples.
+
+    Returns
+    -------
+    measured, simulated : arrays, shape (p, p)
+        Covariances of the fit's p parameters (the fit's vector's units).
+
     """
     assert fit.jacobian is not None, 'a fit by least squares has its Jacobian'
     pseudo_inverse = np.linalg.pinv(fit.jacobian)
@@ -32,7 +39,7 @@ def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: np.ndarra
     model_sway = sway.of_runs(full, fit.parameters.stride_frequency)
     runs = full[:, :len(target.t)]
 
-    def vector(xy, turn, sway):
+    def vector(xy: FloatArray, turn: FloatArray, sway: FloatArray) -> FloatArray:
         return residual_vector(xy, turn, sway, fit.heading_weight_m, mean.scales)
 
     rng = np.random.default_rng([seed, 17])

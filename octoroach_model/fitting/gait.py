@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from octoroach_model.arrays import BoolArray, FloatArray, IntArray
 from octoroach_model.model.trig import cos_sin
 from octoroach_model.paths import Paths
 
@@ -19,12 +20,12 @@ BAND_POINTS = 33          # DFT frequencies across the band (then a parabolic re
 SPECTRUM_RUNS = 400       # runs averaged for the set's stride frequency (plenty for a peak)
 
 
-def valid_mask(values: np.ndarray) -> np.ndarray:
+def valid_mask(values: FloatArray) -> BoolArray:
     """(n, T) True where a run has a sample (runs are NaN after their end)."""
     return np.isfinite(values)
 
 
-def hann_windows(lengths: np.ndarray, n_samples: int) -> np.ndarray:
+def hann_windows(lengths: IntArray, n_samples: int) -> FloatArray:
     """(n, T) a Hann window over each run's own samples, zero after its end."""
     distinct, which = np.unique(lengths, return_inverse=True)   # most runs share a length
     index = np.arange(n_samples)[None, :]
@@ -33,8 +34,23 @@ def hann_windows(lengths: np.ndarray, n_samples: int) -> np.ndarray:
     return np.where(index < distinct[:, None], window, 0.0)[which.reshape(-1)]
 
 
-def detrended(values: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Each run minus its own least-squares line over its samples; 0 after its end."""
+def detrended(values: FloatArray, t: FloatArray) -> FloatArray:
+    """
+    Each run minus its own least-squares line over its samples; 0 after its end.
+
+    Parameters
+    ----------
+    values : array, shape (n, T)
+        NaN after a run's end.
+    t : array, shape (T,)
+        s.
+
+    Returns
+    -------
+    array, shape (n, T)
+        In the units of `values`.
+
+    """
     mask = valid_mask(values)
     weight = mask.astype(float)
     count = np.maximum(weight.sum(axis=1, keepdims=True), 1)
@@ -47,28 +63,58 @@ def detrended(values: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.where(mask, filled - v_mean - slope * (t - t_mean), 0.0)
 
 
-def band_spectrum(signal: np.ndarray, t: np.ndarray, frequencies: np.ndarray) -> np.ndarray:
+def band_spectrum(signal: FloatArray, t: FloatArray, frequencies: FloatArray) -> FloatArray:
     """
     |DFT| of each (windowed, zero-filled) run at `frequencies` (Hz): (n, K).
 
     A DFT on a few frequencies in a band costs n T K, far less than a finely zero-padded FFT
     of every run, and its frequency grid is the same whatever the sample rate.
+
+    Parameters
+    ----------
+    signal : array, shape (n, T)
+        Windowed runs, zero after their end.
+    t : array, shape (T,)
+        s.
+    frequencies : array, shape (K,)
+        Hz.
+
+    Returns
+    -------
+    array, shape (n, K)
+        In the units of `signal`.
+
     """
     cosine, sine = cos_sin(2 * np.pi * np.outer(t, frequencies))
     # two real products: a real signal times a complex matrix is four
     return np.hypot(signal @ cosine, signal @ sine)
 
 
-def windowed_sway(heading: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Return each run's heading, its own line removed, times its Hann window; and the window."""
+def windowed_sway(heading: FloatArray, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """
+    Return each run's heading, its own line removed, times its Hann window; and the window.
+
+    Parameters
+    ----------
+    heading : array, shape (n, T)
+        rad, NaN after a run's end.
+    t : array, shape (T,)
+        s.
+
+    Returns
+    -------
+    sway, window : arrays, shape (n, T)
+        rad, and the window (0..1).
+
+    """
     lengths = valid_mask(heading).sum(axis=1)
     window = hann_windows(lengths, heading.shape[1])
     return detrended(heading, t) * window, window
 
 
-def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float,
-                 windowed: tuple[np.ndarray, np.ndarray] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def heading_sway(heading: FloatArray, t: FloatArray, nominal_hz: float,
+                 windowed: tuple[FloatArray, FloatArray] | None = None
+                 ) -> tuple[FloatArray, FloatArray]:
     """
     Per-run stride frequency (Hz) and sway amplitude (rad) of the heading.
 
@@ -77,6 +123,23 @@ def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float,
     is not drowned by position noise. The peak of the windowed spectrum within BAND of
     `nominal_hz` is refined by a parabola through its neighbours. `windowed`: the result of
     `windowed_sway`, where the caller has it already.
+
+    Parameters
+    ----------
+    heading : array, shape (n, T)
+        rad, NaN after a run's end.
+    t : array, shape (T,)
+        s.
+    nominal_hz : float
+        Hz.
+    windowed : (sway, window) or None
+        `windowed_sway` of `heading`, where the caller has it.
+
+    Returns
+    -------
+    frequency, amplitude : arrays, shape (n,)
+        Hz, rad.
+
     """
     sway, window = windowed if windowed is not None else windowed_sway(heading, t)
     frequencies = np.linspace(BAND[0] * nominal_hz, BAND[1] * nominal_hz, BAND_POINTS)
@@ -95,13 +158,30 @@ def heading_sway(heading: np.ndarray, t: np.ndarray, nominal_hz: float,
     return frequencies[peak] + shift * step, amplitude
 
 
-def lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
-                 frequency: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def lateral_sway(xy: FloatArray, heading: FloatArray, t: FloatArray,
+                 frequency: FloatArray) -> tuple[FloatArray, FloatArray]:
     """
     Measure the sideways sway of G (m) at each run's stride frequency and twice it.
 
     Sideways is across the run's mean heading, linear trend removed; the two amplitudes are
     the shape of a stance.
+
+    Parameters
+    ----------
+    xy : array, shape (n, T, 2)
+        m.
+    heading : array, shape (n, T)
+        rad.
+    t : array, shape (T,)
+        s.
+    frequency : array, shape (n,)
+        Each run's stride frequency, Hz.
+
+    Returns
+    -------
+    at_f, at_2f : arrays, shape (n,)
+        m.
+
     """
     mask = valid_mask(heading)
     count = np.maximum(mask.sum(axis=1, keepdims=True), 1)
@@ -113,24 +193,39 @@ def lateral_sway(xy: np.ndarray, heading: np.ndarray, t: np.ndarray,
     angle = 2 * np.pi * frequency[:, None] * t[None, :]
     cos, sin = cos_sin(angle)      # real arithmetic: a complex exp costs 3x
 
-    def amplitude(cosine: np.ndarray, sine: np.ndarray) -> np.ndarray:
+    def amplitude(cosine: FloatArray, sine: FloatArray) -> FloatArray:
         projections = (np.einsum('ij,ij->i', residual, cosine),
                        np.einsum('ij,ij->i', residual, sine))
-        return 2 * np.hypot(*projections) / norm
+        amplitudes: FloatArray = 2 * np.hypot(*projections) / norm
+        return amplitudes
 
     first = amplitude(cos, sin)
     return first, amplitude(cos * cos - sin * sin, 2 * sin * cos)     # twice the angle
 
 
-def sway_features(t: np.ndarray, xy: np.ndarray, heading: np.ndarray,
-                  guess_hz: float) -> np.ndarray:
-    """(n, 3) per run: heading sway amplitude (rad), sideways sway at f and 2f (m)."""
+def sway_features(t: FloatArray, xy: FloatArray, heading: FloatArray,
+                  guess_hz: float) -> FloatArray:
+    """
+    (n, 3) per run: heading sway amplitude (rad), sideways sway at f and 2f (m).
+
+    Parameters
+    ----------
+    t : array, shape (T,)
+        s.
+    xy : array, shape (n, T, 2)
+        m.
+    heading : array, shape (n, T)
+        rad.
+    guess_hz : float
+        Stride frequency guess, Hz.
+
+    """
     frequency, amplitude = heading_sway(heading, t, guess_hz)
     first, second = lateral_sway(xy, heading, t, frequency)
     return np.column_stack([amplitude, first, second])
 
 
-def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
+def stride_frequency_estimate(heading: FloatArray, t: FloatArray) -> float:
     """
     Estimate the stride frequency (Hz) of a set of runs, with no prior guess.
 
@@ -140,6 +235,14 @@ def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
 
     Searched from 1.5 cycles per run up to a third of the sample rate, on the first
     SPECTRUM_RUNS runs.
+
+    Parameters
+    ----------
+    heading : array, shape (n, T)
+        rad, NaN after a run's end.
+    t : array, shape (T,)
+        s.
+
     """
     lengths = valid_mask(heading).sum(axis=1)
     usable = np.flatnonzero(lengths >= 8)[:SPECTRUM_RUNS]
@@ -160,7 +263,7 @@ def stride_frequency_estimate(heading: np.ndarray, t: np.ndarray) -> float:
 
 
 def aligned_runs(measured: Paths, guess_hz: float
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+                 ) -> tuple[FloatArray, FloatArray, FloatArray, float]:
     """
     Put every run on a common gait clock.
 
@@ -187,7 +290,7 @@ def aligned_runs(measured: Paths, guess_hz: float
     return grid, aligned[..., :2], turn, mean_frequency
 
 
-def _interp_rows(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
+def _interp_rows(at: FloatArray, t: FloatArray, values: FloatArray) -> FloatArray:
     """
     Interpolate values (n, T) sampled at t linearly, row by row, at times at (n, G).
 

@@ -11,7 +11,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-Statistic = Callable[[np.ndarray], float]
+from octoroach_model.arrays import FloatArray
+
+Statistic = Callable[[FloatArray], float]
 
 
 def read_line(points: dict[float, float], target: float) -> float:
@@ -33,12 +35,24 @@ def read_line(points: dict[float, float], target: float) -> float:
     return float(u0 + (target - s0) * (u1 - u0) / (s1 - s0))
 
 
-def paired_relative_se(statistic: Statistic, without: np.ndarray, with_cause: np.ndarray,
+def paired_relative_se(statistic: Statistic, without: FloatArray, with_cause: FloatArray,
                        rng: np.random.Generator, n_boot: int) -> float:
     """
     Return the relative error of S(with) - S(without) on the same simulated runs.
 
     Runs are resampled in pairs: run i of both sets shares its random numbers.
+
+    Parameters
+    ----------
+    statistic : function of an (n, F) array
+        S.
+    without, with_cause : arrays, shape (n, F)
+        Features of the same simulated runs without and with the cause.
+    rng : numpy Generator
+        Draws the resamples.
+    n_boot : int
+        Resamples.
+
     """
     n = min(without.shape[0], with_cause.shape[0])
     difference = statistic(with_cause[:n]) - statistic(without[:n])
@@ -51,9 +65,23 @@ def paired_relative_se(statistic: Statistic, without: np.ndarray, with_cause: np
     return float(np.std(values, ddof=1)) / difference
 
 
-def bootstrap_se(statistic: Statistic, features: np.ndarray, rng: np.random.Generator,
+def bootstrap_se(statistic: Statistic, features: FloatArray, rng: np.random.Generator,
                  n_boot: int) -> float:
-    """Return the standard error of `statistic` over the runs (rows) of `features`."""
+    """
+    Return the standard error of `statistic` over the runs (rows) of `features`.
+
+    Parameters
+    ----------
+    statistic : function of an (n, F) array
+        The statistic.
+    features : array, shape (n, F)
+        Run features, SI units.
+    rng : numpy Generator
+        Draws the resamples.
+    n_boot : int
+        Resamples.
+
+    """
     n = features.shape[0]
     values = [statistic(features[rng.integers(0, n, n)]) for _ in range(n_boot)]
     return float(np.std(values, ddof=1))

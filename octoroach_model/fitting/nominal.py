@@ -36,14 +36,14 @@ them together.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 import math
-from typing import Any
 
 import numpy as np
 from scipy import optimize
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import DataError
 from octoroach_model.fitting.gait import stride_frequency_estimate
 from octoroach_model.fitting.target import (
@@ -51,6 +51,7 @@ from octoroach_model.fitting.target import (
     SwayTarget)
 from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
 from octoroach_model.model.kinematics import integrate_stances
+from octoroach_model.model.parameters import ParameterTable, StartPoseTable
 from octoroach_model.paths import Paths
 
 LOWER = [0.003, 0.05, 0.05, 0.05, 0.05, 0.2]
@@ -71,6 +72,13 @@ class FreeEffect:
     start: float = 0.0
 
 
+class NominalTable(ParameterTable):
+    """A nominal fit as reports print it (`NominalFit.report`)."""
+
+    start_pose: StartPoseTable
+    rms_error_cm: float
+
+
 @dataclass(frozen=True)
 class NominalFit:
     """
@@ -85,14 +93,14 @@ class NominalFit:
     parameters: ModelParameters
     start_pose: tuple[float, float, float]
     rms_error_m: float
-    average_path: np.ndarray     # (T, 2) the measured average it was fitted to
-    effects: dict = field(default_factory=dict)   # effects in the model, incl. fitted ones
+    average_path: FloatArray     # (T, 2) the measured average it was fitted to
+    effects: Effects = field(default_factory=dict)   # effects in the model, incl. fitted ones
     cost: float = 0.0            # least-squares cost at the solution (compares restarts)
-    jacobian: np.ndarray | None = None
+    jacobian: FloatArray | None = None
     free: tuple[FreeEffect, ...] = ()
     heading_weight_m: float = 0.0
 
-    def report(self) -> dict:
+    def report(self) -> NominalTable:
         return {**self.parameters.table(),
                 'start_pose': {'x_cm': self.start_pose[0] * 100, 'y_cm': self.start_pose[1] * 100,
                                'heading_deg': math.degrees(self.start_pose[2])},
@@ -142,34 +150,84 @@ class NominalFitSettings:
     tolerance: float = 1e-8
 
 
-def simulated_runs(parameters: ModelParameters, start_pose, t: np.ndarray,
-                   effects: Mapping[str, Any] | None, settings: MeanPathSettings) -> np.ndarray:
+def simulated_runs(parameters: ModelParameters, start_pose: tuple[float, float, float],
+                   t: FloatArray, effects: Mapping[str, Mapping[str, float]] | None,
+                   settings: MeanPathSettings) -> FloatArray:
     """
     Simulate the (runs, T, 3) runs of a mean path.
 
     Common random numbers, drawn in antithetic pairs so that their mean has no random tilt of
     its own.
+
+    Parameters
+    ----------
+    parameters : ModelParameters
+        The geometry.
+    start_pose : tuple of 3 floats
+        x (m), y (m), heading (rad).
+    t : array, shape (T,)
+        s.
+    effects : {cause: {parameter: value}} or None
+        Effects in the model.
+    settings : MeanPathSettings
+        Runs, spreads and seed.
+
+    Returns
+    -------
+    array, shape (settings.runs, T, 3)
+        x (m), y (m), heading (rad).
+
     """
-    return model_poses(parameters, RandomStreams(settings.seed, antithetic=True),
-                       settings.runs, t, settings.sigmas[0], settings.sigmas[1], 'stance',
-                       effects or {}, None, start_pose)
+    runs: FloatArray = model_poses(parameters, RandomStreams(settings.seed, antithetic=True),
+                                   settings.runs, t, settings.sigmas[0], settings.sigmas[1],
+                                   'stance', effects or {}, None, start_pose)
+    return runs
 
 
-def deterministic_path(parameters: ModelParameters, start_pose, t: np.ndarray,
-                       effects: Mapping[str, Any] | None = None) -> np.ndarray:
-    """(T, 3) pose of the model with every angle at its nominal value."""
+def deterministic_path(parameters: ModelParameters, start_pose: tuple[float, float, float],
+                       t: FloatArray,
+                       effects: Mapping[str, Mapping[str, float]] | None = None) -> FloatArray:
+    """
+    (T, 3) pose of the model with every angle at its nominal value.
+
+    Parameters
+    ----------
+    parameters : ModelParameters
+        The geometry.
+    start_pose : tuple of 3 floats
+        x (m), y (m), heading (rad).
+    t : array, shape (T,)
+        s.
+    effects : {cause: {parameter: value}} or None
+        Effects in the model.
+
+    """
     if effects:
-        return model_poses(parameters, RandomStreams(0), 1, t, 0.0, 0.0, 'stance', effects,
-                           None, start_pose)[0]
+        path: FloatArray = model_poses(parameters, RandomStreams(0), 1, t, 0.0, 0.0, 'stance',
+                                       effects, None, start_pose)[0]
+        return path
     n_stances = max(1, int(math.ceil(2 * parameters.stride_frequency * t[-1] - 1e-9)))
     angles = np.broadcast_to(parameters.nominal_angles, (1, n_stances, 6))
     phase = 2 * parameters.stride_frequency * t
-    return integrate_stances(angles, phase, start_pose, parameters.leg_length,
-                             parameters.hip_distance)[0]
+    nominal_path: FloatArray = integrate_stances(angles, phase, start_pose, parameters.leg_length,
+                                                 parameters.hip_distance)[0]
+    return nominal_path
 
 
-def stride_frequency_guess(average_path: np.ndarray, t: np.ndarray, fallback: float) -> float:
-    """Half the dominant frequency of the average speed (one speed peak per stance)."""
+def stride_frequency_guess(average_path: FloatArray, t: FloatArray, fallback: float) -> float:
+    """
+    Half the dominant frequency of the average speed (one speed peak per stance).
+
+    Parameters
+    ----------
+    average_path : array, shape (G, 2)
+        m.
+    t : array, shape (G,)
+        s.
+    fallback : float
+        Hz, where no peak is found.
+
+    """
     if len(t) < 16:
         return fallback
     dt = float(t[1] - t[0])
@@ -213,9 +271,9 @@ class NominalProblem:
 
     initial: ModelParameters
     start_pose: tuple[float, float, float]
-    t: np.ndarray
-    average: np.ndarray
-    average_heading: np.ndarray | None
+    t: FloatArray
+    average: FloatArray
+    average_heading: FloatArray | None
     held: Effects
     settings: NominalFitSettings
 
@@ -234,7 +292,7 @@ class NominalProblem:
             average_heading = target.turn
         return cls(initial, start_pose, t, average, average_heading, held, settings)
 
-    def build(self, vector: np.ndarray) -> tuple[ModelParameters, Effects]:
+    def build(self, vector: FloatArray) -> tuple[ModelParameters, Effects]:
         """Return the geometry and the effects that `vector` stands for."""
         parameters = replace(self.initial, leg_length=vector[0],
                              touchdown_angles=tuple(vector[1:5]),
@@ -249,7 +307,7 @@ class NominalProblem:
         mean = self.settings.mean
         return mean.sway if mean is not None else None
 
-    def runs_of(self, parameters: ModelParameters, model_effects: Effects) -> np.ndarray:
+    def runs_of(self, parameters: ModelParameters, model_effects: Effects) -> FloatArray:
         """Return the model's (runs, T', 3) runs: one deterministic, or the simulated ones."""
         mean = self.settings.mean
         if mean is None:
@@ -261,11 +319,12 @@ class NominalProblem:
         grid = sway.t if sway is not None else self.t    # t is a prefix of the recorded grid
         return simulated_runs(parameters, self.start_pose, grid, model_effects, mean)
 
-    def path_of(self, parameters: ModelParameters, model_effects: Effects) -> np.ndarray:
+    def path_of(self, parameters: ModelParameters, model_effects: Effects) -> FloatArray:
         """Return the model's (G, 3) path on the target's times."""
-        return self.runs_of(parameters, model_effects)[:, :len(self.t)].mean(axis=0)
+        path: FloatArray = self.runs_of(parameters, model_effects)[:, :len(self.t)].mean(axis=0)
+        return path
 
-    def residuals(self, vector: np.ndarray) -> np.ndarray:
+    def residuals(self, vector: FloatArray) -> FloatArray:
         """Return the residuals of the model that `vector` stands for (residual_vector)."""
         parameters, model_effects = self.build(vector)
         runs = self.runs_of(parameters, model_effects)
@@ -287,7 +346,7 @@ class NominalProblem:
         x_scale = X_SCALE + [max(0.1, 0.05 * (item.upper - item.lower)) for item in free]
         return lower, upper, x_scale
 
-    def starts(self) -> list[np.ndarray]:
+    def starts(self) -> list[FloatArray]:
         """Return the vectors the fit starts from: one per stride-frequency guess, in order."""
         initial = self.initial
         guesses = {initial.stride_frequency}
@@ -303,8 +362,18 @@ class NominalProblem:
         return starts
 
 
-def solve(problem: NominalProblem, start: np.ndarray) -> optimize.OptimizeResult:
-    """Run least squares from `start`: in one stage with `refine`, else in two."""
+def solve(problem: NominalProblem, start: FloatArray) -> optimize.OptimizeResult:
+    """
+    Run least squares from `start`: in one stage with `refine`, else in two.
+
+    Parameters
+    ----------
+    problem : NominalProblem
+        What is fitted.
+    start : array, shape (p,)
+        The fit's vector (geometry, frequency, free effects).
+
+    """
     lower, upper, x_scale = problem.bounds()
     tolerance = problem.settings.tolerance
     if problem.settings.refine:
@@ -340,12 +409,29 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None,
                       settings.heading_weight_m)
 
 
-def two_stage_least_squares(residuals, start, lower, upper, x_scale, tolerance=1e-8):
-    """Least squares with the stride frequency (index FREQUENCY) held first, then released."""
+def two_stage_least_squares(residuals: Callable[[FloatArray], FloatArray], start: FloatArray,
+                            lower: Sequence[float], upper: Sequence[float],
+                            x_scale: Sequence[float], tolerance: float = 1e-8
+                            ) -> optimize.OptimizeResult:
+    """
+    Least squares with the stride frequency (index FREQUENCY) held first, then released.
+
+    Parameters
+    ----------
+    residuals : function of an array of shape (p,)
+        Returns the residual vector.
+    start : array, shape (p,)
+        Where the search starts.
+    lower, upper, x_scale : sequences of p floats
+        Bounds and scales of the vector's entries.
+    tolerance : float
+        ftol and xtol of least_squares.
+
+    """
     frequency = start[FREQUENCY]
     free = [i for i in range(len(start)) if i != FREQUENCY]
 
-    def held(vector):
+    def held(vector: FloatArray) -> FloatArray:
         full = np.insert(vector, FREQUENCY, frequency)
         return residuals(full)
 

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.fitting.gait import aligned_runs, sway_features
 from octoroach_model.paths import Paths
 
@@ -30,10 +31,10 @@ class SwayTarget:
     """
 
     values: tuple[float, float, float]
-    t: np.ndarray
-    lengths: np.ndarray
+    t: FloatArray
+    lengths: IntArray
 
-    def of_runs(self, runs: np.ndarray, guess_hz: float) -> np.ndarray:
+    def of_runs(self, runs: FloatArray, guess_hz: float) -> FloatArray:
         """Return the (runs, 3) sway of simulated runs on `t`, cut like the data's runs."""
         picks = self.lengths[np.arange(runs.shape[0]) % len(self.lengths)]
         cut = np.arange(len(self.t))[None, :] >= picks[:, None]
@@ -54,19 +55,38 @@ class ResidualScales:
     the geometry does not bend to follow the chance curvature of an average path.
     """
 
-    path: np.ndarray
-    turn: np.ndarray
-    sway: np.ndarray
+    path: FloatArray
+    turn: FloatArray
+    sway: FloatArray
 
 
-def residual_vector(path_gap: np.ndarray, turn_gap: np.ndarray | None,
-                    sway_gap: np.ndarray | None, heading_weight_m: float,
-                    scales: ResidualScales | None) -> np.ndarray:
+def residual_vector(path_gap: FloatArray, turn_gap: FloatArray | None,
+                    sway_gap: FloatArray | None, heading_weight_m: float,
+                    scales: ResidualScales | None) -> FloatArray:
     """
     Return the fit's residuals from model-minus-data gaps.
 
     In standard errors with `scales`, else in cm (heading through `heading_weight_m`, sway
     through `sway_weights`).
+
+    Parameters
+    ----------
+    path_gap : array, shape (G, 2)
+        Model minus data average path, m.
+    turn_gap : array, shape (G,), or None
+        Heading change gap, rad.
+    sway_gap : array, shape (3,), or None
+        Sway gap (rad, m, m).
+    heading_weight_m : float
+        m per rad of heading, without `scales`.
+    scales : ResidualScales or None
+        Standard errors of the gaps.
+
+    Returns
+    -------
+    array, shape (2 G,), plus G with `turn_gap`, plus 3 with `sway_gap`
+        The parts given, flattened in that order.
+
     """
     if scales is not None:
         parts = [(path_gap / scales.path).ravel()]
@@ -83,7 +103,7 @@ def residual_vector(path_gap: np.ndarray, turn_gap: np.ndarray | None,
     return np.concatenate(parts) * 100.0
 
 
-def sway_weights(heading_weight_m: float, samples: int) -> np.ndarray:
+def sway_weights(heading_weight_m: float, samples: int) -> FloatArray:
     """
     Weigh the sway residuals against the path's.
 
@@ -92,6 +112,12 @@ def sway_weights(heading_weight_m: float, samples: int) -> np.ndarray:
     outweighs the sway and the fitted angles leave the heading sway several standard errors
     off on robots away from Table II; at 5 it is matched within its error (and the angles
     come closer to the truth).
+
+    Returns
+    -------
+    array, shape (3,)
+        Of the heading sway (m per rad), then of the two sideways sways (m per m).
+
     """
     return np.array([max(heading_weight_m, 0.0), 1.0, 1.0]) * SWAY_WEIGHT * math.sqrt(samples)
 
@@ -112,50 +138,52 @@ class AverageTarget:
     ended), so that a resampling of the runs gives a resampled target.
     """
 
-    t: np.ndarray
-    runs_xy: np.ndarray
-    runs_turn: np.ndarray
-    start_heading: np.ndarray
+    t: FloatArray
+    runs_xy: FloatArray
+    runs_turn: FloatArray
+    start_heading: FloatArray
 
     @property
-    def average(self) -> np.ndarray:
+    def average(self) -> FloatArray:
         return _nanmean_rows(self.runs_xy)
 
     @property
-    def turn(self) -> np.ndarray:
+    def turn(self) -> FloatArray:
         return _nanmean_rows(self.runs_turn)
 
-    def scales(self, sway_per_run: np.ndarray | None = None,
+    def scales(self, sway_per_run: FloatArray | None = None,
                floor_m: float = 1e-5) -> ResidualScales:
         """
         Return the standard errors of this target's averages (and of `sway_per_run`'s mean).
 
         Never below `floor_m` (positions; the same in rad for the heading).
         """
-        def standard_error(values: np.ndarray) -> np.ndarray:
+        def standard_error(values: FloatArray) -> FloatArray:
             count = np.maximum(np.isfinite(values).sum(axis=0), 2)
             with np.errstate(invalid='ignore'):
                 spread = np.nanstd(values, axis=0, ddof=1)
-            return np.maximum(np.nan_to_num(spread / np.sqrt(count)), floor_m)
+            error: FloatArray = np.maximum(np.nan_to_num(spread / np.sqrt(count)), floor_m)
+            return error
 
         sway = (standard_error(sway_per_run) if sway_per_run is not None
                 else np.full(3, floor_m))
         return ResidualScales(standard_error(self.runs_xy), standard_error(self.runs_turn),
                               np.maximum(sway, 1e-12))
 
-    def resampled(self, index: np.ndarray) -> AverageTarget:
+    def resampled(self, index: IntArray) -> AverageTarget:
         """Return the target of the runs picked by `index` (a bootstrap resample)."""
         return AverageTarget(self.t, self.runs_xy[index], self.runs_turn[index],
                              self.start_heading[index])
 
 
-def _nanmean_rows(values: np.ndarray) -> np.ndarray:
+def _nanmean_rows(values: FloatArray) -> FloatArray:
     with np.errstate(invalid='ignore', divide='ignore'):
         count = np.isfinite(values).sum(axis=0)
-        return np.nansum(values, axis=0) / np.maximum(count, 1)
+        mean: FloatArray = np.nansum(values, axis=0) / np.maximum(count, 1)
+        return mean
 
 
-def average_target(measured: Paths, start_pose, guess_hz: float,
+def average_target(measured: Paths, start_pose: tuple[float, float, float], guess_hz: float,
                    align_gait: bool) -> AverageTarget:
     """
     Average the paths of `measured` over the times that at least a tenth of the runs reach.

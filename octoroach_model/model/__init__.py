@@ -1,7 +1,7 @@
 """
 The paper's switching four-bar model, its stochastic version and the causes' effects.
 
-Plain numpy; imports nothing from the rest of the package but `paths` and `errors`.
+Plain numpy; imports nothing from the rest of the package but `paths`, `errors` and `arrays`.
 """
 from octoroach_model.model.effects import (
     check_effects, EFFECT_NAMES, EFFECT_PARAMETERS, PARAMETER_RANGES)

@@ -16,13 +16,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import replace
 import math
-from typing import Protocol
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
 from octoroach_model.model.extensions import (
-    positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext)
+    NormalSource, positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext)
 from octoroach_model.model.trig import cos_sin
 
 # Canonical order of application; also the order of their random streams.
@@ -81,16 +81,9 @@ def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
     return {name: checked[name] for name in MODEL_TERMS if name in checked}
 
 
-class NormalSource(Protocol):
-    """Where an effect draws its normals: a numpy Generator, or one giving antithetic pairs."""
-
-    def standard_normal(self, size: int | tuple[int, ...]) -> np.ndarray:
-        """Draw standard normals of shape `size`."""
-
-
-def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
-                rngs: Mapping[str, NormalSource], positions: np.ndarray | None = None
-                ) -> np.ndarray:
+def warped_time(effects: Effects, t: FloatArray, n_runs: int,
+                rngs: Mapping[str, NormalSource], positions: FloatArray | None = None
+                ) -> FloatArray:
     """
     Give the (n, T) gait clock: the times at which the unwarped model is evaluated.
 
@@ -98,10 +91,29 @@ def warped_time(effects: Effects, t: np.ndarray, n_runs: int,
     multiply), then each run's gait_frequency_variation and run-order stretch scale the
     result: clock = (1 + e) (t - fraction t^2 / (2 T)). `positions` (n,): each run's place in
     the recording (extensions.py).
+
+    Parameters
+    ----------
+    effects : {name: {parameter: value}}
+        Checked effects.
+    t : array, shape (T,)
+        Sample times, s.
+    n_runs : int
+        n.
+    rngs : {name: NormalSource}
+        Each term's stream.
+    positions : array, shape (n_runs,), or None
+        Places in the recording, 0..1.
+
+    Returns
+    -------
+    array, shape (n_runs, T)
+        Gait clock, s.
+
     """
     duration = float(t[-1]) if len(t) else 0.0
 
-    def decayed(times: np.ndarray) -> np.ndarray:
+    def decayed(times: FloatArray) -> FloatArray:
         if 'speed_decay' in effects and duration > 0:
             return times - effects['speed_decay']['fraction'] * times ** 2 / (2.0 * duration)
         return times
@@ -128,7 +140,7 @@ def _terms(effects: Effects, stage: str) -> list[tuple[str, Mapping[str, float]]
             if name in effects and TERM_BY_NAME[name].stage == stage]
 
 
-def _context(t: np.ndarray, n_runs: int, positions: np.ndarray | None, duration: float
+def _context(t: FloatArray, n_runs: int, positions: FloatArray | None, duration: float
              ) -> TermContext:
     places = positions_in_order(n_runs) if positions is None else np.asarray(positions, float)
     return TermContext(np.asarray(t, dtype=float), places, duration, None)
@@ -153,15 +165,36 @@ def mean_gait_rate(effects: Effects, duration_s: float | None = None) -> float:
     return before + float(change['speed_factor']) * after
 
 
-def apply_pose_effects(poses: np.ndarray, t: np.ndarray, effects: Effects,
-                       rngs: Mapping[str, NormalSource], positions: np.ndarray | None = None,
-                       phase: np.ndarray | None = None) -> np.ndarray:
+def apply_pose_effects(poses: FloatArray, t: FloatArray, effects: Effects,
+                       rngs: Mapping[str, NormalSource], positions: FloatArray | None = None,
+                       phase: FloatArray | None = None) -> FloatArray:
     """
     Apply the non-warp effects to runs, in canonical order. poses: (n, T, 3), SI.
 
     The extensions' heading perturbations come after persistent_turning (their sum turns
     heading and velocity together), their sideways drifts after lateral_slip. `positions`:
     each run's place in the recording; `phase`: the stance phase (n, T) or (T,).
+
+    Parameters
+    ----------
+    poses : array, shape (n, T, 3)
+        x (m), y (m), heading (rad).
+    t : array, shape (T,)
+        Sample times, s.
+    effects : {name: {parameter: value}}
+        Checked effects.
+    rngs : {name: NormalSource}
+        Each term's stream.
+    positions : array, shape (n,), or None
+        Places in the recording, 0..1.
+    phase : array, shape (n, T) or (T,), or None
+        Stance phase.
+
+    Returns
+    -------
+    array, shape (n, T, 3)
+        The poses with the effects, same units.
+
     """
     poses = poses.copy()
     n_runs = poses.shape[0]
@@ -194,8 +227,22 @@ def apply_pose_effects(poses: np.ndarray, t: np.ndarray, effects: Effects,
     return poses
 
 
-def rotate_about_start(poses: np.ndarray, dheading: np.ndarray) -> np.ndarray:
-    """Rotate each run by its own angle about its first position."""
+def rotate_about_start(poses: FloatArray, dheading: FloatArray) -> FloatArray:
+    """
+    Rotate each run by its own angle about its first position.
+
+    Parameters
+    ----------
+    poses : array, shape (n, T, 3)
+        x (m), y (m), heading (rad).
+    dheading : array, shape (n,)
+        Angle of each run, rad.
+
+    Returns
+    -------
+    array, shape (n, T, 3)
+
+    """
     start = poses[:, :1, :2]
     rel = poses[..., :2] - start
     cos_d, sin_d = (value[:, None] for value in cos_sin(dheading))
@@ -206,11 +253,25 @@ def rotate_about_start(poses: np.ndarray, dheading: np.ndarray) -> np.ndarray:
     return out
 
 
-def turn_persistently(poses: np.ndarray, t: np.ndarray, yaw_rate: np.ndarray) -> np.ndarray:
+def turn_persistently(poses: FloatArray, t: FloatArray, yaw_rate: FloatArray) -> FloatArray:
     """
     Turn each run at its rate w: theta + w t, p(0) + integral of R(w s) p_dot(s) ds.
 
     The integral is a sum over sample steps, each step rotated by w at its midpoint time.
+
+    Parameters
+    ----------
+    poses : array, shape (n, T, 3)
+        x (m), y (m), heading (rad).
+    t : array, shape (T,)
+        Sample times, s.
+    yaw_rate : array, shape (n,)
+        w, rad/s.
+
+    Returns
+    -------
+    array, shape (n, T, 3)
+
     """
     steps = np.diff(poses[..., :2], axis=1)
     mid_angle = yaw_rate[:, None] * 0.5 * (t[1:] + t[:-1])[None, :]
@@ -223,12 +284,24 @@ def turn_persistently(poses: np.ndarray, t: np.ndarray, yaw_rate: np.ndarray) ->
     return out
 
 
-def perturb_heading(poses: np.ndarray, perturbation: np.ndarray) -> np.ndarray:
+def perturb_heading(poses: FloatArray, perturbation: FloatArray) -> FloatArray:
     """
     Turn each run by a(t): theta + a, p(0) + integral of R(a(s)) p_dot(s) ds.
 
     `perturbation` (n, T); each sample step is rotated by a at its midpoint (as
     turn_persistently, of which this is the general form).
+
+    Parameters
+    ----------
+    poses : array, shape (n, T, 3)
+        x (m), y (m), heading (rad).
+    perturbation : array, shape (n, T)
+        a(t), rad.
+
+    Returns
+    -------
+    array, shape (n, T, 3)
+
     """
     steps = np.diff(poses[..., :2], axis=1)
     mid_angle = 0.5 * (perturbation[:, 1:] + perturbation[:, :-1])
@@ -241,13 +314,27 @@ def perturb_heading(poses: np.ndarray, perturbation: np.ndarray) -> np.ndarray:
     return out
 
 
-def slip_sideways(poses: np.ndarray, t: np.ndarray, velocity: float | np.ndarray
-                  ) -> np.ndarray:
+def slip_sideways(poses: FloatArray, t: FloatArray, velocity: float | FloatArray
+                  ) -> FloatArray:
     """
     Add a sideways drift: p + integral of v r(theta) ds, r = (sin theta, -cos theta).
 
     The integral follows the trapezoid rule on the sample times; `velocity` is one number or
     one per run, shaped (n, 1, 1).
+
+    Parameters
+    ----------
+    poses : array, shape (n, T, 3)
+        x (m), y (m), heading (rad).
+    t : array, shape (T,)
+        Sample times, s.
+    velocity : float or array, shape (n, 1, 1)
+        v, m/s.
+
+    Returns
+    -------
+    array, shape (n, T, 3)
+
     """
     heading = poses[..., 2]
     cos_h, sin_h = cos_sin(heading)

@@ -35,11 +35,12 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 import math
-from typing import Any
+from typing import Protocol
 
 import numpy as np
 from scipy import special
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
 
 DRIFT = 'run_order_drift'
@@ -52,6 +53,13 @@ def drift_term(parameter: str) -> str:
     return f'{DRIFT}:{parameter}'
 
 
+class NormalSource(Protocol):
+    """Where an effect draws its normals: a numpy Generator, or one giving antithetic pairs."""
+
+    def standard_normal(self, size: int | tuple[int, ...]) -> FloatArray:
+        """Draw standard normals of shape `size`."""
+
+
 @dataclass(frozen=True)
 class TermContext:
     """
@@ -62,12 +70,12 @@ class TermContext:
     phase k); duration: the runs' full duration T [s]; source: the term's random stream.
     """
 
-    t: np.ndarray
-    positions: np.ndarray
+    t: FloatArray
+    positions: FloatArray
     duration: float
-    source: Any                          # a NormalSource (effects.py)
-    phase: np.ndarray | None = None
-    clock_of: Callable[[np.ndarray], np.ndarray] | None = None   # the gait clock so far
+    source: NormalSource | None          # set for each term before it is applied
+    phase: FloatArray | None = None
+    clock_of: Callable[[FloatArray], FloatArray] | None = None   # the gait clock so far
 
 
 @dataclass(frozen=True)
@@ -87,7 +95,7 @@ class ExtensionTerm:
     units: tuple[str, ...]
     ranges: tuple[tuple[float, float], ...]
     stage: str
-    function: Callable[[Mapping[str, float], TermContext], np.ndarray]
+    function: Callable[[Mapping[str, float], TermContext], FloatArray]
     defaults: Mapping[str, float] = field(default_factory=dict)
 
     def checked(self, values: Mapping[str, float]) -> dict[str, float]:
@@ -105,25 +113,29 @@ class ExtensionTerm:
         return checked
 
 
-def uniforms(source, size: int | tuple[int, ...]) -> np.ndarray:
+def uniforms(source: NormalSource, size: int | tuple[int, ...]) -> FloatArray:
     """Uniform numbers in (0, 1) from a normal source (antithetic normals stay antithetic)."""
-    return special.ndtr(source.standard_normal(size))
+    uniform: FloatArray = special.ndtr(source.standard_normal(size))
+    return uniform
 
 
-def _drift_stretch(values, context: TermContext) -> np.ndarray:
-    return 1.0 + values['change'] * context.positions
+def _drift_stretch(values: Mapping[str, float], context: TermContext) -> FloatArray:
+    stretch: FloatArray = 1.0 + values['change'] * context.positions
+    return stretch
 
 
-def _drift_yaw(values, context: TermContext) -> np.ndarray:
+def _drift_yaw(values: Mapping[str, float], context: TermContext) -> FloatArray:
     rate = math.radians(values['change']) * context.positions
-    return rate[:, None] * context.t[None, :]
+    heading: FloatArray = rate[:, None] * context.t[None, :]
+    return heading
 
 
-def _drift_slip(values, context: TermContext) -> np.ndarray:
-    return values['change'] / 100.0 * context.positions
+def _drift_slip(values: Mapping[str, float], context: TermContext) -> FloatArray:
+    velocity: FloatArray = values['change'] / 100.0 * context.positions
+    return velocity
 
 
-def _random_walk(values, context: TermContext) -> np.ndarray:
+def _random_walk(values: Mapping[str, float], context: TermContext) -> FloatArray:
     """
     a(t) = sum of the steps of the stances begun after 0 and by t (stance k begins at phase k).
 
@@ -131,6 +143,7 @@ def _random_walk(values, context: TermContext) -> np.ndarray:
     different stride frequency (a fit's next trial) keeps the same random numbers.
     """
     assert context.phase is not None, 'a heading random walk needs the stance phase'
+    assert context.source is not None, 'a term draws from its own stream'
     phase = np.broadcast_to(context.phase, (len(context.positions), len(context.t)))
     begun = np.floor(phase + 1e-9).astype(int)               # steps taken by t
     stances = 64 * max(1, -(-int(begun.max()) // 64))
@@ -138,16 +151,20 @@ def _random_walk(values, context: TermContext) -> np.ndarray:
         (len(context.positions), stances))
     walk = np.concatenate([np.zeros((len(context.positions), 1)), np.cumsum(steps, axis=1)],
                           axis=1)
-    return np.take_along_axis(walk, np.clip(begun, 0, stances), axis=1)
+    heading: FloatArray = np.take_along_axis(walk, np.clip(begun, 0, stances), axis=1)
+    return heading
 
 
-def _periodic(values, context: TermContext) -> np.ndarray:
+def _periodic(values: Mapping[str, float], context: TermContext) -> FloatArray:
+    assert context.source is not None, 'a term draws from its own stream'
     phi = 2.0 * math.pi * uniforms(context.source, len(context.positions))
     angle = 2.0 * math.pi * values['frequency_hz'] * context.t[None, :] + phi[:, None]
-    return math.radians(values['amplitude_deg']) * (np.sin(angle) - np.sin(phi)[:, None])
+    heading: FloatArray = math.radians(values['amplitude_deg']) * (np.sin(angle)
+                                                                   - np.sin(phi)[:, None])
+    return heading
 
 
-def _change_point(values, context: TermContext) -> np.ndarray:
+def _change_point(values: Mapping[str, float], context: TermContext) -> FloatArray:
     """From time_s on, the clock runs at speed_factor times the rate it had: tau(t)."""
     clock_of = context.clock_of or (lambda times: times)
     clock = clock_of(context.t)
@@ -156,10 +173,12 @@ def _change_point(values, context: TermContext) -> np.ndarray:
     return np.where(after, at_change + values['speed_factor'] * (clock - at_change), clock)
 
 
-def _mixture(values, context: TermContext) -> np.ndarray:
+def _mixture(values: Mapping[str, float], context: TermContext) -> FloatArray:
+    assert context.source is not None, 'a term draws from its own stream'
     turning = uniforms(context.source, len(context.positions)) < values['fraction']
     rate = np.where(turning, math.radians(values['yaw_rate_deg_s']), 0.0)
-    return rate[:, None] * context.t[None, :]
+    heading: FloatArray = rate[:, None] * context.t[None, :]
+    return heading
 
 
 TERMS: tuple[ExtensionTerm, ...] = (
@@ -228,7 +247,7 @@ def _numbers(name: str, values: Mapping[str, object]) -> dict[str, float]:
     return numbers
 
 
-def family_form(term: str, values: Mapping[str, float]) -> tuple[str, dict[str, object]]:
+def family_form(term: str, values: Mapping[str, float]) -> tuple[str, dict[str, float | str]]:
     """Return (family, parameters) of a term, as the CLI and the report write it."""
     family = TERM_BY_NAME[term].family
     if family == DRIFT:
@@ -236,6 +255,6 @@ def family_form(term: str, values: Mapping[str, float]) -> tuple[str, dict[str, 
     return family, dict(values)
 
 
-def positions_in_order(n_runs: int) -> np.ndarray:
+def positions_in_order(n_runs: int) -> FloatArray:
     """Return q_i = i / (n - 1), each run's place in a recording of `n_runs` runs."""
     return np.linspace(0.0, 1.0, n_runs) if n_runs > 1 else np.zeros(n_runs)

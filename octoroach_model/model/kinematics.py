@@ -14,12 +14,34 @@ world through a rotation by theta - pi/2.
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
+from octoroach_model.arrays import BoolArray, FloatArray, Floats, IntArray
 from octoroach_model.model.trig import cos_sin
 
+# x and y of a point in the body frame, metres
+Point = tuple[FloatArray, FloatArray]
 
-def feet_in_body(rear_angle, front_angle, mirror, leg_length, hip_distance):
-    """Rear and front foot positions (x, y) in the body frame; arrays broadcast."""
+
+def feet_in_body(rear_angle: Floats, front_angle: Floats, mirror: Floats,
+                 leg_length: float, hip_distance: float) -> tuple[Point, Point]:
+    """
+    Rear and front foot positions (x, y) in the body frame; arrays broadcast.
+
+    Parameters
+    ----------
+    rear_angle, front_angle : float or array, any shapes that broadcast
+        Leg angles, rad.
+    mirror : float or array
+        +1 right pair, -1 left pair.
+    leg_length, hip_distance : float
+        l and d, m.
+
+    Returns
+    -------
+    rear, front : (x, y) pairs of arrays, the broadcast shape, m.
+
+    """
     half = 0.5 * hip_distance
     rear = (-mirror * leg_length * np.cos(rear_angle),
             -half + leg_length * np.sin(rear_angle))
@@ -28,7 +50,8 @@ def feet_in_body(rear_angle, front_angle, mirror, leg_length, hip_distance):
     return rear, front
 
 
-def solve_front_angle(rear_angle, span, leg_length, hip_distance, branch):
+def solve_front_angle(rear_angle: Floats, span: Floats, leg_length: float,
+                      hip_distance: float, branch: Floats) -> FloatArray:
     """
     Front leg angle that keeps |front foot - rear foot| = span (closure, eq. 3).
 
@@ -37,6 +60,19 @@ def solve_front_angle(rear_angle, span, leg_length, hip_distance, branch):
     reachable set (|c| > hypot(a, b)) the leg is held at the closest reachable angle and the
     front foot slides: at the Table III spreads this happens in about 0.3 % of right stances
     (about 3 % of 10-cycle runs touch it; docs/model.md, section 11), more at larger spreads.
+
+    Parameters
+    ----------
+    rear_angle, span, branch : float or array, any shapes that broadcast
+        Rear angle (rad), foot-to-foot distance a (m), root (+1 or -1).
+    leg_length, hip_distance : float
+        l and d, m.
+
+    Returns
+    -------
+    array, the broadcast shape
+        Front angle, rad.
+
     """
     # P = B - rear foot, seen in the pair's own (mirrored) frame: one equation for both.
     px = leg_length * np.cos(rear_angle)
@@ -48,20 +84,35 @@ def solve_front_angle(rear_angle, span, leg_length, hip_distance, branch):
     return np.arctan2(b, a) + branch * np.arccos(ratio)
 
 
-def closure_branch(rear_angle, front_angle, leg_length, hip_distance):
+def closure_branch(rear_angle: Floats, front_angle: Floats, leg_length: float,
+                   hip_distance: float) -> FloatArray:
     """
     +1 or -1: which root of the closure the touchdown configuration lies on.
 
     The closure is the same equation for both pairs once the left pair is mirrored, so the
     mirror sign does not enter here.
+
+    Parameters
+    ----------
+    rear_angle, front_angle : float or array, any shapes that broadcast
+        Touchdown angles, rad.
+    leg_length, hip_distance : float
+        l and d, m.
+
+    Returns
+    -------
+    array, the broadcast shape
+        +1.0 or -1.0.
+
     """
     px = leg_length * np.cos(rear_angle)
     py = hip_distance - leg_length * np.sin(rear_angle)
     return np.where(front_angle >= np.arctan2(py, px), 1.0, -1.0)
 
 
-def stance_motion(rear_touchdown, front_touchdown, rear_liftoff, phase, mirror,
-                  leg_length, hip_distance):
+def stance_motion(rear_touchdown: Floats, front_touchdown: Floats, rear_liftoff: Floats,
+                  phase: Floats, mirror: Floats, leg_length: float, hip_distance: float
+                  ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """
     Pose of G during a stance, relative to the body frame at touchdown.
 
@@ -104,17 +155,33 @@ def stance_motion(rear_touchdown, front_touchdown, rear_liftoff, phase, mirror,
     return dx, dy, dheading
 
 
-def stance_angles(nominal_angles, normals, sigma1, sigma2):
+def stance_angles(nominal_angles: npt.ArrayLike, normals: FloatArray, sigma1: float,
+                  sigma2: float) -> FloatArray:
     """
     Random angles xi = eta + diag(sigma1 I4, sigma2 I2) Y (eq. 11).
 
-    normals : (..., 6) standard normal draws Y. Returns (..., 6) angles in radians.
+    Parameters
+    ----------
+    nominal_angles : array_like, shape (6,)
+        eta, rad.
+    normals : array, shape (..., 6)
+        Standard normal draws Y.
+    sigma1, sigma2 : float
+        Spreads of the touchdown and the liftoff angles, rad.
+
+    Returns
+    -------
+    array, shape (..., 6)
+        Angles, rad.
+
     """
     scale = np.array([sigma1] * 4 + [sigma2] * 2, dtype=float)
-    return np.asarray(nominal_angles, dtype=float) + normals * scale
+    angles: FloatArray = np.asarray(nominal_angles, dtype=float) + normals * scale
+    return angles
 
 
-def integrate_stances(angles, phase, start_pose, leg_length, hip_distance):
+def integrate_stances(angles: FloatArray, phase: FloatArray, start_pose: npt.ArrayLike,
+                      leg_length: float, hip_distance: float) -> FloatArray:
     """
     Poses of runs made of alternating stances (right pair first).
 
@@ -212,7 +279,8 @@ class _Geometry:
         # always points forward (its y is at least d - 2 l): then no wrapping is needed.
         self.wrap = not 2.0 * leg_length < hip_distance
 
-    def sweep(self, rear_angle, closure_offset, branch, mirror):
+    def sweep(self, rear_angle: FloatArray, closure_offset: FloatArray, branch: FloatArray,
+              mirror: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """
         Rear foot and foot-to-foot segment in the body frame at the given rear angles.
 
@@ -242,7 +310,7 @@ class _Geometry:
         segment_y = d + (l_sin_f - l_sin_r)
         return rear_x, rear_y, segment_x, segment_y
 
-    def poses(self, stance, within, out):
+    def poses(self, stance: FloatArray, within: FloatArray, out: FloatArray) -> None:
         """
         World poses of G at fractions `within` of stances, written into `out` (..., 3).
 
@@ -266,7 +334,7 @@ class _Geometry:
         np.subtract(foot_y, axis_y * u + axis_x * v, out=out[..., 1])
 
 
-def _stances(angles, start, geometry: _Geometry):
+def _stances(angles: FloatArray, start: FloatArray, geometry: _Geometry) -> FloatArray:
     """
     Everything constant during each stance, as one (11, S, n) array.
 
@@ -331,7 +399,7 @@ def _stances(angles, start, geometry: _Geometry):
     return np.stack([np.broadcast_to(field, (n_stances, n_runs)) for field in fields])
 
 
-def _starts(first, increments):
+def _starts(first: FloatArray, increments: FloatArray) -> FloatArray:
     """(S, n) value at the start of each stance: first + cumulative sum of earlier stances."""
     out = np.empty(increments.shape)
     out[0] = first
@@ -341,14 +409,14 @@ def _starts(first, increments):
     return out
 
 
-def _rows_equal(phase) -> bool:
+def _rows_equal(phase: FloatArray) -> bool:
     """Whether a (n, T) phase array is the same in every row (a broadcast grid)."""
     if phase.shape[0] == 1 or phase.strides[0] == 0:
         return True
     return bool(np.array_equal(phase, np.broadcast_to(phase[0], phase.shape)))
 
 
-def _columns(mask):
+def _columns(mask: BoolArray) -> slice | IntArray:
     """Find the columns where `mask` holds: a slice if they are contiguous, else an index array."""
     where = np.flatnonzero(mask)
     if where.size and where[-1] - where[0] + 1 == where.size:
@@ -356,6 +424,6 @@ def _columns(mask):
     return where
 
 
-def _row_blocks(n_rows: int, size: int):
+def _row_blocks(n_rows: int, size: int) -> list[slice]:
     """Consecutive slices of at most `size` rows covering range(n_rows)."""
     return [slice(start, min(start + size, n_rows)) for start in range(0, n_rows, size)]

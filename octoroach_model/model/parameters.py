@@ -20,9 +20,11 @@ from functools import lru_cache
 import math
 import os
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
 
 CONFIG_NAME = 'table2.yaml'
@@ -49,7 +51,7 @@ def _share_directory() -> Path | None:
         return None
 
 
-def table2_path(path: str | os.PathLike | None = None) -> Path:
+def table2_path(path: str | os.PathLike[str] | None = None) -> Path:
     """
     Name the file the nominal values come from.
 
@@ -62,6 +64,24 @@ def table2_path(path: str | os.PathLike | None = None) -> Path:
     if named:
         return Path(named)
     return config_path()
+
+
+class ParameterTable(TypedDict):
+    """The parameters as the paper prints them, for reports (`ModelParameters.table`)."""
+
+    hip_distance_cm: float
+    leg_length_cm: float
+    touchdown_angles_deg: list[float]
+    liftoff_angles_deg: list[float]
+    stride_frequency_hz: float
+
+
+class StartPoseTable(TypedDict):
+    """A start pose as reports print it: position in cm, heading in degrees."""
+
+    x_cm: float
+    y_cm: float
+    heading_deg: float
 
 
 @dataclass(frozen=True)
@@ -91,12 +111,12 @@ class ModelParameters:
             raise ParameterError('need 4 touchdown angles and 2 liftoff angles (rad)')
 
     @classmethod
-    def nominal(cls, path: str | os.PathLike | None = None) -> ModelParameters:
+    def nominal(cls, path: str | os.PathLike[str] | None = None) -> ModelParameters:
         """Table II of the paper, from config/table2.yaml (or `path`, see `table2_path`)."""
         return load_nominal(path).parameters
 
     @property
-    def nominal_angles(self) -> np.ndarray:
+    def nominal_angles(self) -> FloatArray:
         """eta^n of eq. (12): (6,) touchdown then liftoff angles, radians."""
         return np.array(self.touchdown_angles + self.liftoff_angles, dtype=float)
 
@@ -109,12 +129,12 @@ class ModelParameters:
         """Seconds that `cycles` gait cycles take."""
         return cycles / self.stride_frequency
 
-    def time_grid(self, cycles: float) -> np.ndarray:
+    def time_grid(self, cycles: float) -> FloatArray:
         """Sample times of a run of `cycles` cycles, both ends included, at sample_rate."""
         n_samples = int(round(self.duration(cycles) * self.sample_rate)) + 1
         return np.arange(n_samples) / self.sample_rate
 
-    def table(self) -> dict:
+    def table(self) -> ParameterTable:
         """Give the parameters as the paper prints them (cm, deg), for reports."""
         return {
             'hip_distance_cm': float(self.hip_distance * 100),
@@ -135,7 +155,7 @@ class NominalValues:
     source: Path       # the file they were read from
 
 
-def load_nominal(path: str | os.PathLike | None = None) -> NominalValues:
+def load_nominal(path: str | os.PathLike[str] | None = None) -> NominalValues:
     """Read the nominal values from `table2_path(path)`; a ParameterError says what is wrong."""
     where = table2_path(path)
     try:
@@ -148,7 +168,7 @@ def load_nominal(path: str | os.PathLike | None = None) -> NominalValues:
     return _read_nominal(str(where), status.st_mtime_ns, status.st_size)
 
 
-def nominal_sigmas(path: str | os.PathLike | None = None) -> tuple[float, float]:
+def nominal_sigmas(path: str | os.PathLike[str] | None = None) -> tuple[float, float]:
     """(sigma1, sigma2) of Table III, radians, from config/table2.yaml (or `path`)."""
     values = load_nominal(path)
     return values.sigma1, values.sigma2
@@ -168,8 +188,8 @@ def _read_nominal(path: str, mtime_ns: int, size: int) -> NominalValues:
     if not isinstance(section, dict):
         raise ParameterError(f'{path}: no {CONFIG_SECTION!r} section with the nominal values')
 
-    def number(key: str, count: int | None = None):
-        """section[key] as a float, or as a tuple of `count` floats."""
+    def numbers(key: str, count: int | None = None) -> tuple[float, ...]:
+        """section[key] as a tuple of `count` floats, or of its one float if count is None."""
         if key not in section:
             raise ParameterError(f'{path}: {CONFIG_SECTION}.{key} is missing')
         value = section[key]
@@ -179,16 +199,19 @@ def _read_nominal(path: str, mtime_ns: int, size: int) -> NominalValues:
             kind = f'a list of {count} finite numbers' if count else 'a finite number'
             raise ParameterError(f'{path}: {CONFIG_SECTION}.{key} must be {kind}, '
                                  f'got {value!r}')
-        numbers = tuple(float(item) for item in items)
-        return numbers if count is not None else numbers[0]
+        return tuple(float(item) for item in items)
 
-    fields = {'hip_distance': number('hip_distance'), 'leg_length': number('leg_length'),
-              'touchdown_angles': number('touchdown_angles', 4),
-              'liftoff_angles': number('liftoff_angles', 2),
-              'stride_frequency': number('stride_frequency'),
-              'sample_rate': number('sample_rate')}
+    def number(key: str) -> float:
+        """section[key] as a float."""
+        return numbers(key)[0]
+
+    hip_distance, leg_length = number('hip_distance'), number('leg_length')
+    phi1, phi2, phi3, phi4 = numbers('touchdown_angles', 4)
+    phi_right, phi_left = numbers('liftoff_angles', 2)
+    stride_frequency, sample_rate = number('stride_frequency'), number('sample_rate')
     try:
-        parameters = ModelParameters(**fields)
+        parameters = ModelParameters(hip_distance, leg_length, (phi1, phi2, phi3, phi4),
+                                     (phi_right, phi_left), stride_frequency, sample_rate)
     except ParameterError as error:
         raise ParameterError(f'{path}: {error}') from None
     sigma1, sigma2 = number('sigma1'), number('sigma2')
@@ -199,7 +222,7 @@ def _read_nominal(path: str, mtime_ns: int, size: int) -> NominalValues:
     return NominalValues(parameters, sigma1, sigma2, Path(path))
 
 
-def _is_finite_number(value) -> bool:
+def _is_finite_number(value: object) -> bool:
     """Tell a finite YAML int or float (YAML's true and false are not numbers here)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool) \
         and math.isfinite(value)

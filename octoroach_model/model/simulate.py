@@ -14,12 +14,12 @@ import math
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
 from octoroach_model.model.effects import (
-    apply_pose_effects, check_effects, Effects, MODEL_TERMS, NormalSource, TIME_WARPS,
-    warped_time)
+    apply_pose_effects, check_effects, Effects, MODEL_TERMS, TIME_WARPS, warped_time)
 from octoroach_model.model.extensions import (
-    Extensions, family_form, family_terms, positions_in_order)
+    Extensions, family_form, family_terms, NormalSource, positions_in_order)
 from octoroach_model.model.kinematics import integrate_stances, stance_angles
 from octoroach_model.model.parameters import ModelParameters, nominal_sigmas, SIGMA_LIMIT
 from octoroach_model.paths import Paths
@@ -39,7 +39,7 @@ class AntitheticNormal:
     def __init__(self, generator: np.random.Generator) -> None:
         self.generator = generator
 
-    def standard_normal(self, size: int | tuple[int, ...]) -> np.ndarray:
+    def standard_normal(self, size: int | tuple[int, ...]) -> FloatArray:
         shape = (size,) if isinstance(size, int) else tuple(size)
         half = self.generator.standard_normal((-(-shape[0] // 2), *shape[1:]))
         return np.concatenate([half, -half], axis=0)[:shape[0]]
@@ -78,8 +78,8 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
              parameters: ModelParameters | None = None,
              draws: str = 'stance', effects: Effects | None = None,
              start_pose: Sequence[float] = DEFAULT_START_POSE,
-             t: np.ndarray | None = None, extensions: Extensions | None = None,
-             positions: np.ndarray | None = None) -> Paths:
+             t: FloatArray | None = None, extensions: Extensions | None = None,
+             positions: FloatArray | None = None) -> Paths:
     """
     `n_paths` runs of the stochastic model on a common time grid.
 
@@ -158,15 +158,42 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
 
 
 def model_poses(parameters: ModelParameters, streams: RandomStreams, n_runs: int,
-                t: np.ndarray, sigma1: float, sigma2: float, draws: str = 'stance',
+                t: FloatArray, sigma1: float, sigma2: float, draws: str = 'stance',
                 effects: Effects | None = None, cycles: float | None = None,
                 start_pose: Sequence[float] = DEFAULT_START_POSE,
-                positions: np.ndarray | None = None) -> np.ndarray:
+                positions: FloatArray | None = None) -> FloatArray:
     """
     (n, T, 3) poses; the array-level core of `simulate` (no validation of arguments).
 
-    `positions` (n,): each run's place in the recording, 0 (first) to 1 (last); default
-    i / (n - 1), the runs in the order drawn. Only the run-order terms read it.
+    Parameters
+    ----------
+    parameters : ModelParameters
+        Geometry, nominal angles, timing.
+    streams : RandomStreams
+        Every draw.
+    n_runs : int
+        n.
+    t : array, shape (T,)
+        Sample times, s.
+    sigma1, sigma2 : float
+        Spreads of the touchdown and liftoff angles, rad.
+    draws : {'stance', 'run'}
+        New angles at every stance or once per run.
+    effects : {name: {parameter: value}} or None
+        Checked effects.
+    cycles : float or None
+        Gait cycles drawn for (default: t's span).
+    start_pose : sequence of 3 floats
+        x (m), y (m), heading (rad).
+    positions : array, shape (n_runs,), or None
+        Each run's place in the recording, 0 (first) to 1 (last), read by the run-order
+        terms only; default i / (n - 1), the runs in the order drawn.
+
+    Returns
+    -------
+    array, shape (n_runs, T, 3)
+        x (m), y (m), heading (rad).
+
     """
     effects = effects or {}
     positions = positions_in_order(n_runs) if positions is None else positions

@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray, Floats
 
-def cos_sin(angle: np.ndarray | float, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+
+def cos_sin(angle: Floats, scale: float = 1.0) -> tuple[FloatArray, FloatArray]:
     """
     Give scale * cos(angle) and scale * sin(angle) by the half-angle tangent.
 

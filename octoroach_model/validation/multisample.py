@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 
+from octoroach_model.arrays import IntArray
 from octoroach_model.errors import DataError, ParameterError
 
 
@@ -15,8 +16,16 @@ def chernoff_sample_size(epsilon: float, delta: float) -> int:
     return math.ceil(math.log(2.0 / delta) / (2.0 * epsilon ** 2) - 1e-12)
 
 
-def disjoint_multisamples(n_runs: int, n: int, k: int, rng: np.random.Generator) -> np.ndarray:
-    """(n, k) run indices: a random grouping of distinct runs, no run in two groups."""
+def disjoint_multisamples(n_runs: int, n: int, k: int, rng: np.random.Generator) -> IntArray:
+    """
+    (n, k) run indices: a random grouping of distinct runs, no run in two groups.
+
+    Returns
+    -------
+    array of int, shape (n, k)
+        Run indices in 0..n_runs-1.
+
+    """
     if k < 2:
         raise ParameterError(f'k must be at least 2 for a spread estimate, got {k}')
     needed = n * k

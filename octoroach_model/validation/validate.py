@@ -10,13 +10,14 @@ numbers and the result is reproducible.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 import math
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
+from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import fields_jsonable
 from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
@@ -34,7 +35,7 @@ class ModelPlugin(Protocol):
     """A stochastic model as the validation sees it."""
 
     def __call__(self, sigmas: tuple[float, float], seed: np.random.SeedSequence,
-                 n_runs: int, t: np.ndarray) -> np.ndarray:
+                 n_runs: int, t: FloatArray) -> FloatArray:
         """(n_runs, T, 3) poses sampled at t, drawn from `seed` alone."""
 
 
@@ -45,9 +46,10 @@ class FourBarModel:
     parameters: ModelParameters = field(default_factory=ModelParameters.nominal)
     start_pose: tuple[float, float, float] = (0.0, 0.0, math.pi / 2)
     draws: str = 'stance'
-    effects: dict = field(default_factory=dict)
+    effects: dict[str, dict[str, float]] = field(default_factory=dict)
 
-    def __call__(self, sigmas, seed, n_runs, t):
+    def __call__(self, sigmas: tuple[float, float], seed: np.random.SeedSequence,
+                 n_runs: int, t: FloatArray) -> FloatArray:
         return model_poses(self.parameters, RandomStreams(seed), n_runs, t, sigmas[0], sigmas[1],
                            self.draws, check_effects(self.effects), None, self.start_pose)
 
@@ -115,7 +117,7 @@ class Validation:
         # instrument resolves that, so the region is never narrower than its resolution.
         self.half_width = np.maximum(half_width, settings.resolution_m)
 
-    def decisions(self, model: ModelPlugin, sigmas: tuple[float, float]) -> np.ndarray:
+    def decisions(self, model: ModelPlugin, sigmas: tuple[float, float]) -> FloatArray:
         """(n,) g(xi_i, w_k^(i)): each model run against its own multisample."""
         runs = model(sigmas, self.model_seed, self.settings.n, self.measured.t)
         return violations(runs[..., self.coordinates], self.centre, self.half_width)
@@ -129,10 +131,10 @@ class Validation:
 class SigmaSearch:
     """Result of problem (15) on a grid."""
 
-    sigma1_grid: np.ndarray
-    sigma2_grid: np.ndarray
-    violation_grid: np.ndarray     # raw E^_k, (len(sigma1_grid), len(sigma2_grid))
-    monotone_grid: np.ndarray      # running maximum over smaller sigmas (E grows with sigma)
+    sigma1_grid: FloatArray
+    sigma2_grid: FloatArray
+    violation_grid: FloatArray     # raw E^_k, (len(sigma1_grid), len(sigma2_grid))
+    monotone_grid: FloatArray      # running maximum over smaller sigmas (E grows with sigma)
     sigma1: float
     sigma2: float
     violation: float
@@ -209,12 +211,12 @@ class ValidationResult:
     guarantee: str
     settings: ValidationSettings
     grid: SearchGrid | None = None
-    nominal: dict | None = None        # the nominal model's table (fit or Table II)
+    nominal: Mapping[str, object] | None = None   # the nominal model's table (fit or Table II)
     draws: str = 'stance'
     sources: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()        # what was skipped or repaired in the input
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         """Give the result as a JSON object (fields in order; `grid` only after a search)."""
         plain = fields_jsonable(self)
         if self.grid is None:
@@ -320,7 +322,7 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
     if nominal == 'fit':
         fit = fit_nominal(measured)
         model = FourBarModel(fit.parameters, fit.start_pose, draws)
-        table = fit.report()
+        table: Mapping[str, object] = fit.report()
     else:
         model = FourBarModel(ModelParameters.nominal(), mean_start_pose(measured), draws)
         table = {**ModelParameters.nominal().table(), 'source': 'Table II'}
