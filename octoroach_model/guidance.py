@@ -32,15 +32,13 @@ import time
 from typing import Any, TYPE_CHECKING
 
 from octoroach_model.errors import OctoroachError, ParameterError
-from octoroach_model.jsonio import fields_jsonable
+from octoroach_model.jsonio import fields_jsonable, OMIT_NONE
 from octoroach_model.paths import Paths
 from octoroach_model.settings import setting
 
 if TYPE_CHECKING:
     from octoroach_model.diagnosis.live import Look
     from octoroach_model.diagnosis.records import DiagnosisReport
-
-OMIT_NONE = {'json_omit_none': True}     # jsonio: a field left out of the JSON while None
 
 
 class QuestionKind(StrEnum):

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, TYPE_CHECKING
 
 from octoroach_model.errors import ParameterError
+from octoroach_model.jsonio import OMIT_NONE
 from octoroach_model.model import DRAWS
 from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.paths import Paths
@@ -57,9 +58,6 @@ class JobKind(StrEnum):
 
     VALIDATION = 'validation'
     DIAGNOSIS = 'diagnosis'
-
-
-OMIT_NONE = {'json_omit_none': True}     # jsonio: a field left out of the JSON while None
 
 
 @dataclass(frozen=True)

@@ -369,7 +369,7 @@ class Validator(Node):
                 result = self._with_guidance(result)
             answer = jsonable(result)            # the JSON answered and published
             self._publish(running.kind, answer)
-            running.success, running.message = True, json.dumps(answer, allow_nan=False)
+            running.success, running.message = True, dumps(answer)
             outcome = (status_fields(answer)[1] if running.kind == JobKind.VALIDATION
                        else diagnosis_fields(answer)[1])
             logger.info(f'{running.kind} done in {elapsed:.1f} s: {outcome}')
