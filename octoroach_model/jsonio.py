@@ -21,7 +21,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['dumps', 'jsonable']
+__all__ = ['OMIT_NONE', 'dumps', 'jsonable']
+
+OMIT_NONE = {'json_omit_none': True}     # a field's metadata: left out of the JSON while None
 
 
 def jsonable(value: Any) -> Any:

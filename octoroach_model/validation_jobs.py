@@ -17,11 +17,13 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
+from enum import StrEnum
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, TYPE_CHECKING
 
 from octoroach_model.errors import ParameterError
+from octoroach_model.jsonio import OMIT_NONE
 from octoroach_model.model import DRAWS
 from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.paths import Paths
@@ -31,10 +33,14 @@ from octoroach_model.recordings.options import (
 from octoroach_model.run_settings import ANGLE_DRAWS
 from octoroach_model.settings import check_fields, setting, settings_of
 from octoroach_model.validation import ValidationSettings
-from octoroach_model.validation.validate import NOMINAL_MODELS
+from octoroach_model.validation.validate import NOMINAL_MODELS, ValidationResult
 
-__all__ = ['Cancelled', 'Job', 'Progress', 'Workbench', 'diagnosis_settings',
-           'run_diagnosis', 'run_validation', 'source_stamps']
+if TYPE_CHECKING:
+    from octoroach_model.diagnosis import DiagnosisReport
+    from octoroach_model.guidance import GuidanceAnswer
+
+__all__ = ['Cancelled', 'Job', 'JobAnswer', 'JobKind', 'Progress', 'Workbench',
+           'diagnosis_settings', 'run_diagnosis', 'run_validation', 'source_stamps']
 
 Progress = Callable[[float, str], None]
 # Files whose change means the measured runs must be read again: bag data and metadata,
@@ -45,6 +51,31 @@ FileStamp = tuple[str, int, int]  # path, modification time [ns], size [bytes]
 
 class Cancelled(Exception):
     """Raised from a progress callback when the job must stop (the node shuts down)."""
+
+
+class JobKind(StrEnum):
+    """What a call runs: the validation (~/validate) or the diagnosis (~/diagnose)."""
+
+    VALIDATION = 'validation'
+    DIAGNOSIS = 'diagnosis'
+
+
+@dataclass(frozen=True)
+class JobAnswer:
+    """
+    What a call answers (JSON through jsonio, where the node answers and publishes).
+
+    The result's own fields; then, each only where set, the files a diagnosis wrote
+    (`report_files`, with report_dir), when the call started and how long it took (set by
+    the node; `elapsed_s` takes the place of the report's own) and the live guidance
+    (~/diagnose, with a question asked).
+    """
+
+    result: ValidationResult | DiagnosisReport = field(metadata={'json_inline': True})
+    report_files: dict[str, str] | None = field(default=None, metadata=OMIT_NONE)
+    started_at: str | None = field(default=None, metadata=OMIT_NONE)
+    elapsed_s: float | None = field(default=None, metadata=OMIT_NONE)
+    guidance: GuidanceAnswer | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True)
@@ -170,8 +201,8 @@ class Workbench:
         return self._measured
 
 
-def run_validation(job: Job, bench: Workbench, progress: Progress) -> dict[str, Any]:
-    """Run the offline `validate` chain (load, nominal model, validate); JSON-ready data."""
+def run_validation(job: Job, bench: Workbench, progress: Progress) -> JobAnswer:
+    """Run the offline `validate` chain (load, nominal model, validate)."""
     from octoroach_model.validation import validate_measured
 
     progress(0.0, 'loading the measured runs')
@@ -180,11 +211,11 @@ def run_validation(job: Job, bench: Workbench, progress: Progress) -> dict[str, 
     result = validate_measured(measured, job.settings, nominal=job.nominal, draws=job.draws,
                                sigmas=job.sigmas(), sources=list(job.sources),
                                progress=progress)
-    return dict(result.to_json())
+    return JobAnswer(result)
 
 
-def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict[str, Any]:
-    """Run `diagnose` on the measured runs; JSON-ready data, and files with report_dir."""
+def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> JobAnswer:
+    """Run `diagnose` on the measured runs; and write its files with report_dir."""
     from dataclasses import replace
 
     from octoroach_model.diagnosis import diagnose
@@ -205,8 +236,7 @@ def run_diagnosis(job: Job, bench: Workbench, progress: Progress) -> dict[str, A
             raise
         except Exception as error:  # noqa: BLE001 - the report is still worth returning
             files = {'error': ' '.join(f'{type(error).__name__}: {error}'.split())}
-    answer = report.to_json()
-    return {**answer, 'report_files': files} if job.report_dir else answer
+    return JobAnswer(report, files if job.report_dir else None)
 
 
 def diagnosis_settings(job: Job) -> Any:

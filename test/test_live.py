@@ -13,6 +13,7 @@ import json
 import math
 import os
 import random
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -24,6 +25,7 @@ from octoroach_model.diagnosis.live import (
     calibration_mask, Levels, LiveDecision, Question)
 from octoroach_model.diagnosis.modelfit import SizeEstimate
 from octoroach_model.diagnosis.power import Calibration, fixed, PowerModel
+from octoroach_model.diagnosis.records import NamedCause
 from octoroach_model.diagnosis.sequential import Boundary, mixture_precision, two_sided_z
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
@@ -213,29 +215,47 @@ def test_the_guide_answers_validation_too_few_runs_and_a_size_ruled_out(monkeypa
     validation = Guide(GuidanceQuestion.from_values({**values, 'question': 'validation'}))
     runs = om.simulate(90, seed=SEED % 1000, cycles=4)
     answer = validation.update(runs.subset(np.arange(30)))
-    assert (answer['status'], answer['runs_needed'], answer['runs_needed_interval_95']) == (
-        'collecting', 14, [14, 14])                        # n x k = 11 x 4 = 44
-    assert validation.update(runs)['status'] == 'enough_runs'
+    assert (answer.status, answer.runs_needed, answer.runs_needed_interval_95) == (
+        'collecting', 14, (14, 14))                        # n x k = 11 x 4 = 44
+    assert list(json.loads(dumps(answer))) == [           # the published keys, in order
+        'question', 'runs', 'status', 'named', 'runs_needed', 'runs_needed_interval_95',
+        'error', 'decision_runs', 'statement', 'decided_in_s', 'decided_at']
+    assert json.loads(dumps(answer))['question'] == {'validation': {'runs': 44}}
+    assert validation.update(runs).status == 'enough_runs'
 
     question = GuidanceQuestion.from_values({**values, 'question': 'persistent_turning',
                                              'question_size': 30.0})
     guide = Guide(question)
     early = guide.update(runs.subset(np.arange(20)))
-    assert early['status'] == 'waiting' and early['runs_needed'] == 20, early
+    assert early.status == 'waiting' and early.runs_needed == 20, early
+    assert list(json.loads(dumps(early)))[6:9] == ['error', 'reason', 'decision_runs']
     late = guide.update(runs)          # no turning in these runs: 30 deg/s is out of the CS
-    assert late['status'] == 'ruled_out' and late['runs_needed'] == 0, (SEED, late)
-    assert late['decision']['interval_95'][1] < 30.0 and 'ruled out' in late['statement']
+    assert late.status == 'ruled_out' and late.runs_needed == 0, (SEED, late)
+    assert late.decision is not None and late.decision.interval_95[1] < 30.0
+    assert 'ruled out' in late.statement
+    published = json.loads(dumps(late))
+    assert [key for key in published if key not in ('refitting',)] == [
+        'question', 'runs', 'status', 'named', 'runs_needed', 'runs_needed_interval_95',
+        'error', 'decision', 'calibration_runs', 'held_out_runs', 'power_now',
+        'ruled_out_at_runs', 'decision_runs', 'statement', 'decided_in_s', 'decided_at']
+    assert list(published['question']) == ['term', 'parameter', 'size', 'power', 'planned_runs']
     keys = dict(guidance_fields(late))
     assert keys['status'] == 'ruled_out' and keys['question'] == 'persistent_turning'
     carried = guide.refresh(95)        # a new run is counted at once, before its look
-    assert carried is not None and (carried['runs'], carried['decision_runs']) == (95, 90)
-    assert carried['runs_needed'] == 0 and 'under way' in carried['statement']
+    assert carried is not None and (carried.runs, carried.decision_runs) == (95, 90)
+    assert carried.runs_needed == 0 and 'under way' in carried.statement
     assert validation.refresh(95) is None
-    guide.diagnosed({'causes': [{'cause': 'lateral_slip', 'parameters': {
-        'velocity_cm_s': 0.4}, 'interval': {'velocity_cm_s': [0.3, 0.5]}}],
-        'adequate': True}, 90)
-    assert guide.latest is not None and guide.latest['named'] == [
+    cause = NamedCause('lateral_slip', {'velocity_cm_s': 0.4}, {'velocity_cm_s': [0.3, 0.5]},
+                       {}, 0.1, 0.01, 0.5, 0.1, 1)
+    guide.diagnosed(SimpleNamespace(causes=(cause,), extensions=(), adequate=True), 90)
+    assert guide.latest is not None and json.loads(dumps(guide.latest))['named'] == [
         {'term': 'lateral_slip', 'parameter': 'velocity_cm_s', 'estimate': 0.4,
          'interval_95': [0.3, 0.5], 'source': 'diagnosis', 'runs': 90}]
+    # a diagnosis that joins a finished answer is written last; the next answer has it in place
+    assert list(json.loads(dumps(guide.latest)))[-4:] == [
+        'statement', 'decided_in_s', 'decided_at', 'diagnosis']
+    assert json.loads(dumps(guide.latest))['diagnosis'] == {'runs': 90, 'adequate': True}
+    assert list(json.loads(dumps(guide.update(runs))))[-5:] == [
+        'decision_runs', 'diagnosis', 'statement', 'decided_in_s', 'decided_at']
     with pytest.raises(ParameterError, match='must be positive'):
         GuidanceQuestion.from_values({**values, 'question': 'lateral_slip'})

@@ -111,6 +111,8 @@ def test_validate_answers_json_and_latches_the_statistics(start_node, client, da
     assert result['accepted'] == (result['violation'] <= result['rho'])
     assert 'guarantee' in result and result['sources'] == [str(data60)]
     assert 'rms_error_cm' in result['nominal']          # nominal = fit, as the CLI does
+    assert list(result)[-3:] == ['notes', 'started_at', 'elapsed_s']   # the node's, last
+    assert 'report_files' not in result and 'guidance' not in result
     array = client.latched('/validator/violation')      # subscribed after the call
     [status] = array.status
     values = {kv.key: kv.value for kv in status.values}
@@ -272,6 +274,9 @@ def test_diagnose_answers_the_report_with_its_cause_without_blocking(
     assert report['cause'] == 'initial_pose_error'
     assert [c['cause'] for c in report['causes']] == ['initial_pose_error']
     assert isinstance(report['adequate'], bool) and isinstance(report['unexplained'], list)
+    # the node's own keys: the call's elapsed_s in the report's place, the rest after it
+    assert list(report)[-3:] == ['report_files', 'started_at', 'guidance']
+    assert list(report)[list(report).index('elapsed_s') + 1] == 'sources'
     written = Path(report['report_files']['report'])     # each call: a folder of its own
     assert written.is_file() and written.parent.parent == tmp_path / 'report', written
     # the named causes are latched on ~/violation beside the last validation's statistics
@@ -286,6 +291,7 @@ def test_diagnose_answers_the_report_with_its_cause_without_blocking(
     # the live guidance rides along, with what this diagnosis named beside the live decision
     assert report['guidance']['runs'] == 80
     assert report['guidance']['question']['term'] == 'initial_pose_error'
+    assert list(report['guidance'])[-1] == 'diagnosis'   # it joined a finished answer
     assert {'term': 'initial_pose_error', 'source': 'diagnosis', 'runs': 80}.items() <= \
         report['guidance']['named'][-1].items()
 

@@ -23,6 +23,8 @@ if TYPE_CHECKING:
     from geometry_msgs.msg import TransformStamped
     from std_msgs.msg import UInt32
 
+    from octoroach_model.guidance import GuidanceAnswer
+
 __all__ = ['STATUS_KEYS', 'PlanarPose', 'fill_transform', 'planar_rows', 'pose_to_transform',
            'run_marker', 'set_stamp', 'status_fields', 'transform_message',
            'transform_to_pose', 'violation_array', 'validation_status', 'diagnosis_status',
@@ -184,7 +186,7 @@ def diagnosis_status(report: Mapping[str, Any], name: str,
         values=[KeyValue(key=key, value=value) for key, value in values])
 
 
-def guidance_array(answer: Mapping[str, Any], values: Sequence[tuple[str, str]],
+def guidance_array(answer: GuidanceAnswer, values: Sequence[tuple[str, str]],
                    stamp_ns: int, name: str = 'octoroach_model/guidance',
                    hardware_id: str = 'octoroach') -> DiagnosticArray:
     """
@@ -197,13 +199,13 @@ def guidance_array(answer: Mapping[str, Any], values: Sequence[tuple[str, str]],
 
     from octoroach_model.guidance import GuidanceStatus
 
-    status = answer.get('status')
+    status = answer.status
     level = (DiagnosticStatus.OK if status in (GuidanceStatus.NAMED, GuidanceStatus.RULED_OUT,
                                                GuidanceStatus.ENOUGH_RUNS)
              else DiagnosticStatus.WARN if status == GuidanceStatus.COLLECTING
              else DiagnosticStatus.STALE)
     return violation_array([DiagnosticStatus(
-        level=level, name=name, message=str(answer.get('statement', '')),
+        level=level, name=name, message=answer.statement,
         hardware_id=hardware_id, values=[KeyValue(key=key, value=value)
                                          for key, value in values])], stamp_ns)
 

@@ -27,7 +27,7 @@ like the diagnosis's pool inside a node), so a look never waits for one.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime
 import json
 import math
@@ -41,7 +41,7 @@ from octoroach_model.errors import OctoroachError, OutputError, ParameterError
 from octoroach_model.fileio import check_writable
 from octoroach_model.guidance import (
     check_question, guidance_fields, GuidanceQuestion, GuidanceSettings, Guide, QuestionKind)
-from octoroach_model.jsonio import dumps
+from octoroach_model.jsonio import dumps, jsonable
 from octoroach_model.nodes.common import (
     current_values, declare_parameters, fail, field_specs, node_parser, ParamSpec, ParamValue,
     rejected_override, run_node, set_parameters_callback, split_ros_args, start_exit_code,
@@ -51,7 +51,7 @@ from octoroach_model.nodes.messages import (
     violation_array)
 from octoroach_model.settings import settings_of
 from octoroach_model.validation_jobs import (
-    Cancelled, Job, Progress, run_diagnosis, run_validation, Workbench)
+    Cancelled, Job, JobAnswer, JobKind, Progress, run_diagnosis, run_validation, Workbench)
 
 SUMMARY = ("ROS node: the paper's probabilistic validation of the OctoRoACH model on measured "
            'runs, as a service. ~/validate fits the nominal model (eq. 9) to the runs named in '
@@ -93,7 +93,7 @@ HARDWARE_ID = 'octoroach'
 EXECUTOR_THREADS = 4        # a waiting job callback, parameter services, busy answers
 PROGRESS_PERIOD_S = 2.0     # progress is logged at most this often
 POLL_S = 0.05               # how often a waiting callback looks for shutdown
-SERVICES = {'validate': 'validation', 'diagnose': 'diagnosis'}  # service -> job kind
+SERVICES = {'validate': JobKind.VALIDATION, 'diagnose': JobKind.DIAGNOSIS}  # service -> kind
 DISCOVERY_TIMEOUT_S = 30.0  # --call: longest wait for the service to appear
 BUSY_RETRY_S = 10.0         # "call again in" before the first job of a kind has finished
 
@@ -198,7 +198,7 @@ except ImportError:  # pragma: no cover - rclpy missing: main() reports it
 class _Running:
     """The job in progress: what it is, since when, and its outcome once done."""
 
-    kind: str                      # 'validation' or 'diagnosis'
+    kind: JobKind
     started: float                 # time.monotonic()
     started_at: str                # wall clock, ISO 8601
     done: threading.Event
@@ -238,11 +238,11 @@ class Validator(Node):
         self._refits: Any = None
         self._guidance_thread: threading.Thread | None = None
         self._bench = Workbench()
-        self._statuses: dict[str, Any] = {}
+        self._statuses: dict[JobKind, Any] = {}
         self._lock = threading.Lock()
         self._running: _Running | None = None
         self._stop = threading.Event()
-        self._durations: dict[str, float] = {}   # kind -> seconds the last job took
+        self._durations: dict[JobKind, float] = {}   # seconds the last job of a kind took
         group = ReentrantCallbackGroup()
         queue = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=SERVICE_QUEUE_DEPTH,
                            reliability=ReliabilityPolicy.RELIABLE,
@@ -318,12 +318,12 @@ class Validator(Node):
         return self._serve(SERVICES['diagnose'], run_diagnosis, response)
 
     @property
-    def running(self) -> str | None:
-        """Return what the node is busy with ('validation', 'diagnosis'), or None."""
+    def running(self) -> JobKind | None:
+        """Return what the node is busy with, or None."""
         running = self._running
         return running.kind if running is not None else None
 
-    def _serve(self, kind: str, work: Callable[[Job, Workbench, Progress], dict],
+    def _serve(self, kind: JobKind, work: Callable[[Job, Workbench, Progress], JobAnswer],
                response: Any) -> Any:
         """Start `work` on a worker thread and wait for it on this (reentrant) thread."""
         with self._lock:
@@ -357,20 +357,21 @@ class Validator(Node):
         response.success, response.message = running.success, running.message
         return response
 
-    def _work(self, running: _Running, work: Callable[[Job, Workbench, Progress], dict],
+    def _work(self, running: _Running, work: Callable[[Job, Workbench, Progress], JobAnswer],
               job: Job) -> None:
         """Worker thread: run the job, publish the statistics, hand back the answer."""
         logger = self.get_logger()
         try:
             result = work(job, self._bench, self._progress(running.kind))
             elapsed = round(time.monotonic() - running.started, 3)
-            result = {**result, 'started_at': running.started_at, 'elapsed_s': elapsed}
-            if running.kind == 'diagnosis':
+            result = replace(result, started_at=running.started_at, elapsed_s=elapsed)
+            if running.kind == JobKind.DIAGNOSIS:
                 result = self._with_guidance(result)
-            self._publish(running.kind, result)
-            running.success, running.message = True, dumps(result)
-            outcome = (status_fields(result)[1] if running.kind == 'validation'
-                       else diagnosis_fields(result)[1])
+            answer = jsonable(result)            # the JSON answered and published
+            self._publish(running.kind, answer)
+            running.success, running.message = True, dumps(answer)
+            outcome = (status_fields(answer)[1] if running.kind == JobKind.VALIDATION
+                       else diagnosis_fields(answer)[1])
             logger.info(f'{running.kind} done in {elapsed:.1f} s: {outcome}')
         except Cancelled:
             running.message = error_json(f'{running.kind} cancelled: the node is shutting down')
@@ -388,7 +389,7 @@ class Validator(Node):
                 self._durations[running.kind] = time.monotonic() - running.started
             running.done.set()
 
-    def _progress(self, kind: str) -> Progress:
+    def _progress(self, kind: JobKind) -> Progress:
         """Progress callback: throttled log lines, and the way a job learns it must stop."""
         logger = self.get_logger()
         last = [-math.inf]
@@ -403,9 +404,9 @@ class Validator(Node):
 
         return report
 
-    def _publish(self, kind: str, result: Mapping[str, Any]) -> None:
-        """Latch the newest validation and diagnosis statuses together on ~/violation."""
-        if kind == 'validation':
+    def _publish(self, kind: JobKind, result: Mapping[str, Any]) -> None:
+        """Latch the newest validation and diagnosis statuses (JSON) together on ~/violation."""
+        if kind == JobKind.VALIDATION:
             self._statuses[kind] = validation_status(result, STATUS_NAME, HARDWARE_ID)
         else:
             self._statuses[kind] = diagnosis_status(result, DIAGNOSIS_STATUS_NAME, HARDWARE_ID)
@@ -414,15 +415,19 @@ class Validator(Node):
 
     # live guidance
 
-    def _with_guidance(self, report: dict[str, Any]) -> dict[str, Any]:
-        """Tell the guide what the diagnosis named; return the report with the guidance."""
+    def _with_guidance(self, answer: JobAnswer) -> JobAnswer:
+        """Tell the guide what the diagnosis named; return the answer with the guidance."""
+        from octoroach_model.diagnosis import DiagnosisReport
+
+        report = answer.result
+        assert isinstance(report, DiagnosisReport)
         with self._guide_lock:
             guide = self._guide
             if guide is None:
-                return report
-            guide.diagnosed(report, int(report.get('paths') or 0))
+                return answer
+            guide.diagnosed(report, report.paths)
             latest = guide.latest
-        return {**report, 'guidance': latest}
+        return replace(answer, guidance=latest)
 
     def _watch(self) -> None:
         """

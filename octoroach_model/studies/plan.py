@@ -30,7 +30,7 @@ from enum import StrEnum
 import math
 from pathlib import Path
 import time
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
 
@@ -47,6 +47,9 @@ from octoroach_model.studies.summary import wilson
 from octoroach_model.studies.table import write_table
 from octoroach_model.studies.terms import main_parameter, null_value
 from octoroach_model.workers import check_where, CONNECT_TIMEOUT_S, executor_where, where_to_run
+
+if TYPE_CHECKING:
+    from octoroach_model.studies.plan_model import PilotDataSet
 
 PILOT_RUNS = 200
 BUDGET_S = 15.0             # method 'model': seconds a plan may take, pilots and checks
@@ -113,6 +116,65 @@ class PowerPoint(NamedTuple):
     interval_95: tuple[float, float]
 
 
+LOGISTIC_MODEL = 'power = 1 / (1 + exp(-(intercept + slope ln(runs))))'
+CALIBRATED_MODEL = ('P(size bound clears the floor) x P(held-out test significant) from the '
+                    'pilots, shifted on the probit scale (diagnosis/power.py)')
+MODEL_PILOTS = ("null data sets of the robot; the term's first step on each gives the errors "
+                'of its size and the gains of its held-out test')
+
+
+@dataclass(frozen=True)
+class LogisticFit:
+    """Method 'simulate': the logistic fit of power in ln(runs) (`fit_power_curve`)."""
+
+    model: str
+    intercept: float
+    slope: float
+    runs_at_target: float | None     # None: the fit never reaches the power asked
+    bootstrap: int
+
+
+@dataclass(frozen=True)
+class CurvePoint:
+    """The calibrated power at one run count, with its 95 % band."""
+
+    runs: float
+    power: float
+    low: float
+    high: float
+
+
+@dataclass(frozen=True)
+class CalibratedFit:
+    """Method 'model': the calibrated power model (plan_model.py) and its curve."""
+
+    model: str
+    shift: float
+    shift_interval_95: tuple[float, float]
+    calibration: tuple[str, ...]
+    curve: tuple[CurvePoint, ...]
+
+
+@dataclass(frozen=True)
+class SimulatedPilot:
+    """Method 'simulate': the one diagnosed null data set the first run counts come from."""
+
+    runs: int
+    limit: float | None              # the detection limit it reported (None: none)
+    guess_runs: float
+    how: str
+    status: Status
+    note: str
+
+
+@dataclass(frozen=True)
+class ModelPilots:
+    """Method 'model': the null data sets the power model was made from."""
+
+    data_sets: tuple[PilotDataSet, ...]
+    how: str
+
+
 @dataclass(frozen=True)
 class PlanResult:
     """The answer of `plan_runs` and the curve it came from (docs/studies.md)."""
@@ -126,9 +188,9 @@ class PlanResult:
     status: PlanStatus
     statement: str
     curve: tuple[PowerPoint, ...]
-    fit: dict
-    pilot: dict
-    robot: dict
+    fit: LogisticFit | CalibratedFit
+    pilot: SimulatedPilot | ModelPilots | None    # None: the run counts were given ({})
+    robot: RobotSpec
     replicates: int
     seed: int
     elapsed_s: float
@@ -141,6 +203,8 @@ class PlanResult:
 
         plain = fields_jsonable(self)
         plain['curve'] = [point._asdict() for point in self.curve]
+        if self.pilot is None:
+            plain['pilot'] = {}
         return plain
 
 
@@ -210,10 +274,10 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
             run_tasks(tasks, spec, client=where, done={}, on_row=arrived)
             return new
 
-        pilot: dict[str, Any] = {}
+        pilot = None
         if run_counts is None:
             pilot = _pilot(base, run, min_runs, max_runs)
-            run_counts = _coarse_grid(pilot['guess_runs'], min_runs, max_runs)
+            run_counts = _coarse_grid(pilot.guess_runs, min_runs, max_runs)
         counts = list(run_counts)
         rows += run(_with_runs(base, counts), 'coarse grid')
         for round_number in range(1, rounds + 1):
@@ -278,17 +342,11 @@ def _model_result(base: StudySpec, cause: str, size: float, power: float, answer
         rate = wilson(sum(check.named for check in group), len(group))
         assert rate.rate is not None and rate.interval is not None
         curve.append(PowerPoint(runs, rate.successes, rate.trials, rate.rate, rate.interval))
-    fit_json = {'model': 'P(size bound clears the floor) x P(held-out test significant) from '
-                         'the pilots, shifted on the probit scale (diagnosis/power.py)',
-                'shift': answer.shift, 'shift_interval_95': list(answer.shift_interval_95),
-                'calibration': list(answer.sources),
-                'curve': [{'runs': runs, 'power': p, 'low': lo, 'high': hi}
-                          for runs, p, lo, hi in answer.curve]}
-    pilot = {'data_sets': list(answer.pilots),
-             'how': "null data sets of the robot; the term's first step on each gives the "
-                    'errors of its size and the gains of its held-out test'}
+    fit = CalibratedFit(CALIBRATED_MODEL, answer.shift, answer.shift_interval_95,
+                        answer.sources, tuple(CurvePoint(*point) for point in answer.curve))
     return PlanResult(cause, parameter, size, power, needed, (low, high), status, statement,
-                      tuple(curve), fit_json, pilot, base.robot.to_json(), len(checks), seed,
+                      tuple(curve), fit, ModelPilots(answer.pilots, MODEL_PILOTS), base.robot,
+                      len(checks), seed,
                       round(elapsed_s, 2), (), PlanMethod.MODEL, tuple(answer.checks))
 
 
@@ -318,7 +376,7 @@ def _with_runs(base: StudySpec, counts: Sequence[int]) -> StudySpec:
                      base.arms, diagnosis=base.diagnosis)
 
 
-def _pilot(base: StudySpec, run: Callable, min_runs: int, max_runs: int) -> dict[str, Any]:
+def _pilot(base: StudySpec, run: Callable, min_runs: int, max_runs: int) -> SimulatedPilot:
     """Diagnose one null data set; the limit it reports gives the first guess of runs."""
     arm = base.arms[0]
     pilot_runs = int(min(max(PILOT_RUNS, min_runs), max_runs))
@@ -334,8 +392,7 @@ def _pilot(base: StudySpec, run: Callable, min_runs: int, max_runs: int) -> dict
         guess = pilot_runs * 4.0
         how = 'the pilot reported no detection limit; starting at 4 x the pilot runs'
     guess = float(min(max(guess, min_runs), max_runs))
-    return {'runs': pilot_runs, 'limit': limit, 'guess_runs': guess, 'how': how,
-            'status': row.status, 'note': row.note}
+    return SimulatedPilot(pilot_runs, limit, guess, how, row.status, row.note)
 
 
 def _coarse_grid(guess: float, min_runs: int, max_runs: int) -> list[int]:
@@ -470,7 +527,7 @@ def _next_counts(fit: PowerFit, counts: list[int], min_runs: int, max_runs: int)
 
 
 def _result(base: StudySpec, cause: str, size: float, power: float,
-            rows: list[StudyRow], fit: PowerFit, pilot: dict[str, Any], seed: int,
+            rows: list[StudyRow], fit: PowerFit, pilot: SimulatedPilot | None, seed: int,
             replicates: int, min_runs: int, max_runs: int, elapsed_s: float) -> PlanResult:
     parameter = main_parameter(cause)
     curve = []
@@ -499,12 +556,10 @@ def _result(base: StudySpec, cause: str, size: float, power: float,
                      f'{len(rows)} diagnosed data sets)')
     interval_low, interval_high = (float(max(v, min_runs)) if math.isfinite(v) else None
                                    for v in fit.interval_95)
-    fit_json = {'model': 'power = 1 / (1 + exp(-(intercept + slope ln(runs))))',
-                'intercept': fit.intercept, 'slope': fit.slope,
-                'runs_at_target': fit.runs_at_target if math.isfinite(answer) else None,
-                'bootstrap': BOOTSTRAP}
+    logistic = LogisticFit(LOGISTIC_MODEL, fit.intercept, fit.slope,
+                           fit.runs_at_target if math.isfinite(answer) else None, BOOTSTRAP)
     return PlanResult(cause, parameter, size, power, needed, (interval_low, interval_high),
-                      status, statement, tuple(curve), fit_json, pilot, base.robot.to_json(),
+                      status, statement, tuple(curve), logistic, pilot, base.robot,
                       replicates, seed, round(elapsed_s, 2),
                       tuple(sorted(rows, key=lambda row: (row.runs, row.replicate))))
 
@@ -573,12 +628,13 @@ def plot_model_curve(result: PlanResult, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     figure, axis = plt.subplots(figsize=(6.5, 4.5))
-    points = result.fit['curve']
-    runs = np.array([point['runs'] for point in points])
-    axis.fill_between(runs, [point['low'] for point in points],
-                      [point['high'] for point in points], color='tab:blue', alpha=0.15,
+    assert isinstance(result.fit, CalibratedFit)
+    points = result.fit.curve
+    runs = np.array([point.runs for point in points])
+    axis.fill_between(runs, [point.low for point in points],
+                      [point.high for point in points], color='tab:blue', alpha=0.15,
                       label='95 % band (calibration shift)')
-    axis.plot(runs, [point['power'] for point in points], color='tab:blue',
+    axis.plot(runs, [point.power for point in points], color='tab:blue',
               label='predicted power, calibrated')
     if result.curve:
         checked = np.array([point.runs for point in result.curve], dtype=float)
@@ -619,7 +675,8 @@ def plot_power_curve(result: PlanResult, path: Path) -> None:
                   label='share of data sets with the cause named (95 % Wilson interval)')
     grid = np.geomspace(min(runs.min(), result.runs_needed or runs.min()) * 0.8,
                         max(runs.max(), result.runs_needed or runs.max()) * 1.25, 200)
-    fitted = 1 / (1 + np.exp(-(result.fit['intercept'] + result.fit['slope'] * np.log(grid))))
+    assert isinstance(result.fit, LogisticFit)
+    fitted = 1 / (1 + np.exp(-(result.fit.intercept + result.fit.slope * np.log(grid))))
     axis.plot(grid, fitted, color='tab:blue', alpha=0.7, label='logistic fit in ln(runs)')
     axis.axhline(result.power, color='grey', linestyle='--',
                  label=f'requested power {result.power:.0%}')

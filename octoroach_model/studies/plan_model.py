@@ -83,10 +83,20 @@ class ModelAnswer:
     shift: float
     shift_interval_95: tuple[float, float]
     sources: tuple[str, ...]
-    pilots: tuple[dict, ...]
+    pilots: tuple[PilotDataSet, ...]
     checks: tuple[CheckOutcome, ...]
     curve: tuple[tuple[float, float, float, float], ...]   # runs, power, low, high
     models: tuple[PowerModel, ...] = field(default=(), metadata={'json': False}, repr=False)
+
+
+@dataclass(frozen=True)
+class PilotDataSet:
+    """One pilot: a null data set of a replicate's robot, and the time it took."""
+
+    replicate: int
+    runs: int
+    seed: int
+    elapsed_s: float
 
 
 def robot_model(draw: RobotDraw) -> FittedModel:
@@ -95,7 +105,7 @@ def robot_model(draw: RobotDraw) -> FittedModel:
 
 
 def pilot_task(spec: StudySpec, question: Question, replicate: int, runs: int
-               ) -> tuple[PowerModel, dict]:
+               ) -> tuple[PowerModel, PilotDataSet]:
     """Simulate a null data set of replicate `replicate`'s robot; its power model (step 1)."""
     from octoroach_model.studies.replicate import use_large_malloc_thresholds
 
@@ -105,8 +115,8 @@ def pilot_task(spec: StudySpec, question: Question, replicate: int, runs: int
     measured = simulate_data(spec, draw, runs, {}).paths
     settings = spec.diagnosis_settings(draw.data_seed)
     model = pilot_model(measured, question, settings, robot_model(draw))
-    return model, {'replicate': replicate, 'runs': runs, 'seed': draw.data_seed,
-                   'elapsed_s': round(time.perf_counter() - started, 3)}
+    return model, PilotDataSet(replicate, runs, draw.data_seed,
+                               round(time.perf_counter() - started, 3))
 
 
 def check_task(spec: StudySpec, question: Question, runs: int, replicate: int
