@@ -17,6 +17,8 @@ import textwrap
 
 import yaml
 
+from octoroach_model.errors import OutputError
+from octoroach_model.fileio import write_text_atomic
 from octoroach_model.nodes.common import ParamSpec, ParamValue
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / 'config'
@@ -119,7 +121,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             continue
         stale.append(str(path))
         if not args.check:
-            path.write_text(text)
+            try:    # atomic, and a link at the name is replaced, never written through
+                write_text_atomic(path, text, replace=True, what='params file')
+            except OutputError as error:
+                sys.stderr.write(f'error: {error}\n')
+                return 1
     if args.check and stale:
         sys.stderr.write('error: not as the settings say (python -m '
                          f'octoroach_model.settings_yaml writes them): {", ".join(stale)}\n')

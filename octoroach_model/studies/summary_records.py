@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from octoroach_model.jsonio import OMIT_NONE
 from octoroach_model.studies.rows import Status
 from octoroach_model.studies.spec import Sign
 
@@ -98,8 +99,8 @@ class PowerAtLimit:
     missed: int
     missed_not_adequate: int
     baseline_inadequate: Rate
-    target: str | None = field(default=None, metadata={'json_omit_none': True})
-    meets_target: bool | None = field(default=None, metadata={'json_omit_none': True})
+    target: str | None = field(default=None, metadata=OMIT_NONE)
+    meets_target: bool | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True, kw_only=True)
