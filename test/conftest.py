@@ -9,6 +9,9 @@ Tests that draw their cases at random (hidden causes, robots) take them from one
 OCTOROACH_TEST_SEED if set, else a fresh one chosen by the controlling process before the
 workers start (so every worker uses the same), printed in pytest's header and in every
 failure message that depends on it. `OCTOROACH_TEST_SEED=N make test` replays a run.
+
+Tests marked `long` (15 s or more) run first: xdist hands tests out in collection order, and
+a long test started last keeps one core busy while the other has nothing left to do.
 """
 from __future__ import annotations
 
@@ -55,6 +58,12 @@ def pytest_configure(config) -> None:
     os.environ.setdefault(SEED_VARIABLE, str(random.SystemRandom().randrange(10 ** 6)))
     for marker, meaning in LINT_MARKERS.items():
         config.addinivalue_line('markers', f'{marker}: {meaning}')
+    config.addinivalue_line('markers', 'long: takes 15 s or more; run first (see above)')
+
+
+def pytest_collection_modifyitems(config, items) -> None:
+    """Put the tests marked `long` first, each group in its collected order."""
+    items.sort(key=lambda item: item.get_closest_marker('long') is None)
 
 
 def pytest_report_header(config) -> str:

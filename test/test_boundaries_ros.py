@@ -54,6 +54,7 @@ def client():
     made.close()
 
 
+@pytest.mark.long
 def test_the_recorders_dataset_is_read_only_and_only_its_own_file_is_replaced(tmp_path):
     dataset, bag = tmp_path / 'runs.npz', tmp_path / 'bag'
     with NodeSet(tmp_path) as nodes:

@@ -89,6 +89,7 @@ def start(args: list[str], log: Path) -> subprocess.Popen:
                             stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
 
 
+@pytest.mark.long
 def test_a_tls_scheduler_is_reached_with_the_certificates_given_and_refused_without(tmp_path):
     files = certificates(tmp_path)
     tls = ['--tls-ca-file', str(files['ca.pem']), '--tls-cert', str(files['cluster.pem']),

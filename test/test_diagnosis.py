@@ -70,6 +70,7 @@ def settings(offset: int = 0) -> DiagnosisSettings:
     return replace(FAST, seed=SEED + offset)
 
 
+@pytest.mark.long
 @pytest.mark.parametrize('draw', [0, 1])
 def test_a_hidden_cause_drawn_at_random_is_named_alone_and_its_size_estimated(draw):
     rng = random.Random(SEED * 10 + draw)
@@ -84,6 +85,7 @@ def test_a_hidden_cause_drawn_at_random_is_named_alone_and_its_size_estimated(dr
     assert report.cause == cause and report.parameters[main_parameter(cause)] == found[cause]
 
 
+@pytest.mark.long
 def test_two_causes_at_once_are_both_named_with_their_sizes():
     rng = random.Random(SEED * 10 + 5)
     first, second = rng.sample(sorted(HIDDEN_RANGE), 2)
@@ -118,12 +120,14 @@ def random_robot(rng: random.Random) -> tuple[om.ModelParameters, int, int, floa
     return robot, rng.randint(8, 14), rng.randint(150, 600), rng.uniform(0.3, 1.5)
 
 
+@pytest.mark.long
 def test_data_from_the_paper_model_name_no_cause():
     report = diagnose(om.simulate(N_RUNS, seed=SEED + 7), settings(7))
     assert report.causes == () and report.cause == 'none' and report.parameters == {}, \
         f'{replay("Table II null")}: named {named_sizes(report)}'
 
 
+@pytest.mark.long
 def test_a_null_from_a_randomly_drawn_robot_names_no_cause():
     rng = random.Random(SEED * 10 + 8)
     robot, cycles, runs, scale = random_robot(rng)
@@ -158,6 +162,7 @@ def wobble(paths: om.Paths, amplitude_deg: float, period_s: float, seed: int) ->
     return om.Paths(t, poses)
 
 
+@pytest.mark.long
 def test_an_effect_outside_the_table_is_found_by_its_extension_family(tmp_path):
     rng = random.Random(SEED * 10 + 9)
     amplitude, period = rng.uniform(4, 8), rng.uniform(1.5, 3.0)
@@ -176,6 +181,7 @@ def test_an_effect_outside_the_table_is_found_by_its_extension_family(tmp_path):
     assert 'periodic_heading' in summary and 'swings' in summary, message
 
 
+@pytest.mark.long
 def test_the_report_has_the_documented_fields_a_summary_and_plots(tmp_path):
     measured = om.simulate(200, seed=3, effects={
         'initial_pose_error': {'heading_std_deg': 4.5, 'position_std_cm': 0.3}})
@@ -388,6 +394,7 @@ def test_too_few_runs_are_refused_with_a_reason():
         diagnose(om.simulate(10, seed=1))
 
 
+@pytest.mark.long
 def test_the_diagnosis_is_reproducible_for_a_seed():
     measured = om.simulate(60, seed=4, cycles=6, effects={'persistent_turning':
                                                           {'yaw_rate_std_deg_s': 10.0}})
@@ -403,6 +410,7 @@ def test_the_diagnosis_is_reproducible_for_a_seed():
     {'speed_decay': {'fraction': 0.2}},
     {'persistent_turning': {'yaw_rate_std_deg_s': 8.0}},
 ])
+@pytest.mark.long
 def test_runs_that_end_early_keep_the_sizes_of_the_full_duration(effects):
     """
     Runs that end early must not bend the sizes of the full duration.

@@ -281,6 +281,7 @@ def draw_extension(rng: random.Random, family: str, robot: om.ModelParameters, c
                       'yaw_rate_deg_s': round(size, 3)}}, 'yaw_rate_deg_s', size)
 
 
+@pytest.mark.long
 @pytest.mark.parametrize('family', HIDDEN)
 def test_a_family_hidden_in_data_from_a_random_robot_is_named_and_sized(family):
     rng = random.Random(SEED * 100 + HIDDEN.index(family))
@@ -318,6 +319,7 @@ def speed_wobble(paths: om.Paths, amplitude: float, period_s: float) -> om.Paths
     return om.Paths(paths.t, om.simulate(paths.n_paths, seed=SEED + 41, t=tau).poses)
 
 
+@pytest.mark.long
 def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path):
     rng = random.Random(SEED * 10 + 41)
     amplitude, period = rng.uniform(0.3, 0.5), rng.uniform(1.2, 2.0)
@@ -341,6 +343,7 @@ def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path
         misfit.part.quantity
 
 
+@pytest.mark.long
 def test_the_report_says_each_extension_in_words_with_its_evidence(tmp_path):
     measured = om.simulate(160, seed=5, cycles=8, extensions={'change_point': {
         'time_s': 2.0, 'speed_factor': 0.75}})

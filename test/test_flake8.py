@@ -16,6 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LINTED = ['octoroach_model', 'test', 'benchmarks', 'setup.py']
 
 
+@pytest.mark.long
 @pytest.mark.flake8
 @pytest.mark.linter
 def test_flake8(monkeypatch):

@@ -240,6 +240,7 @@ def validator_defaults() -> dict[str, Any]:
     return {spec.name: spec.default for spec in validator.validator_specs()}
 
 
+@pytest.mark.long
 def test_diagnose_answers_the_report_with_its_cause_without_blocking(
         start_node, client, tmp_path, monkeypatch):
     from octoroach_model import guidance
@@ -417,6 +418,7 @@ def test_a_bag_growing_inside_its_directory_changes_the_stamps_the_directory_doe
     assert len(validation_jobs.source_stamps([str(bag)])) == 2
 
 
+@pytest.mark.long
 def test_a_bag_being_recorded_is_validated_as_it_grows(tmp_path, client_on):
     """Recorder, simulator and validator at once: each call sees the runs on disk by then."""
     bag = tmp_path / 'live'

@@ -41,6 +41,7 @@ def test_the_walk_through_names_the_venv_and_waits_for_the_recorder():
     assert 'wait_subscribers:=1' in lines[1]
 
 
+@pytest.mark.long
 def test_the_walk_through_runs_as_written(tmp_path):
     venv = Path(sys.prefix)
     if not (venv / 'bin' / 'activate').is_file():

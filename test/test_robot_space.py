@@ -24,6 +24,7 @@ import os
 
 from hypothesis import given, HealthCheck, seed, settings, strategies as st
 import numpy as np
+import pytest
 
 import octoroach_model as om
 from octoroach_model.diagnosis import diagnose, DiagnosisSettings, write_report
@@ -90,6 +91,7 @@ def test_the_drop_helper_interpolates_only_the_dropped_frames() -> None:
     assert 0 < np.count_nonzero(dropped.poses != paths.poses) < paths.poses.size
 
 
+@pytest.mark.long
 @seed(SUITE_SEED)
 @settings(max_examples=PROFILE['examples'], deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,

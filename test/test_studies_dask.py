@@ -60,6 +60,7 @@ def table_rows(path: Path, with_timing: bool = False) -> list[dict]:
     return rows
 
 
+@pytest.mark.long
 def test_a_study_gives_the_same_table_in_process_and_on_a_cluster_even_when_a_worker_dies(
         tmp_path):
     from distributed import Client, LocalCluster
@@ -149,6 +150,7 @@ def one_line_error(result: subprocess.CompletedProcess) -> str:
     return lines[0]
 
 
+@pytest.mark.long
 def test_an_interrupted_study_keeps_its_rows_and_resume_completes_it(tmp_path):
     spec_file = tmp_path / 'tiny.yaml'
     spec_file.write_text(yaml.safe_dump(tiny_spec()))
@@ -236,6 +238,7 @@ def test_bad_specs_and_an_unreachable_scheduler_stop_before_any_work(tmp_path):
     assert time.monotonic() - started < 120
 
 
+@pytest.mark.long
 def test_plan_answers_with_a_power_curve_a_plot_and_json(tmp_path):
     progress = []
     result = om.plan_runs('persistent_turning', 20.0, robot={'cycles': 5}, replicates=2,

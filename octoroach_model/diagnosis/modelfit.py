@@ -870,11 +870,8 @@ def fit_mixture(simulator: Simulator, model: FittedModel, cause: Cause,
         # the geometry's): the same likelihood, labelled the other way round
         shift, rate, fraction = shift + rate, -rate, 1.0 - fraction
     rng = np.random.default_rng([settings.seed, 31])
-    draws = []
-    for _ in range(n_boot):
-        pick = rng.integers(0, len(rates), len(rates))
-        draws.append(two_groups(rates[pick], centre, spread, (shift, rate, fraction),
-                                others=False))
+    picks = np.array([rng.integers(0, len(rates), len(rates)) for _ in range(n_boot)])
+    draws = two_groups_each(rates[picks], centre, spread, (shift, rate, fraction))
     boot = np.array([(d + w, -w, 1.0 - f) if f > 0.5 else (d, w, f) for d, w, f in draws])
     sizes = np.abs(boot[:, 1]) * np.sqrt(boot[:, 2] * (1 - boot[:, 2]))
     size = math.degrees(abs(rate) * math.sqrt(fraction * (1 - fraction)))
@@ -929,7 +926,7 @@ def two_groups(values: FloatArray, centre: float, spread: float,
 
     (1 - f) N(centre + d, spread) + f N(centre + d + w, spread); expectation-maximisation
     from `start` and (with `others`) a few starts more, the best likelihood kept. A bootstrap
-    resample starts from the fit of the whole data alone.
+    resample starts from the fit of the whole data alone (`two_groups_each`).
     """
     starts = [start] if start is not None else []
     deviation = values - centre
@@ -938,27 +935,68 @@ def two_groups(values: FloatArray, centre: float, spread: float,
             tail = np.quantile(deviation, 1 - fraction / 2 if side > 0 else fraction / 2)
             starts.append((0.0, float(tail), fraction))
     best, best_loglik = (float(np.mean(deviation)), 0.0, 0.0), -math.inf
-    for shift, separation, fraction in starts:
-        for _ in range(EM_STEPS):
-            before = (shift, separation, fraction)
-            first = (1 - fraction) * np.exp(-0.5 * ((deviation - shift) / spread) ** 2)
-            second = fraction * np.exp(-0.5 * ((deviation - shift - separation) / spread) ** 2)
-            total = np.maximum(first + second, 1e-300)
-            weight = second / total
-            fraction = float(np.clip(weight.mean(), 1e-4, 1 - 1e-4))
-            # shift and separation by weighted least squares (common spread)
-            shift = float(np.mean(deviation - weight * separation))
-            separation = float(np.sum(weight * (deviation - shift))
-                               / max(float(np.sum(weight)), 1e-12))
-            if max(abs(shift - before[0]) / spread, abs(separation - before[1]) / spread,
-                   abs(fraction - before[2])) < 1e-6:
-                break
-        first = (1 - fraction) * np.exp(-0.5 * ((deviation - shift) / spread) ** 2)
-        second = fraction * np.exp(-0.5 * ((deviation - shift - separation) / spread) ** 2)
-        loglik = float(np.sum(np.log(np.maximum(first + second, 1e-300))))
+    if not starts:
+        return best
+    solutions, logliks = _expectation_maximisation(
+        np.broadcast_to(deviation, (len(starts), len(deviation))), spread, np.array(starts))
+    for solution, loglik in zip(solutions, logliks):
         if loglik > best_loglik + 1e-9:
-            best, best_loglik = (shift, separation, fraction), loglik
+            best, best_loglik = (float(solution[0]), float(solution[1]),
+                                 float(solution[2])), float(loglik)
     return best
+
+
+def two_groups_each(samples: FloatArray, centre: float, spread: float,
+                    start: tuple[float, float, float]) -> FloatArray:
+    """
+    Return the (B, 3) fits (d, w, f) of `two_groups` from `start` alone, one per row of `samples`.
+
+    All rows at once: a bootstrap's resamples cost one pass of numpy per EM step, not one
+    per resample.
+    """
+    samples = np.atleast_2d(samples)
+    solutions, logliks = _expectation_maximisation(
+        samples - centre, spread, np.tile(np.asarray(start, dtype=float), (len(samples), 1)))
+    fallback = np.column_stack([np.mean(samples - centre, axis=1), np.zeros((len(samples), 2))])
+    solutions[~(logliks > -math.inf)] = fallback[~(logliks > -math.inf)]
+    return solutions
+
+
+def _expectation_maximisation(deviation: FloatArray, spread: float, starts: FloatArray
+                              ) -> tuple[FloatArray, FloatArray]:
+    """
+    EM for the two groups on each row of `deviation` (R, N) from its row of `starts` (R, 3).
+
+    Each row stops on its own (its steps below 1e-6 of the spread and of the fraction) or
+    after EM_STEPS; the same arithmetic as one row at a time. Returns the (R, 3) solutions
+    and their (R,) log-likelihoods.
+    """
+    solutions = np.array(starts, dtype=float)
+    active = np.arange(len(solutions))
+    for _ in range(EM_STEPS):
+        if not active.size:
+            break
+        rows = deviation[active]
+        shift, separation, fraction = (solutions[active, i][:, None] for i in range(3))
+        first = (1 - fraction) * np.exp(-0.5 * ((rows - shift) / spread) ** 2)
+        second = fraction * np.exp(-0.5 * ((rows - shift - separation) / spread) ** 2)
+        total = np.maximum(first + second, 1e-300)
+        weight = second / total
+        new_fraction = np.clip(weight.mean(axis=1), 1e-4, 1 - 1e-4)
+        # shift and separation by weighted least squares (common spread)
+        new_shift = np.mean(rows - weight * separation, axis=1)
+        new_separation = (np.sum(weight * (rows - new_shift[:, None]), axis=1)
+                          / np.maximum(np.sum(weight, axis=1), 1e-12))
+        step = np.maximum(np.maximum(np.abs(new_shift - shift[:, 0]) / spread,
+                                     np.abs(new_separation - separation[:, 0]) / spread),
+                          np.abs(new_fraction - fraction[:, 0]))
+        solutions[active] = np.column_stack([new_shift, new_separation, new_fraction])
+        active = active[~(step < 1e-6)]
+    shift, separation, fraction = (solutions[:, i][:, None] for i in range(3))
+    first = (1 - fraction) * np.exp(-0.5 * ((deviation - shift) / spread) ** 2)
+    second = fraction * np.exp(-0.5 * ((deviation - shift - separation) / spread) ** 2)
+    logliks = np.sum(np.log(np.maximum(first + second, 1e-300)), axis=1)
+    return solutions, logliks
 
 
 def moments_se_u(estimate: SizeEstimate, u: float, data_se: float | None = None,
