@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from octoroach_model.arrays import BoolArray, FloatArray, IntArray
+
 X, Y, HEADING = 0, 1, 2
 # info entries with one value per run, in the runs' order
 PER_RUN_INFO = ('sources', 'start_stamps_s')
@@ -34,8 +36,8 @@ class Paths:
 
     """
 
-    t: np.ndarray
-    poses: np.ndarray
+    t: FloatArray
+    poses: FloatArray
     info: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -53,12 +55,12 @@ class Paths:
         return float((len(self.t) - 1) / (self.t[-1] - self.t[0])) if len(self.t) > 1 else 0.0
 
     @property
-    def positions(self) -> np.ndarray:
+    def positions(self) -> FloatArray:
         """(n, T, 2) x, y in metres."""
         return self.poses[..., :2]
 
     @property
-    def lengths(self) -> np.ndarray:
+    def lengths(self) -> IntArray:
         """(n,) number of samples of each run (the grid's length for a complete run)."""
         return np.isfinite(self.poses[..., 0]).sum(axis=1)
 
@@ -70,11 +72,11 @@ class Paths:
     @property
     def well_formed(self) -> bool:
         """Every run has its first sample and is NaN only after its end (no holes)."""
-        finite = np.isfinite(self.poses).all(axis=2)
+        finite: BoolArray = np.asarray(np.isfinite(self.poses).all(axis=2), dtype=bool)
         return bool(finite[:, 0].all() and (finite[:, :-1] >= finite[:, 1:]).all()
                     and (np.isfinite(self.poses).any(axis=2) == finite).all())
 
-    def recording_positions(self) -> tuple[np.ndarray, bool]:
+    def recording_positions(self) -> tuple[FloatArray, bool]:
         """
         Return each run's place in the recording, 0 (first) to 1 (last), and whether it is known.
 
@@ -113,7 +115,7 @@ class Paths:
         keep = self.t <= duration_s + 1e-9
         return Paths(self.t[keep], self.poses[:, keep], dict(self.info))
 
-    def cut_to(self, lengths: np.ndarray) -> Paths:
+    def cut_to(self, lengths: IntArray) -> Paths:
         """
         Return the runs with run i ending after lengths[i] samples (NaN after).
 

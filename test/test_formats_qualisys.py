@@ -17,6 +17,7 @@ import octoroach_model as om
 from octoroach_model.errors import BagError
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import read_runs, ReadOptions
+from octoroach_model.recordings.mocap.shared import first_complete_frames, LAYOUT_FRAMES
 from octoroach_model.recordings.sources import input_kind, InputKind
 from trajectory_writers import write_qtm_3d, write_qtm_6d
 
@@ -132,6 +133,24 @@ def test_a_marker_at_an_impossible_position_is_a_marker_not_seen(tmp_path, truth
     assert len(runs.runs) == 1
     assert np.isfinite(runs.runs[0].poses).all()
     assert '3 frame(s) fitted on the markers that were seen' in '\n'.join(runs.notes)
+
+
+def test_the_layout_comes_from_the_first_complete_frames_wherever_they_start():
+    """
+    A first block of frames without one complete frame does not hide where they begin.
+
+    Every marker reader (TSV, CSV, C3D) takes the body's layout this way, block by block.
+    """
+    seen = np.random.default_rng(0).normal(0.0, 0.05, (1500, 3, 3))
+    markers = seen.copy()
+    markers[:1200, 1] = np.nan          # the second marker unseen for the first 1200 frames
+    blocks = [(np.arange(start, start + 500) + 1, markers[start:start + 500])
+              for start in range(0, 1500, 500)]
+    frames_m, first_frame = first_complete_frames(iter(blocks), 3)
+    assert first_frame == 1201
+    np.testing.assert_array_equal(frames_m, seen[1200:1200 + LAYOUT_FRAMES])
+    frames_m, first_frame = first_complete_frames(iter(blocks[:2]), 3)
+    assert frames_m.shape == (0, 3, 3)
 
 
 @pytest.mark.parametrize('content, reason', [

@@ -223,7 +223,6 @@ class Simulator:
 
     data: RunData
     seed: int
-    cache: dict[str, object] = field(default_factory=dict)
 
     def features(self, model: FittedModel, n_runs: int, purpose: int,
                  effects: Effects | None = None, lengths: IntArray | None = None

@@ -39,9 +39,8 @@ from octoroach_model.recordings.conventions.chunks import PoseChunk
 from octoroach_model.recordings.mocap.shared import (
     axis_words,
     check_rate,
-    complete_frames,
+    first_complete_frames,
     last_chunk,
-    LAYOUT_FRAMES,
     LENGTH_UNITS,
     length_words,
     MarkerBody,
@@ -272,14 +271,4 @@ def _frame_blocks(reader: c3d.Reader, chosen: list[int], scale: float, block: in
 def _first_complete(reader: c3d.Reader, chosen: list[int], scale: float,
                     where: str) -> tuple[np.ndarray, int]:
     """Return up to LAYOUT_FRAMES frames (metres) with every body marker seen, and the first."""
-    found: list[np.ndarray] = []
-    first_frame = 0
-    for frames, markers in _frame_blocks(reader, chosen, scale, 1000, where):
-        complete = np.isfinite(markers).all(axis=(1, 2))
-        if complete.any() and not found:
-            first_frame = int(frames[complete][0])
-        found.append(complete_frames(markers))
-        if sum(len(block) for block in found) >= LAYOUT_FRAMES:
-            break
-    frames_m = np.concatenate(found)[:LAYOUT_FRAMES] if found else np.zeros((0, len(chosen), 3))
-    return frames_m, first_frame
+    return first_complete_frames(_frame_blocks(reader, chosen, scale, 1000, where), len(chosen))

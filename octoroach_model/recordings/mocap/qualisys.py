@@ -46,13 +46,11 @@ from octoroach_model.recordings.mocap.shared import (
     axis_words,
     check_rate,
     choose_subject,
-    complete_frames,
+    first_complete_frames,
     last_chunk,
-    LAYOUT_FRAMES,
     MarkerBody,
     pose_chunk,
     PoseInput,
-    seen_markers,
     select_body_markers,
     stamps_ns,
     stream_fraction,
@@ -341,19 +339,9 @@ def _marker_chunks(where: str, header: TsvHeader, rate: float | None, rows: _Row
         starts = [first + 3 * index for index in chosen]
     wanted = [start + axis for start in starts for axis in range(3)]
     body = MarkerBody(where, body_names, options)
-    found: list[np.ndarray] = []
-    start_frame = 0
-    for frames, _, values in _Rows(rows.path, header, 1000).blocks(wanted, frame, time):
-        markers = seen_markers(_markers_m(values))
-        complete = np.isfinite(markers).all(axis=(1, 2))
-        if complete.any() and not found:
-            start_frame = int(frames[complete][0])
-        found.append(complete_frames(markers))
-        if sum(len(block) for block in found) >= LAYOUT_FRAMES:
-            break
-    layout_frames = np.concatenate(found)[:LAYOUT_FRAMES] if found \
-        else np.zeros((0, len(body_names), 3))
-    body.set_layout_from_frames(layout_frames, start_frame)
+    blocks = ((frames, _markers_m(values)) for frames, _, values in
+              _Rows(rows.path, header, 1000).blocks(wanted, frame, time))
+    body.set_layout_from_frames(*first_complete_frames(blocks, len(body_names)))
     topic = f'tsv:{path_subject(where)}'
     if virtual and not options.markers:
         notes.append(f'{where}: {len(virtual)} virtual trajectory(ies) left out of the body: '

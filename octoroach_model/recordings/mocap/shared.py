@@ -462,3 +462,28 @@ def complete_frames(frames_m: np.ndarray) -> np.ndarray:
     """Return the frames of (F, M, 3) in which every marker was seen."""
     frames_m = seen_markers(frames_m)
     return frames_m[np.isfinite(frames_m).all(axis=(1, 2))]
+
+
+def first_complete_frames(blocks: Iterable[tuple[np.ndarray, np.ndarray]],
+                          n_markers: int) -> tuple[np.ndarray, int]:
+    """
+    Return up to LAYOUT_FRAMES frames in which every marker was seen, and the first one's number.
+
+    `blocks` yields (frame numbers (F,), markers (F, M, 3) in metres) in file order, as each
+    marker reader reads its file; reading stops once enough frames are found. The number is
+    the first complete frame's even when earlier blocks had none (it names where the layout
+    comes from in the reader's note).
+    """
+    found: list[np.ndarray] = []
+    count, first_frame = 0, 0
+    for frames, markers_m in blocks:
+        complete = complete_frames(markers_m)
+        if len(complete) and not count:
+            seen = np.isfinite(seen_markers(markers_m)).all(axis=(1, 2))
+            first_frame = int(np.asarray(frames)[seen][0])
+        found.append(complete)
+        count += len(complete)
+        if count >= LAYOUT_FRAMES:
+            break
+    frames_m = np.concatenate(found)[:LAYOUT_FRAMES] if found else np.zeros((0, n_markers, 3))
+    return frames_m, first_frame

@@ -51,15 +51,13 @@ from octoroach_model.recordings.mocap.shared import (
     ANGLE_UNITS,
     axis_words,
     check_rate,
-    complete_frames,
+    first_complete_frames,
     last_chunk,
-    LAYOUT_FRAMES,
     LENGTH_UNITS,
     length_words,
     MarkerBody,
     pose_chunk,
     PoseInput,
-    seen_markers,
     select_body_markers,
     split_label,
     stamps_ns,
@@ -416,19 +414,10 @@ def _marker_chunks(where: str, reader: _RowReader, section: CsvSection,
     scale = unit_scale(unit, LENGTH_UNITS, 'length', f'{where}: {MARKER_SECTION}')
     need = [group.columns[axis] for group in body_groups for axis in 'XYZ']
     body = MarkerBody(where, names, options)
-    found: list[np.ndarray] = []
-    start = 0
-    for frames, values in _RowReader(reader.path, reader.delimiter, reader.cut_line).blocks(
-            section, need, 1000):
-        markers = seen_markers(values.reshape(len(frames), -1, 3) * scale)
-        complete = np.isfinite(markers).all(axis=(1, 2))
-        if complete.any() and not found:
-            start = int(frames[complete][0])
-        found.append(complete_frames(markers))
-        if sum(len(block) for block in found) >= LAYOUT_FRAMES:
-            break
-    layout_frames = np.concatenate(found)[:LAYOUT_FRAMES] if found else np.zeros((0, 0, 3))
-    body.set_layout_from_frames(layout_frames, start)
+    blocks = ((frames, values.reshape(len(frames), -1, 3) * scale) for frames, values in
+              _RowReader(reader.path, reader.delimiter, reader.cut_line).blocks(
+                  section, need, 1000))
+    body.set_layout_from_frames(*first_complete_frames(blocks, len(names)))
     subject = split_label(names[0])[0] or options.subject or path_stem(where)
     topic = f'csv:{subject}'
     notes.append(f'{where}: Vicon {MARKER_SECTION} section, {len(names)} body markers '
