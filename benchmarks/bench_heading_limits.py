@@ -17,9 +17,9 @@ Run: .venv/bin/python benchmarks/bench_heading_limits.py [--replicate 3]
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 SPEC = REPO / 'studies' / 'open_world.yaml'
@@ -27,16 +27,23 @@ TABLE = REPO / 'out' / 'studies' / 'open_world' / 'table.csv'
 HEADING_TERMS = ('heading_random_walk', 'periodic_heading')
 
 
-def study_rows(replicate: int) -> dict[str, dict[str, str]]:
-    """Return the study table's rows of `replicate` by arm (empty when it has not run)."""
+def study_rows(replicate: int) -> dict[str, Any]:
+    """Return the study table's rows (StudyRow) of `replicate` by arm (empty when not run)."""
+    from octoroach_model.studies.table import read_table
+
     if not TABLE.is_file():
         return {}
-    with TABLE.open(newline='') as stream:
-        return {row['arm']: row for row in csv.DictReader(stream)
-                if int(row['replicate']) == replicate}
+    rows, _ = read_table(TABLE)
+    return {row.arm: row for row in rows if row.replicate == replicate}
 
 
-def null_limits(replicate: int, rows: dict[str, dict[str, str]]) -> None:
+def table_limit(row: Any, term: str) -> str:
+    """Return the limit of `term` in a study row, as the table prints it."""
+    limit = row.terms[term].limit if row is not None and term in row.terms else math.nan
+    return f'{limit:.3g}' if math.isfinite(limit) else 'not run'
+
+
+def null_limits(replicate: int, rows: dict[str, Any]) -> None:
     """Print the heading terms' limits on the replicate's null, now and in the table."""
     from octoroach_model.diagnosis import diagnose
     from octoroach_model.studies import replicate as study
@@ -47,7 +54,7 @@ def null_limits(replicate: int, rows: dict[str, dict[str, str]]) -> None:
     task = next(task for task in build_tasks(spec)
                 if task.replicate == replicate and task.arm.kind == 'null')
     draw = draw_robot(spec, replicate)
-    measured = study.simulate_data(spec, draw, task.runs_cell, {}, {})
+    measured = study.simulate_data(spec, draw, task.runs_cell, {}).paths
     report = diagnose(measured, study.task_settings(task, spec, draw.data_seed))
     print(f'open_world replicate {replicate}, null data set: detection limits\n')
     print('| term | limit now | in the study table |')
@@ -55,12 +62,12 @@ def null_limits(replicate: int, rows: dict[str, dict[str, str]]) -> None:
     for candidate in report.extension_candidates:
         if candidate.cause in HEADING_TERMS:
             (parameter, limit), = candidate.detectable.items()
-            before = rows.get('none', {}).get(f'limit_{candidate.cause}', '') or 'not run'
+            before = table_limit(rows.get('none'), candidate.cause)
             print(f'| {candidate.cause} | {parameter} = {limit:.3g} | {before} |')
     print()
 
 
-def held_out_gain(replicate: int, rows: dict[str, dict[str, str]]) -> None:
+def held_out_gain(replicate: int, rows: dict[str, Any]) -> None:
     """Print the held-out gain measured and simulated on the 1x heading random walk."""
     import numpy as np
 
@@ -75,7 +82,7 @@ def held_out_gain(replicate: int, rows: dict[str, dict[str, str]]) -> None:
 
     term = 'heading_random_walk'
     null_row = rows.get('none')
-    if not null_row or not null_row.get(f'limit_{term}'):
+    if table_limit(null_row, term) == 'not run':
         print('(the held-out gain needs the limit of the study table: run studies/open_world.yaml '
               'into out/studies/open_world first)')
         return
@@ -83,11 +90,8 @@ def held_out_gain(replicate: int, rows: dict[str, dict[str, str]]) -> None:
     task = next(task for task in build_tasks(spec)
                 if task.replicate == replicate and task.key.startswith(f'{term}@1x'))
     draw = draw_robot(spec, replicate)
-    limits = {key: float(value) for key, value in null_row.items()
-              if key.startswith('limit_') and value}
-    effects = study.task_effects(task, spec, {**limits, 'status': study.OK},
-                                 draw.cycles / draw.stride_frequency_hz)
-    measured = study.simulate_data(spec, draw, task.runs_cell, effects, {})
+    effects = study.task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
+    measured = study.simulate_data(spec, draw, task.runs_cell, effects).paths
     settings = study.task_settings(task, spec, draw.data_seed)
     halves = _prepare(measured, settings)
     baseline = _baseline(halves, settings).model
