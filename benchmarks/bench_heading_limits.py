@@ -6,17 +6,19 @@ Takes one replicate of studies/open_world.yaml and prints
 - the detection limits of heading_random_walk and periodic_heading on its null data set, as
   the diagnosis reports them now, beside those in the study's table.csv (when the study ran
   into out/studies/open_world);
-- on its data set with a heading random walk at 1x the limit in that table: the held-out
-  gain of the term as the diagnosis measured it (mean and spread over the held-out runs, the
-  t that decided), beside the gain runs simulated as the limit simulates them show at the
-  true size and at the fitted one (docs/diagnosis.md, section 8).
+- on its data sets with each heading term at 1x the limit in that table: the geometry and
+  spread of the two models the held-out test compares (as the race fits them) beside the
+  robot's, and the held-out gain of the term as the diagnosis measured it (mean and spread
+  over the held-out runs, the t that decided), beside the gain runs simulated as the limit
+  simulates them show at the true size and at the fitted one (docs/diagnosis.md, section 8).
 
-Minutes on two idle cores (two diagnoses of 500 runs with their limits).
+Minutes on two idle cores (a diagnosis of 500 runs with its limits, two race steps).
 Run: .venv/bin/python benchmarks/bench_heading_limits.py [--replicate 3]
 """
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 import math
 from pathlib import Path
 from typing import Any
@@ -67,20 +69,27 @@ def null_limits(replicate: int, rows: dict[str, Any]) -> None:
     print()
 
 
-def held_out_gain(replicate: int, rows: dict[str, Any]) -> None:
-    """Print the held-out gain measured and simulated on the 1x heading random walk."""
+def held_out_gain(replicate: int, rows: dict[str, Any], term: str) -> None:
+    """
+    Print the held-out gain measured and simulated on the data set with `term` at 1x.
+
+    Beside it, the geometry and spread scale of the two models the held-out test compares,
+    as fitted to the calibration half, and the robot's own: the limit simulates the term at
+    the geometry and spread of the model without it; the race refits them with the term.
+    """
     import numpy as np
 
     from octoroach_model.diagnosis.causes import BY_NAME
     from octoroach_model.diagnosis.diagnose import (
         _baseline, _prepare, _score, _with_wobble, choose_wobble_hz, evaluate_candidate)
-    from octoroach_model.diagnosis.limits import limit_base, simulated_gains
-    from octoroach_model.diagnosis.modelfit import Simulator
+    from octoroach_model.diagnosis.limits import (
+        _features, limit_base, MODEL_PURPOSE, PSEUDO_PURPOSE, simulated_gains)
+    from octoroach_model.diagnosis.modelfit import FittedModel, Simulator
+    from octoroach_model.diagnosis.scoring import feature_log_score
     from octoroach_model.studies import replicate as study
     from octoroach_model.studies.design import build_tasks, draw_robot
     from octoroach_model.studies.spec import load_spec
 
-    term = 'heading_random_walk'
     null_row = rows.get('none')
     if table_limit(null_row, term) == 'not run':
         print('(the held-out gain needs the limit of the study table: run studies/open_world.yaml '
@@ -101,9 +110,20 @@ def held_out_gain(replicate: int, rows: dict[str, Any]) -> None:
                                                              settings), term, settings)
     held_out = halves.test.n
     spread = evaluation.gain.standard_error * math.sqrt(held_out)
-    true_size = effects[term]['step_std_deg']
+    parameter = BY_NAME[term].parameter
+    true_size = effects[term][parameter]
     fitted_size = evaluation.estimates[term].size
-    print(f'{term} at 1x its limit (step_std_deg = {true_size:.3g}), {held_out} held-out runs\n')
+    print(f'{term} at 1x its limit ({parameter} = {true_size:.3g}), {held_out} held-out runs\n')
+    print('| model | leg, cm | touchdown angles, deg | spread scale |')
+    print('| --- | --- | --- | --- |')
+    for label, parameters, scale in (
+            ('the robot (truth)', draw.parameters(), draw.spread_scale),
+            ('without the term (baseline)', baseline.parameters, baseline.sigma_scale),
+            ('with the term (as the race fits it)', evaluation.model.parameters,
+             evaluation.model.sigma_scale)):
+        angles = ', '.join(f'{math.degrees(angle):.2f}' for angle in parameters.touchdown_angles)
+        print(f'| {label} | {parameters.leg_length * 100:.3f} | {angles} | {scale:.3f} |')
+    print()
     print('| held-out gain | size, deg | mean, nats/run | spread, nats/run | t |')
     print('| --- | --- | --- | --- | --- |')
     print(f'| measured by the diagnosis | fitted {fitted_size:.3g} | {evaluation.gain.mean:.3f} | '
@@ -116,6 +136,22 @@ def held_out_gain(replicate: int, rows: dict[str, Any]) -> None:
         sd = float(np.std(gains, ddof=1))
         print(f'| simulated as the limit does | {label} {size:.3g} | {gains.mean():.3f} | '
               f'{sd:.2f} | {gains.mean() / sd * math.sqrt(held_out):.2f} |')
+    # runs of the robot itself with the term, scored by two pairs of models: the race's
+    # fitted pair, and the robot with and without the term (no fit at all)
+    truth = FittedModel(draw.parameters(), baseline.start_pose, draw.spread_scale,
+                        {term: dict(effects[term])})
+    robot_runs = simulator.features(truth, 1000, PSEUDO_PURPOSE) / halves.scales
+    pairs = (("the race's two fitted models", evaluation.model, baseline),
+             ('the robot with and without the term', truth, replace(truth, effects={})))
+    for label, extended, without in pairs:
+        gains = (feature_log_score(_features(simulator, extended, settings.score_runs,
+                                             MODEL_PURPOSE, halves.scales), robot_runs)
+                 - feature_log_score(_features(simulator, without, settings.score_runs,
+                                               MODEL_PURPOSE, halves.scales), robot_runs))
+        sd = float(np.std(gains, ddof=1))
+        print(f'| {label}, on runs of the robot | true {true_size:.3g} | {gains.mean():.3f} | '
+              f'{sd:.2f} | {gains.mean() / sd * math.sqrt(held_out):.2f} |')
+    print()
 
 
 def main() -> None:
@@ -125,7 +161,8 @@ def main() -> None:
     args = parser.parse_args()
     rows = study_rows(args.replicate)
     null_limits(args.replicate, rows)
-    held_out_gain(args.replicate, rows)
+    for term in HEADING_TERMS:
+        held_out_gain(args.replicate, rows, term)
 
 
 if __name__ == '__main__':
