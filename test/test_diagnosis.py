@@ -22,6 +22,7 @@ import math
 import os
 import random
 
+from hypothesis import given, settings as hypothesis_settings, strategies as st
 import numpy as np
 import pytest
 
@@ -456,3 +457,42 @@ def test_the_evidence_of_two_groups_counts_in_a_mixtures_limit():
     # 0.33: the 40 subsets share their runs, so one odd draw moves them all)
     assert two_groups_power(without, together, 250) <= 0.4, replay('one group')
     assert two_groups_power(without, wider, 250) <= 0.1, replay('one wider group')
+
+
+def em_one_row(deviation: np.ndarray, spread: float, start: tuple[float, float, float]
+               ) -> tuple[float, float, float]:
+    """Run the two groups' EM written plainly, one data set at a time (the reference)."""
+    from octoroach_model.diagnosis.modelfit import EM_STEPS
+
+    shift, separation, fraction = start
+    for _ in range(EM_STEPS):
+        before = (shift, separation, fraction)
+        first = (1 - fraction) * np.exp(-0.5 * ((deviation - shift) / spread) ** 2)
+        second = fraction * np.exp(-0.5 * ((deviation - shift - separation) / spread) ** 2)
+        weight = second / np.maximum(first + second, 1e-300)
+        fraction = float(np.clip(weight.mean(), 1e-4, 1 - 1e-4))
+        shift = float(np.mean(deviation - weight * separation))
+        total = max(float(np.sum(weight)), 1e-12)
+        separation = float(np.sum(weight * (deviation - shift)) / total)
+        if max(abs(shift - before[0]) / spread, abs(separation - before[1]) / spread,
+               abs(fraction - before[2])) < 1e-6:
+            break
+    return shift, separation, fraction
+
+
+@given(runs=st.integers(20, 300), share=st.floats(0.0, 0.5), apart=st.floats(0.0, 5.0),
+       spread=st.floats(0.3, 2.0), resamples=st.integers(1, 12), seed=st.integers(0, 10_000))
+@hypothesis_settings(max_examples=25, deadline=None, database=None)
+def test_the_two_groups_fit_of_every_resample_at_once_is_the_fit_of_each_alone(
+        runs, share, apart, spread, resamples, seed):
+    """All bootstrap resamples in one array: each row stops on its own, same arithmetic."""
+    from octoroach_model.diagnosis.modelfit import two_groups, two_groups_each
+
+    rng = np.random.default_rng(seed)
+    values = rng.normal(0.0, 1.0, runs) + apart * (rng.random(runs) < share)
+    centre = float(rng.normal(0.0, 0.3))
+    start = two_groups(values, centre, spread)
+    samples = values[rng.integers(0, runs, (resamples, runs))]
+    each = two_groups_each(samples, centre, spread, start)
+    alone = np.array([em_one_row(row - centre, spread, start) for row in samples])
+    np.testing.assert_array_equal(each, alone)
