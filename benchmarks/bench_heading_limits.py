@@ -12,8 +12,15 @@ Takes one replicate of studies/open_world.yaml and prints
   over the held-out runs, the t that decided), beside the gain runs simulated as the limit
   simulates them show at the true size and at the fitted one (docs/diagnosis.md, section 8).
 
-Minutes on two idle cores (a diagnosis of 500 runs with its limits, two race steps).
-Run: .venv/bin/python benchmarks/bench_heading_limits.py [--replicate 3]
+With `--fitted-pairs K`: on the null data set, as the limit sees it, heading_random_walk at
+1x and 1.5x its table limit: the expected t the limit computes now, beside the t of K pairs of
+models fitted as the race fits them (the baseline, then the model with the term) to K
+calibration halves simulated with the term, each pair scored on the same simulated held-out
+runs: how much the fits' own differences move the test.
+
+Minutes on two idle cores (a diagnosis of 500 runs with its limits, two race steps; about 4 s
+more per fitted pair).
+Run: .venv/bin/python benchmarks/bench_heading_limits.py [--replicate 3] [--fitted-pairs 3]
 """
 from __future__ import annotations
 
@@ -154,15 +161,84 @@ def held_out_gain(replicate: int, rows: dict[str, Any], term: str) -> None:
     print()
 
 
+def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
+    """Print the limit's expected t beside that of pairs fitted as the race fits them."""
+    import numpy as np
+
+    from octoroach_model.diagnosis.causes import BY_NAME
+    from octoroach_model.diagnosis.diagnose import (
+        _baseline, _prepare, _with_wobble, choose_wobble_hz)
+    from octoroach_model.diagnosis.limits import (
+        _features, limit_base, MODEL_PURPOSE, simulated_gains)
+    from octoroach_model.diagnosis.modelfit import (
+        at_size, fit_causes, RunData, Simulator, spread_statistic)
+    from octoroach_model.diagnosis.scoring import feature_log_score
+    from octoroach_model.studies import replicate as study
+    from octoroach_model.studies.design import build_tasks, draw_robot
+    from octoroach_model.studies.spec import load_spec
+
+    term = 'heading_random_walk'
+    null_row = rows.get('none')
+    if table_limit(null_row, term) == 'not run':
+        print('(--fitted-pairs needs the limit of the study table)')
+        return
+    spec = load_spec(SPEC)
+    task = next(task for task in build_tasks(spec)
+                if task.replicate == replicate and task.arm.kind == 'null')
+    draw = draw_robot(spec, replicate)
+    measured = study.simulate_data(spec, draw, task.runs_cell, {}).paths
+    settings = study.task_settings(task, spec, draw.data_seed)
+    halves = _prepare(measured, settings)
+    baseline = _baseline(halves, settings).model
+    halves = _with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
+    simulator, data = Simulator(halves.test, settings.seed), halves.test
+    held_out, fit = data.n, settings.fit()
+    base = limit_base(simulator, baseline, halves.scales, settings.score_runs)
+
+    def scored(model: Any) -> Any:
+        return _features(simulator, model, settings.score_runs, MODEL_PURPOSE, halves.scales)
+
+    print(f'{term} on the null data set, {held_out} held-out runs: expected t\n')
+    print('| size | the limit now | pairs fitted as the race fits them |')
+    print('| --- | --- | --- |')
+    for multiple in (1.0, 1.5):
+        size = multiple * null_row.terms[term].limit
+        gains, runs = simulated_gains(simulator, baseline, base, BY_NAME[term], size,
+                                      halves.scales, settings.score_runs, None, fit)
+        now = gains.mean() / np.std(gains, ddof=1) * math.sqrt(held_out)
+        extended = baseline.with_effect(term, at_size(BY_NAME[term], size, None, data))
+        fitted = []
+        for pair in range(pairs):
+            paths, positions = simulator.runs(extended, held_out, 60 + pair)
+            calibration = RunData(paths, data.stride_frequency, data.reference_heading,
+                                  positions, data.wobble_hz, data.wobble_interval)
+            without = fit_causes(calibration, baseline, baseline.causes, fit, rounds=1).model
+            causes = (*without.causes, term)
+            model = fit_causes(calibration, without, causes, fit, geometry=False,
+                               rounds=1).model
+            if spread_statistic(model) != spread_statistic(without):
+                model = fit_causes(calibration, model, causes, fit, rounds=1).model
+            gain = (feature_log_score(scored(model), runs / halves.scales)
+                    - feature_log_score(scored(without), runs / halves.scales))
+            fitted.append(gain.mean() / np.std(gain, ddof=1) * math.sqrt(held_out))
+        print(f'| {multiple:g}x = {size:.3g} deg | {now:.2f} | '
+              f'{", ".join(f"{t:.2f}" for t in fitted)} (mean {np.mean(fitted):.2f}) |')
+    print()
+
+
 def main() -> None:
-    """Print both tables for one replicate."""
+    """Print the tables for one replicate."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--replicate', type=int, default=3)
+    parser.add_argument('--fitted-pairs', type=int, default=0, metavar='K',
+                        help='also fit K pairs of models as the race does (about 4 s each)')
     args = parser.parse_args()
     rows = study_rows(args.replicate)
     null_limits(args.replicate, rows)
     for term in HEADING_TERMS:
         held_out_gain(args.replicate, rows, term)
+    if args.fitted_pairs > 0:
+        fitted_pairs(args.replicate, rows, args.fitted_pairs)
 
 
 if __name__ == '__main__':
