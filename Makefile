@@ -22,8 +22,12 @@ $(STAMP): requirements.txt setup.py
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	touch $(STAMP)
 
+# --maxschedchunk=2: each worker holds at most two tests ahead, so the tests marked `long`
+# (run first, test/conftest.py) go to whichever worker is free; without it xdist hands each
+# worker a quarter of the suite at once, and one worker got every long test. (On the
+# command line, not in setup.cfg: colcon test runs pytest where xdist may be absent.)
 test: venv
-	$(PY) -m pytest -n $(JOBS) test
+	$(PY) -m pytest -n $(JOBS) --maxschedchunk=2 test
 
 demo: venv
 	@if [ -L $(DEMO) ] || { [ -e $(DEMO) ] && [ ! -f $(DEMO)/$(DEMO_MARK) ]; }; then \
