@@ -164,10 +164,11 @@ def held_out_gain(replicate: int, rows: dict[str, Any], term: str) -> None:
 def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
     """Print the limit's expected t beside that of pairs fitted as the race fits them."""
     import numpy as np
+    from scipy import stats
 
     from octoroach_model.diagnosis.causes import BY_NAME
     from octoroach_model.diagnosis.diagnose import (
-        _baseline, _prepare, _with_wobble, choose_wobble_hz)
+        _baseline, _prepare, _with_wobble, CANDIDATES, choose_wobble_hz)
     from octoroach_model.diagnosis.limits import (
         _features, limit_base, MODEL_PURPOSE, simulated_gains)
     from octoroach_model.diagnosis.modelfit import (
@@ -198,9 +199,13 @@ def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
     def scored(model: Any) -> Any:
         return _features(simulator, model, settings.score_runs, MODEL_PURPOSE, halves.scales)
 
-    print(f'{term} on the null data set, {held_out} held-out runs: expected t\n')
-    print('| size | the limit now | pairs fitted as the race fits them |')
-    print('| --- | --- | --- |')
+    # the held-out test's critical z at the first step, every candidate in the race
+    critical = float(stats.norm.isf(settings.alpha / len(CANDIDATES)))
+    print(f'{term} on the null data set, {held_out} held-out runs: expected t (the test '
+          f'names at z {critical:.2f})\n')
+    print('| size | the limit now | pairs fitted as the race fits them | test power over '
+          'the pairs |')
+    print('| --- | --- | --- | --- |')
     for multiple in (1.0, 1.5):
         size = multiple * null_row.terms[term].limit
         gains, runs = simulated_gains(simulator, baseline, base, BY_NAME[term], size,
@@ -221,8 +226,10 @@ def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
             gain = (feature_log_score(scored(model), runs / halves.scales)
                     - feature_log_score(scored(without), runs / halves.scales))
             fitted.append(gain.mean() / np.std(gain, ddof=1) * math.sqrt(held_out))
+        power = float(np.mean(stats.norm.cdf(np.array(fitted) - critical)))
         print(f'| {multiple:g}x = {size:.3g} deg | {now:.2f} | '
-              f'{", ".join(f"{t:.2f}" for t in fitted)} (mean {np.mean(fitted):.2f}) |')
+              f'{", ".join(f"{t:.2f}" for t in fitted)} (mean {np.mean(fitted):.2f}) | '
+              f'{power:.2f} |')
     print()
 
 

@@ -42,19 +42,7 @@ READERS = {'csv': iter_csv_pose_chunks, 'c3d': iter_c3d_pose_chunks}
 
 
 def _peak_rss_mb() -> float:
-    """
-    Peak resident set size of this process so far, MB.
-
-    Linux's VmHWM is this process's own; ru_maxrss also holds the peak of the process that
-    started it (the kernel carries it across exec), so a child of a large parent reads large.
-    """
-    try:
-        with open('/proc/self/status', encoding='ascii') as status:
-            for line in status:
-                if line.startswith('VmHWM:'):
-                    return int(line.split()[1]) / 1024.0
-    except OSError:
-        pass
+    """Peak resident set size of this process so far (Linux reports KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 

@@ -956,8 +956,9 @@ def two_groups_each(samples: FloatArray, centre: float, spread: float,
     samples = np.atleast_2d(samples)
     solutions, logliks = _expectation_maximisation(
         samples - centre, spread, np.tile(np.asarray(start, dtype=float), (len(samples), 1)))
-    fallback = np.column_stack([np.mean(samples - centre, axis=1), np.zeros((len(samples), 2))])
-    solutions[~(logliks > -math.inf)] = fallback[~(logliks > -math.inf)]
+    failed = ~(logliks > -math.inf)          # as two_groups: a NaN likelihood keeps no fit
+    solutions[failed] = 0.0
+    solutions[failed, 0] = np.mean(samples[failed] - centre, axis=1)
     return solutions
 
 

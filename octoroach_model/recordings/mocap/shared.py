@@ -477,12 +477,12 @@ def first_complete_frames(blocks: Iterable[tuple[np.ndarray, np.ndarray]],
     found: list[np.ndarray] = []
     count, first_frame = 0, 0
     for frames, markers_m in blocks:
-        complete = complete_frames(markers_m)
-        if len(complete) and not count:
-            seen = np.isfinite(seen_markers(markers_m)).all(axis=(1, 2))
-            first_frame = int(np.asarray(frames)[seen][0])
-        found.append(complete)
-        count += len(complete)
+        seen = seen_markers(markers_m)
+        complete = np.isfinite(seen).all(axis=(1, 2))
+        if complete.any() and not count:
+            first_frame = int(np.asarray(frames)[complete][0])
+        found.append(seen[complete])
+        count += int(complete.sum())
         if count >= LAYOUT_FRAMES:
             break
     frames_m = np.concatenate(found)[:LAYOUT_FRAMES] if found else np.zeros((0, n_markers, 3))
