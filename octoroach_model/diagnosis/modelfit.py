@@ -35,7 +35,7 @@ from octoroach_model.fitting.lines import bootstrap_se, paired_relative_se, read
 from octoroach_model.fitting.nominal import (
     fit_nominal, FreeEffect, MeanPathSettings, NominalFitSettings)
 from octoroach_model.fitting.target import (
-    average_target, AverageTarget, ResidualScales, SwayTarget)
+    average_target, AverageTarget, ResidualScales, sway_weight_for, SwayTarget)
 from octoroach_model.model import model_poses, ModelParameters, nominal_sigmas, RandomStreams
 from octoroach_model.model.effects import mean_gait_rate
 from octoroach_model.model.extensions import TERM_BY_NAME
@@ -167,7 +167,8 @@ class RunData:
     @property
     def scales(self) -> ResidualScales:
         """Return the standard errors of the average path, heading and sway: the fit's units."""
-        return self.target.scales(self.features[:, SWAY_COLUMNS])
+        return self.target.scales(self.features[:, SWAY_COLUMNS], sway_weight=sway_weight_for(
+            self.paths.rate_hz, self.stride_frequency))
 
     @property
     def sway(self) -> SwayTarget:

@@ -53,11 +53,20 @@ class ResidualScales:
     From the data's own run-to-run spread: where the runs scatter widely (late in a run, or
     under a random turning rate), the average is uncertain and a gap there weighs little, so
     the geometry does not bend to follow the chance curvature of an average path.
+
+    `sway_weight` multiplies the sway's residuals: the samples of the average path within one
+    stride move together (its chance deviation grows stride by stride), so G path residuals
+    are far fewer independent looks than G, while each sway residual is one. Weighed as a
+    stride's samples of the path (`sway_weight_for`), the sway keeps its say on long runs
+    finely sampled: at weight 1 a robot of 34 strides a run at 126 samples a stride fitted
+    its angles to the chance wander of 30 runs' average path and left the sideways sway at
+    the stride frequency 0.06 cm against the data's 0.11 (10 standard errors).
     """
 
     path: FloatArray
     turn: FloatArray
     sway: FloatArray
+    sway_weight: float = 1.0
 
 
 def residual_vector(path_gap: FloatArray, turn_gap: FloatArray | None,
@@ -93,7 +102,7 @@ def residual_vector(path_gap: FloatArray, turn_gap: FloatArray | None,
         if turn_gap is not None:
             parts.append(turn_gap / scales.turn)
         if sway_gap is not None:
-            parts.append(sway_gap / scales.sway)
+            parts.append(sway_gap / scales.sway * scales.sway_weight)
         return np.concatenate(parts)
     parts = [path_gap.ravel()]
     if turn_gap is not None:
@@ -120,6 +129,19 @@ def sway_weights(heading_weight_m: float, samples: int) -> FloatArray:
 
     """
     return np.array([max(heading_weight_m, 0.0), 1.0, 1.0]) * SWAY_WEIGHT * math.sqrt(samples)
+
+
+def sway_weight_for(rate_hz: float, stride_frequency_hz: float) -> float:
+    """
+    Return the weight of a sway residual: as much as one stride's samples of the average path.
+
+    The square root of the samples per stride, at least 1 (ResidualScales); 1 where the
+    stride frequency is unknown.
+    """
+    if not (math.isfinite(rate_hz) and math.isfinite(stride_frequency_hz)
+            and stride_frequency_hz > 0):
+        return 1.0
+    return math.sqrt(max(rate_hz / stride_frequency_hz, 1.0))
 
 
 def mean_start_pose(measured: Paths) -> tuple[float, float, float]:
@@ -152,11 +174,12 @@ class AverageTarget:
         return _nanmean_rows(self.runs_turn)
 
     def scales(self, sway_per_run: FloatArray | None = None,
-               floor_m: float = 1e-5) -> ResidualScales:
+               floor_m: float = 1e-5, sway_weight: float = 1.0) -> ResidualScales:
         """
         Return the standard errors of this target's averages (and of `sway_per_run`'s mean).
 
-        Never below `floor_m` (positions; the same in rad for the heading).
+        Never below `floor_m` (positions; the same in rad for the heading); `sway_weight` as
+        in `ResidualScales`.
         """
         def standard_error(values: FloatArray) -> FloatArray:
             count = np.maximum(np.isfinite(values).sum(axis=0), 2)
@@ -168,7 +191,7 @@ class AverageTarget:
         sway = (standard_error(sway_per_run) if sway_per_run is not None
                 else np.full(3, floor_m))
         return ResidualScales(standard_error(self.runs_xy), standard_error(self.runs_turn),
-                              np.maximum(sway, 1e-12))
+                              np.maximum(sway, 1e-12), sway_weight)
 
     def resampled(self, index: IntArray) -> AverageTarget:
         """Return the target of the runs picked by `index` (a bootstrap resample)."""
