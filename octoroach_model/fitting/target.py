@@ -60,7 +60,7 @@ class ResidualScales:
     stride's samples of the path (`sway_weight_for`), the sway keeps its say on long runs
     finely sampled: at weight 1 a robot of 34 strides a run at 126 samples a stride fitted
     its angles to the chance wander of 30 runs' average path and left the sideways sway at
-    the stride frequency 0.06 cm against the data's 0.11 (10 standard errors).
+    the stride frequency 5-6 standard errors off the data's (test_diagnosis.py).
     """
 
     path: FloatArray
