@@ -223,6 +223,31 @@ def test_statistics_that_are_numerical_noise_are_no_discrepancy():
     assert start.z == 0.0 and not start.material     # both 0 up to rounding: not a finding
 
 
+def test_few_runs_that_happen_to_look_tight_are_not_a_discrepancy():
+    """
+    Sixty runs against two thousand of the same model: the heading rates' excess kurtosis.
+
+    Every feature is standard normal in data and model alike, so no statistic is off. A few
+    runs that happen to be light-tailed bootstrap to a tiny error of their own kurtosis, and
+    with the data's bootstrap alone |z| passed 2.58 (the 1 % level) in 11 of 120 such draws
+    and the adequacy bound 3.55 in 2; the data's error is now at least the model's spread of
+    the statistic at sixty runs.
+    """
+    from octoroach_model.diagnosis.discrepancies import discrepancies
+    from octoroach_model.diagnosis.features import FEATURES
+
+    rng = np.random.default_rng([SEED, 60])
+    model = rng.standard_normal((2000, len(FEATURES)))
+    z = []
+    for _ in range(100):
+        with np.errstate(invalid='ignore'):     # variances of normal noise can be negative
+            rows = discrepancies(rng.standard_normal((60, len(FEATURES))), model, rng, 40)
+        z.append(next(row.z for row in rows if 'kurtosis' in row.statistic))
+    # at the 1 % level 1 of 100 is expected at most (the floor makes it rarer: 0 of 120 at
+    # seed 8); the bootstrap alone gave 4, 4, 8, 2 and 11 in 100 at seeds 1-5
+    assert np.sum(np.abs(z) > 2.58) <= 1, (sorted(z)[:3], SEED)
+
+
 def test_a_start_heading_spread_of_exactly_zero_still_gets_a_detection_limit():
     """
     Runs simulated without a start heading spread have a variance of 1e-32 rad^2.
@@ -354,13 +379,15 @@ def test_a_moments_size_counts_the_error_of_its_simulated_slope(cause, size):
     model = FittedModel(nominal, start, 1.0)
     estimates = [fit_moment(Simulator(data, SEED + k), model, BY_NAME[cause],
                             FitSettings(moment_runs=200, seed=SEED + k), n_boot=60)
-                 for k in range(16)]
+                 for k in range(64)]
     spread = float(np.std([e.u for e in estimates], ddof=1))
     simulation_part = float(np.median([moments_se_u(e, e.u, 0.0) for e in estimates]))
     intercept_only = float(np.median([e.intercept_se / e.slope for e in estimates]))
-    # the spread of 16 estimates is itself uncertain (about 18 %): these bounds hold but in
-    # about 1 seed of 1000 when the two agree (0.55 failed once in a suite run)
-    assert 0.45 < spread / simulation_part < 1.6, (spread, simulation_part, SEED)
+    # The spread of 64 estimates is itself uncertain: over 30 seeds of this test (100 apart)
+    # the ratio's log spread 0.08-0.10 around 1.05, so these bounds lie 4.6 of those spreads
+    # away and more. With 16 estimates (log spread 0.2) the bound 1.6 failed in CI (1.64,
+    # seed 176423); the old error, the intercept's alone, puts the ratio at 5 and above.
+    assert 0.6 < spread / simulation_part < 1.7, (spread, simulation_part, SEED)
     assert spread > 2 * intercept_only, (spread, intercept_only, SEED)    # the old error
 
 
