@@ -527,6 +527,31 @@ def test_the_evidence_of_two_groups_counts_in_a_mixtures_limit():
     assert two_groups_power(without, wider, 250) <= 0.1, replay('one wider group')
 
 
+@pytest.mark.parametrize('share', [0.65, 0.35])
+def test_which_group_of_runs_turns_is_told_by_the_geometry(share):
+    """
+    Two groups of heading rates fit alike either way round; the geometry tells which turns.
+
+    Before, the smaller group was always the turning one: a larger share turning was named
+    the other way round, with a geometry made to turn by itself (CI, seed 320706: a 44 %
+    share at 8.4 deg/s lost to persistent_turning by 13 nats per run in the heading to
+    travel angle).
+    """
+    from octoroach_model.diagnosis.diagnose import _baseline, _prepare
+    from octoroach_model.diagnosis.modelfit import fit_causes
+
+    chosen = settings(17)
+    runs = om.simulate(240, seed=SEED + 17, extensions={'run_mixture': {
+        'fraction': share, 'yaw_rate_deg_s': 9.0}})
+    halves = _prepare(runs, chosen)
+    baseline = _baseline(halves, chosen).model
+    fitted = fit_causes(halves.train, baseline, ('run_mixture',), chosen.fit(), rounds=1)
+    found = fitted.model.effects['run_mixture']
+    message = replay(f'{share:.0%} of 240 runs turning at 9 deg/s: fitted {found}')
+    assert abs(found['fraction'] - share) < 0.12, message
+    assert 6.75 < found['yaw_rate_deg_s'] < 11.25, message
+
+
 def em_one_row(deviation: np.ndarray, spread: float, start: tuple[float, float, float]
                ) -> tuple[float, float, float]:
     """Run the two groups' EM written plainly, one data set at a time (the reference)."""
