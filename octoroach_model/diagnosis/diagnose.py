@@ -417,9 +417,10 @@ def _baseline(halves: _Halves, settings: DiagnosisSettings,
     sway were 14 standard errors off the model's on exact data. The starts are compared at the
     spread scale the runs show (fitted to the quick geometry first): the mean path and sway of
     the stochastic model depend on it, and at Table III's spread the wrong pair won for a
-    robot of 0.77 times it (2.5 Hz, 300 runs, a share turning: cost 1661 against 1741; at
-    the runs' scale 2260 against 1855), from where the share's own fit stayed at a cost of
-    4965 beside the robot's 44 and lost the race to persistent_turning.
+    robot of 0.77 times it (test_diagnosis.py,
+    `test_the_baseline_compares_its_starting_geometries_at_the_runs_spread`: cost 4624
+    against 3708 from the robot's own angles); at CI seed 183851 a share of turning runs
+    then lost the race to persistent_turning.
     """
     train = halves.train
     start_pose = mean_start_pose(train.paths)
