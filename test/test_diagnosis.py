@@ -407,7 +407,7 @@ def test_the_geometry_fit_keeps_the_sway_of_long_finely_sampled_runs(data_seed):
     from octoroach_model.diagnosis.modelfit import (
         FitSettings, fit_geometry, FittedModel, RunData)
     from octoroach_model.fitting import mean_start_pose
-    from octoroach_model.fitting.gait import sway_features
+    from octoroach_model.fitting.gait import stride_samples, sway_features
 
     robot = replace(om.ModelParameters.nominal(), leg_length=0.0238,
                     touchdown_angles=(0.915, 0.614, 0.761, 0.685), stride_frequency=1.5,
@@ -424,7 +424,8 @@ def test_the_geometry_fit_keeps_the_sway_of_long_finely_sampled_runs(data_seed):
                              sigma1=sigma1, sigma2=sigma2, start_pose=start)
 
     def sideways_sway(paths: om.Paths) -> tuple[float, float]:
-        sway = sway_features(paths.t, paths.poses[..., :2], paths.poses[..., 2], 1.5)[:, 1]
+        cycle = stride_samples(1.5, float(paths.t[1] - paths.t[0]))
+        sway = sway_features(paths.t, paths.poses[..., :2], paths.poses[..., 2], 1.5, cycle)[:, 1]
         return float(sway.mean()), float(sway.std(ddof=1) / math.sqrt(len(sway)))
 
     (data, data_se), (model, model_se) = sideways_sway(measured), sideways_sway(model_runs)
@@ -434,13 +435,16 @@ def test_the_geometry_fit_keeps_the_sway_of_long_finely_sampled_runs(data_seed):
 
 def test_a_speed_decay_enters_at_the_strides_the_runs_show():
     """
-    A baseline fitted to decaying runs bends its legs (here 7.3 cm) to mimic the decay.
+    A baseline fitted to decaying runs bends its legs and slows its strides to mimic the decay.
 
     Entering the decay at the baseline's stride frequency took a fifth of the strides from
     every run; the joint fit then stayed with bent legs (2.1 -> 3.1 cm, the stride frequency
     1.76 of 2 Hz), and the held-out log score fell by 34 nats per run: the decay, sized
     right, went unnamed (suite seed 271828; three two-cause study data sets alike). The
-    decay now enters at the strides the runs show and the fit finds the robot again.
+    decay now enters at the strides the runs show and the fit finds the robot again. (Since
+    the geometry fit matches the runs' mean stride frequency the baseline bends less, 2.8 cm
+    at 1.63 Hz, and the decay's gain over it is 7.5 nats per run rather than 39; the decay's
+    own model scores the same.)
     """
     from octoroach_model.diagnosis.diagnose import (
         _baseline, _prepare, _score, evaluate_candidate, Simulator)
@@ -455,7 +459,7 @@ def test_a_speed_decay_enters_at_the_strides_the_runs_show():
     assert robot.stride_frequency == pytest.approx(2.0, rel=0.02)
     assert robot.leg_length == pytest.approx(om.ModelParameters.nominal().leg_length, rel=0.05)
     assert decay.estimates['speed_decay'].size == pytest.approx(0.3735, rel=0.1)
-    assert decay.gain.mean > 10 and decay.gain.p_value < 1e-6, decay.gain
+    assert decay.gain.mean > 5 and decay.gain.p_value < 1e-6, decay.gain
 
 
 def test_too_few_runs_are_refused_with_a_reason():
@@ -620,3 +624,20 @@ def test_the_two_groups_fit_of_every_resample_at_once_is_the_fit_of_each_alone(
     each = two_groups_each(samples, centre, spread, start)
     alone = np.array([em_one_row(row - centre, spread, start) for row in samples])
     np.testing.assert_array_equal(each, alone)
+
+
+def test_the_baseline_keeps_the_stride_frequency_the_runs_show_under_a_slow_wobble():
+    """
+    A slow heading wobble must not move the geometry's strides.
+
+    Suite seed 523917 hid a wobble of 7.6 deg every 1.70 s on Table II's robot (2 Hz): the
+    geometry fit, matching the average path and the sway alone, settled at 2.5 Hz with the
+    spread 3.6 times the robot's; every candidate's refit stayed there, a 2 % speed change
+    was named instead of the wobble. The fit now matches the runs' mean stride frequency too.
+    """
+    from octoroach_model.diagnosis.diagnose import _baseline, _prepare
+
+    measured = wobble(om.simulate(N_RUNS, seed=523926), 7.555, 1.7035, 523917)
+    fast = replace(FAST, seed=523926)
+    baseline = _baseline(_prepare(measured, fast), fast).model
+    assert baseline.parameters.stride_frequency == pytest.approx(2.0, rel=0.03)

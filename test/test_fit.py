@@ -146,3 +146,26 @@ def test_the_fit_refuses_a_non_finite_average_path():
     poses[1, 5, 0] = np.nan
     with pytest.raises(DataError, match='not finite inside a run'):
         fit_nominal(om.Paths(runs.t, poses))
+
+
+def test_the_sway_target_reads_simulated_runs_as_the_features_read_the_data():
+    """
+    The geometry fit compares like with like.
+
+    The sway target's five means (sway, stride frequency, heading to travel angle) of the
+    data's own runs, read as simulated runs are read (cut to the same lengths, the angle over
+    the same window), are the data's values.
+    """
+    from octoroach_model.diagnosis.modelfit import RunData
+
+    robot = replace(om.ModelParameters.nominal(),
+                    touchdown_angles=(0.80, 0.92, 0.72, 0.64)).with_paper_liftoff()
+    runs = om.simulate(40, seed=5, cycles=6, parameters=robot,
+                       effects={'lateral_slip': {'velocity_cm_s': 1.5}})
+    poses = runs.poses.copy()
+    poses[::3, -40:] = np.nan                       # a third of the runs end early
+    data = RunData(om.Paths(runs.t, poses), robot.stride_frequency, math.pi / 2)
+    target = data.sway
+    read = np.nanmean(target.of_runs(poses, robot.stride_frequency), axis=0)
+    assert read == pytest.approx(np.asarray(target.values), rel=1e-9, abs=1e-12)
+    assert abs(target.values[4]) > math.radians(0.5)   # the slip shows in the angle

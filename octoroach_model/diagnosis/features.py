@@ -55,7 +55,7 @@ import numpy as np
 
 from octoroach_model.arrays import FloatArray
 from octoroach_model.fitting.gait import (
-    heading_sway, lateral_sway, valid_mask, windowed_sway)
+    heading_sway, lateral_sway, slip_angle, stride_samples, valid_mask, windowed_sway)
 from octoroach_model.paths import Paths
 
 FEATURES = ('start_heading', 'start_x', 'start_y', 'log_noise', 'slip_angle',
@@ -135,8 +135,8 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     fourth = np.diff(xy, n=4, axis=1) ** 2
     median = np.median(fourth, axis=(1, 2)) if complete else _nanmedian_rows(fourth)
     values['log_noise'] = np.log(np.nan_to_num(median, nan=0.0) + RESOLUTION_NOISE_M2)
-    cycle = max(2, int(round(1.0 / (stride_frequency * dt))))
-    values['slip_angle'] = _slip_angle(xy, heading, cycle)
+    cycle = stride_samples(stride_frequency, dt)
+    values['slip_angle'] = slip_angle(xy, heading, cycle)
     windowed = windowed_sway(heading, t)
     frequencies, values['sway_amplitude'] = heading_sway(heading, t, stride_frequency, windowed)
     values['stride_frequency'] = frequencies
@@ -278,20 +278,6 @@ def _increment_moments(increments: FloatArray) -> tuple[FloatArray, FloatArray]:
     products = (centred[:, 1:] * centred[:, :-1]).sum(axis=1)
     autocorr = np.where(count > 2, products / np.maximum(squares, 1e-18), 0.0)
     return variance, autocorr
-
-
-def _slip_angle(xy: FloatArray, heading: FloatArray, cycle: int) -> FloatArray:
-    """Mean over cycle-long windows of (direction of travel - mean heading in the window)."""
-    step = xy[:, cycle:] - xy[:, :-cycle]
-    travel = np.arctan2(step[..., 1], step[..., 0])
-    filled = np.nan_to_num(heading)
-    total = np.concatenate([np.zeros((heading.shape[0], 1)), np.cumsum(filled, axis=1)], axis=1)
-    mean_heading = (total[:, cycle + 1:] - total[:, :-cycle - 1]) / (cycle + 1)
-    offset = np.remainder(travel - mean_heading + np.pi, 2 * np.pi) - np.pi   # to [-pi, pi)
-    usable = np.isfinite(step[..., 0])
-    count = np.maximum(usable.sum(axis=1), 1)
-    mean_offset: FloatArray = np.where(usable, offset, 0.0).sum(axis=1) / count
-    return mean_offset
 
 
 __all__ = ['COVARIATES', 'FEATURES', 'INDEX', 'OUTCOMES', 'POSITION_RESOLUTION_M', 'RESOLUTION',

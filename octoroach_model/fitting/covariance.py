@@ -21,8 +21,8 @@ def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: FloatArra
     """
     Return the covariance of the fit's vector from the measured and from the simulated runs.
 
-    `target` is what the fit matched, `data_sway` (n, 3) each measured run's sway (its mean
-    the sway target), `mean` the fit's simulated runs (with the sway matched), `seed` that
+    `target` is what the fit matched, `data_sway` (n, 5) each measured run's sway target values
+    (their means the target), `mean` the fit's simulated runs (with the sway matched), `seed` that
     of the resamples.
 
     Returns

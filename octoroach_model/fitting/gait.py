@@ -203,10 +203,37 @@ def lateral_sway(xy: FloatArray, heading: FloatArray, t: FloatArray,
     return first, amplitude(cos * cos - sin * sin, 2 * sin * cos)     # twice the angle
 
 
-def sway_features(t: FloatArray, xy: FloatArray, heading: FloatArray,
-                  guess_hz: float) -> FloatArray:
+def stride_samples(stride_frequency: float, dt: float) -> int:
+    """Return the samples of one stride cycle (at least 2): the window of `slip_angle`."""
+    return max(2, int(round(1.0 / (stride_frequency * dt))))
+
+
+def slip_angle(xy: FloatArray, heading: FloatArray, cycle: int) -> FloatArray:
     """
-    (n, 3) per run: heading sway amplitude (rad), sideways sway at f and 2f (m).
+    Per run, the mean over cycle-long windows of (direction of travel - mean heading), rad.
+
+    The heading to travel angle: the model's comes from the difference of its second and
+    fourth touchdown angles (a body that crabs), which neither the average path nor the sway
+    pins down on few long runs.
+    """
+    step = xy[:, cycle:] - xy[:, :-cycle]
+    travel = np.arctan2(step[..., 1], step[..., 0])
+    filled = np.nan_to_num(heading)
+    total = np.concatenate([np.zeros((heading.shape[0], 1)), np.cumsum(filled, axis=1)], axis=1)
+    mean_heading = (total[:, cycle + 1:] - total[:, :-cycle - 1]) / (cycle + 1)
+    offset = np.remainder(travel - mean_heading + np.pi, 2 * np.pi) - np.pi   # to [-pi, pi)
+    usable = np.isfinite(step[..., 0])
+    count = np.maximum(usable.sum(axis=1), 1)
+    mean_offset: FloatArray = np.where(usable, offset, 0.0).sum(axis=1) / count
+    return mean_offset
+
+
+def sway_features(t: FloatArray, xy: FloatArray, heading: FloatArray,
+                  guess_hz: float, cycle: int) -> FloatArray:
+    """
+    (n, 5) per run: sway amplitude, sideways sway at f and 2f, stride Hz, slip angle.
+
+    In rad, m, m, Hz, rad; the last is the heading to travel angle (`slip_angle`).
 
     Parameters
     ----------
@@ -218,11 +245,14 @@ def sway_features(t: FloatArray, xy: FloatArray, heading: FloatArray,
         rad.
     guess_hz : float
         Stride frequency guess, Hz.
+    cycle : int
+        Samples of the window of the heading to travel angle (`stride_samples`).
 
     """
     frequency, amplitude = heading_sway(heading, t, guess_hz)
     first, second = lateral_sway(xy, heading, t, frequency)
-    return np.column_stack([amplitude, first, second])
+    return np.column_stack([amplitude, first, second, frequency,
+                            slip_angle(xy, heading, cycle)])
 
 
 def stride_frequency_estimate(heading: FloatArray, t: FloatArray) -> float:

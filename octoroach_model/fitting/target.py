@@ -24,22 +24,31 @@ SWAY_WEIGHT = 5.0
 @dataclass(frozen=True)
 class SwayTarget:
     """
-    The data's mean sway: heading sway amplitude [rad], sideways sway at f and 2f [m].
+    The data's mean sway within a stride and how the body travels against its heading.
 
-    Measured on the runs as recorded (`t`, each run `lengths[i]` samples long): the model's
-    runs are simulated on the same grid and cut to the same lengths before they are compared.
+    Heading sway amplitude [rad], sideways sway at f and 2f [m], stride frequency [Hz] and
+    heading to travel angle [rad], each the mean over the runs as the runs' features read
+    it. The average path and sway alone leave two things loose on long runs: the stride
+    frequency, where the path has minima a whole cycle of phase apart (40 strides at 5.7 Hz
+    fitted at 5.37 Hz with a leg 9 % long, benchmarks/bench_geometry_coverage.py; a slow
+    heading wobble let a robot of 2 Hz fit at 2.5 Hz, test_diagnosis.py), and the difference
+    of the second and fourth touchdown angles, which sets the heading to travel angle.
+    Measured on the runs as recorded (`t`, each run `lengths[i]` samples long, the angle over
+    windows of `cycle` samples): the model's runs are simulated on the same grid and cut to
+    the same lengths before they are compared.
     """
 
-    values: tuple[float, float, float]
+    values: tuple[float, float, float, float, float]
     t: FloatArray
     lengths: IntArray
+    cycle: int
 
     def of_runs(self, runs: FloatArray, guess_hz: float) -> FloatArray:
-        """Return the (runs, 3) sway of simulated runs on `t`, cut like the data's runs."""
+        """Return the (runs, 5) of simulated runs on `t`, cut like the data's runs."""
         picks = self.lengths[np.arange(runs.shape[0]) % len(self.lengths)]
         cut = np.arange(len(self.t))[None, :] >= picks[:, None]
         runs = np.where(cut[..., None], np.nan, runs)
-        return sway_features(self.t, runs[..., :2], runs[..., 2], guess_hz)
+        return sway_features(self.t, runs[..., :2], runs[..., 2], guess_hz, self.cycle)
 
 
 @dataclass(frozen=True)
@@ -48,7 +57,7 @@ class ResidualScales:
     Standard errors that make the fit's residuals dimensionless.
 
     They are those of the average path at each time (G, 2) [m], of the average heading change
-    (G,) [rad] and of the mean sway (3,).
+    (G,) [rad] and of the sway target's five (`SwayTarget`).
 
     From the data's own run-to-run spread: where the runs scatter widely (late in a run, or
     under a random turning rate), the average is uncertain and a gap there weighs little, so
@@ -84,8 +93,8 @@ def residual_vector(path_gap: FloatArray, turn_gap: FloatArray | None,
         Model minus data average path, m.
     turn_gap : array, shape (G,), or None
         Heading change gap, rad.
-    sway_gap : array, shape (3,), or None
-        Sway gap (rad, m, m).
+    sway_gap : array, shape (5,), or None
+        Gap to the sway target (rad, m, m, Hz, rad).
     heading_weight_m : float
         m per rad of heading, without `scales`.
     scales : ResidualScales or None
@@ -189,7 +198,7 @@ class AverageTarget:
             return error
 
         sway = (standard_error(sway_per_run) if sway_per_run is not None
-                else np.full(3, floor_m))
+                else np.full(5, floor_m))
         return ResidualScales(standard_error(self.runs_xy), standard_error(self.runs_turn),
                               np.maximum(sway, 1e-12), sway_weight)
 
