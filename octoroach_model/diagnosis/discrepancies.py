@@ -12,8 +12,9 @@ Two rules keep numerical noise out (docs/diagnosis.md):
   heading spread of a model and of data that both start every run at one point;
 - a discrepancy is *material* only when the difference reaches a tenth of the run-to-run
   spread of the feature behind it (mean statistics), or a tenth of the statistic's value
-  (spread statistics), or 0.1 (exponents and correlations). With thousands of runs a
-  difference can be significant and still too small to matter.
+  (spread statistics), or 0.1 (exponents and correlations), and, where a statistic has one,
+  its `relative_floor` of the data's value. With thousands of runs a difference can be
+  significant and still too small to matter.
 """
 from __future__ import annotations
 
@@ -49,7 +50,9 @@ class Statistic:
 
     Its function of the feature matrix, unit, resolution, and how large
     a difference is material ('mean': a tenth of the feature's spread across runs, 'spread': a
-    tenth of its value, 'absolute': `material` itself).
+    tenth of its value, 'absolute': `material` itself; and at least `relative_floor` times the
+    data's value, where the runs' spread says nothing of what matters: runs that all stride
+    alike spread by their spectra's noise alone).
     """
 
     name: str
@@ -59,6 +62,7 @@ class Statistic:
     kind: Materiality
     material: float = 0.1
     feature: str = ''
+    relative_floor: float = 0.0
 
 
 def _std(column: str, scale: float = 1.0) -> Callable[[FloatArray], float]:
@@ -133,8 +137,9 @@ STATISTICS: tuple[Statistic, ...] = (
     Statistic('position noise (median 4th difference)', 'cm', _noise_cm, 0.001, SPREAD),
     Statistic('heading to travel angle', 'deg', _mean('slip_angle', DEG), 0.01, MEAN,
               feature='slip_angle'),
+    # a stride frequency 0.5 % off, the size floor of gait_frequency_variation
     Statistic('mean stride frequency', 'Hz', _mean('stride_frequency'), 1e-4, MEAN,
-              feature='stride_frequency'),
+              feature='stride_frequency', relative_floor=0.005),
     Statistic('stride frequency spread across runs', 'Hz', _std('stride_frequency'), 1e-4,
               SPREAD),
     Statistic('log speed ratio, 2nd half / 1st half', '', _mean('progress_ratio'), 1e-4, MEAN,
@@ -257,6 +262,8 @@ def discrepancies(data_features: FloatArray, model_features: FloatArray,
 
 def _material(statistic: Statistic, difference: float, value: float,
               features: FloatArray) -> bool:
+    if abs(difference) < statistic.relative_floor * abs(value):
+        return False
     if statistic.kind == MEAN:
         spread = float(np.std(features[:, INDEX[statistic.feature]], ddof=1))
         scale = spread * _unit_factor(statistic)
