@@ -171,6 +171,10 @@ def _slip_floor(scale: RunScale) -> float:
     return max(0.01 * speed_cm_s, POSITION_RESOLUTION_M * 100 / max(scale.duration_s, 1e-3))
 
 
+# a stride frequency 0.5 % off moves a run by 0.5 % (also the adequacy check's floor of the
+# mean stride frequency, discrepancies.py)
+STRIDE_FREQUENCY_FLOOR = 0.005
+
 CAUSES: tuple[Cause, ...] = (
     Cause('initial_pose_error', 'deg', EstimateKind.MOMENTS, 'start heading variance',
           _variance_of('start_heading'), 4.0, lambda scale: 0.5),
@@ -178,7 +182,7 @@ CAUSES: tuple[Cause, ...] = (
           'difference)', _noise_variance, 0.05, lambda scale: POSITION_RESOLUTION_M * 100),
     Cause('gait_frequency_variation', '', EstimateKind.MOMENTS,
           'stride frequency variance across runs', _variance_of('stride_frequency'), 0.05,
-          lambda scale: 0.005),
+          lambda scale: STRIDE_FREQUENCY_FLOOR),
     Cause('speed_decay', '', EstimateKind.PATH, 'average path (joint fit with the geometry)',
           None, 0.2, lambda scale: 0.01, signed=True, bounds=(-0.9, 0.9),
           signature=_mean_of('progress_ratio')),

@@ -27,6 +27,7 @@ import numpy as np
 from scipy import stats
 
 from octoroach_model.arrays import FloatArray
+from octoroach_model.diagnosis.causes import STRIDE_FREQUENCY_FLOOR
 from octoroach_model.diagnosis.features import INDEX, noise_variance_m2
 
 DEG = 180.0 / math.pi
@@ -137,9 +138,9 @@ STATISTICS: tuple[Statistic, ...] = (
     Statistic('position noise (median 4th difference)', 'cm', _noise_cm, 0.001, SPREAD),
     Statistic('heading to travel angle', 'deg', _mean('slip_angle', DEG), 0.01, MEAN,
               feature='slip_angle'),
-    # a stride frequency 0.5 % off, the size floor of gait_frequency_variation
+    # material from the size floor of gait_frequency_variation on (0.5 %)
     Statistic('mean stride frequency', 'Hz', _mean('stride_frequency'), 1e-4, MEAN,
-              feature='stride_frequency', relative_floor=0.005),
+              feature='stride_frequency', relative_floor=STRIDE_FREQUENCY_FLOOR),
     Statistic('stride frequency spread across runs', 'Hz', _std('stride_frequency'), 1e-4,
               SPREAD),
     Statistic('log speed ratio, 2nd half / 1st half', '', _mean('progress_ratio'), 1e-4, MEAN,
