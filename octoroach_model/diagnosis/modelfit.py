@@ -30,7 +30,7 @@ from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind, MIXTURE_FRACTION
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.fitting.covariance import path_covariance
-from octoroach_model.fitting.gait import stride_frequency_estimate, stride_samples
+from octoroach_model.fitting.gait import stride_frequency_estimate, stride_samples, SWAY_FEATURES
 from octoroach_model.fitting.lines import bootstrap_se, paired_relative_se, read_line
 from octoroach_model.fitting.nominal import (
     fit_nominal, FreeEffect, MeanPathSettings, NominalFitSettings)
@@ -173,11 +173,9 @@ class RunData:
     @property
     def sway(self) -> SwayTarget:
         """Return the runs' mean sway as recorded, for the geometry fit to match."""
-        amplitude, first, second, hz, slip = (
-            float(v) for v in self.features[:, SWAY_COLUMNS].mean(0))
+        means = tuple(float(v) for v in self.features[:, SWAY_COLUMNS].mean(0))
         cycle = stride_samples(self.stride_frequency, float(self.paths.t[1] - self.paths.t[0]))
-        return SwayTarget((amplitude, first, second, hz, slip), self.paths.t, self.lengths,
-                          cycle)
+        return SwayTarget(means, self.paths.t, self.lengths, cycle)
 
     @property
     def lengths(self) -> IntArray:
@@ -262,8 +260,7 @@ class Simulator:
         return Paths(t, poses), positions
 
 
-SWAY_COLUMNS = [INDEX['sway_amplitude'], INDEX['lateral_sway_1'], INDEX['lateral_sway_2'],
-                INDEX['stride_frequency'], INDEX['slip_angle']]
+SWAY_COLUMNS = [INDEX[name] for name in SWAY_FEATURES]
 MOMENTS = 11     # purpose codes of the simulations (each its own random numbers)
 SPREAD = 12
 

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from octoroach_model.arrays import FloatArray, IntArray
-from octoroach_model.fitting.gait import aligned_runs, sway_features
+from octoroach_model.fitting.gait import aligned_runs, SWAY_FEATURES, sway_features
 from octoroach_model.paths import Paths
 
 SWAY_WEIGHT = 5.0
@@ -38,7 +38,7 @@ class SwayTarget:
     the same lengths before they are compared.
     """
 
-    values: tuple[float, float, float, float, float]
+    values: tuple[float, ...]          # one per SWAY_FEATURES
     t: FloatArray
     lengths: IntArray
     cycle: int
@@ -198,7 +198,7 @@ class AverageTarget:
             return error
 
         sway = (standard_error(sway_per_run) if sway_per_run is not None
-                else np.full(5, floor_m))
+                else np.full(len(SWAY_FEATURES), floor_m))
         return ResidualScales(standard_error(self.runs_xy), standard_error(self.runs_turn),
                               np.maximum(sway, 1e-12), sway_weight)
 
