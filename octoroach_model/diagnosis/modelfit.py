@@ -393,11 +393,8 @@ def _relabelled(simulator: Simulator, model: FittedModel,
     was labelled the other way round and persistent_turning named instead (CI, seed 320706;
     test_diagnosis.py, `test_which_group_of_runs_turns_is_told_by_the_geometry`).
     """
-    # fit_mixture keeps the side of the term's yaw rate: the sign alone asks for the others
-    values = model.effects[cause]
-    asked = {**values, 'yaw_rate_deg_s': -float(values['yaw_rate_deg_s'])}
-    estimate, other = fit_mixture(simulator, model.with_effect(cause, asked), BY_NAME[cause],
-                                  settings)
+    side = -float(model.effects[cause]['yaw_rate_deg_s'])
+    estimate, other = fit_mixture(simulator, model, BY_NAME[cause], settings, turning_side=side)
     return model.with_effect(cause, other), {**estimates, cause: estimate}
 
 
@@ -893,7 +890,7 @@ EM_STEPS = 200
 
 
 def fit_mixture(simulator: Simulator, model: FittedModel, cause: Cause,
-                settings: FitSettings, n_boot: int = 60
+                settings: FitSettings, n_boot: int = 60, *, turning_side: float | None = None
                 ) -> tuple[SizeEstimate, dict[str, float]]:
     """
     Estimate run_mixture: which share of the runs turns, and at what rate.
@@ -902,8 +899,9 @@ def fit_mixture(simulator: Simulator, model: FittedModel, cause: Cause,
     heading rate without the mixture, shifted together by d (the geometry, refit next, takes
     the shift): maximum likelihood over (d, w, fraction), errors by a bootstrap over runs.
     The size is the spread the mixture adds, |w| sqrt(f (1 - f)) [deg/s]. The turning group
-    is the one the model's term already turns; a new term is fitted both ways round by
-    `fit_causes` (`_relabelled`).
+    is the one whose extra rate has the sign of `turning_side`, by default the sign of the
+    yaw rate the model's term already has; a new term (rate 0) starts with the larger group
+    going straight, and `fit_causes` fits it both ways round (`_relabelled`).
     """
     data = simulator.data
     column = INDEX['heading_rate']
@@ -912,8 +910,9 @@ def fit_mixture(simulator: Simulator, model: FittedModel, cause: Cause,
     centre, spread = float(np.mean(base)), max(float(np.std(base, ddof=1)), 1e-6)
     rates = data.features[:, column]
     shift, rate, fraction = two_groups(rates, centre, spread)
-    current = float((model.effects.get(cause.name) or {}).get('yaw_rate_deg_s', 0.0))
-    if (rate * current < 0) if current else fraction > 0.5:
+    side = turning_side if turning_side is not None else float(
+        (model.effects.get(cause.name) or {}).get('yaw_rate_deg_s', 0.0))
+    if (rate * side < 0) if side else fraction > 0.5:
         # the term keeps the group it already turns (`_relabelled` chose it by the
         # geometry); a new one starts with the larger group as the runs without the extra
         # yaw rate (their turning the geometry's)

@@ -217,11 +217,16 @@ def slip_angle(xy: FloatArray, heading: FloatArray, cycle: int) -> FloatArray:
     pins down on few long runs.
     """
     step = xy[:, cycle:] - xy[:, :-cycle]
-    travel = np.arctan2(step[..., 1], step[..., 0])
     filled = np.nan_to_num(heading)
-    total = np.concatenate([np.zeros((heading.shape[0], 1)), np.cumsum(filled, axis=1)], axis=1)
-    mean_heading = (total[:, cycle + 1:] - total[:, :-cycle - 1]) / (cycle + 1)
-    offset = np.remainder(travel - mean_heading + np.pi, 2 * np.pi) - np.pi   # to [-pi, pi)
+    total = np.zeros((heading.shape[0], heading.shape[1] + 1))
+    np.cumsum(filled, axis=1, out=total[:, 1:])
+    mean_heading = (total[:, cycle + 1:] - total[:, :-cycle - 1]) * (1.0 / (cycle + 1))
+    # the step turned into the mean heading's frame: its angle is already within [-pi, pi]
+    # (np.remainder on the difference of two angles cost as much as the rest together)
+    cos, sin = cos_sin(mean_heading)
+    along = step[..., 0] * cos + step[..., 1] * sin
+    across = step[..., 1] * cos - step[..., 0] * sin
+    offset = np.arctan2(across, along)
     usable = np.isfinite(step[..., 0])
     count = np.maximum(usable.sum(axis=1), 1)
     mean_offset: FloatArray = np.where(usable, offset, 0.0).sum(axis=1) / count
