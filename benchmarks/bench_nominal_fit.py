@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
             heading_weight_m=nominal.hip_distance, align_gait=True), start_pose=start)
         mean = fit_nominal(runs, deterministic.parameters, NominalFitSettings(
             multistart=False, refine=True, tolerance=1e-6,
-            mean=MeanPathSettings(sigmas, 300, 5, sway=data.sway, scales=data.scales)),
+            mean=MeanPathSettings(sigmas, 300, 5, gait=data.gait, scales=data.scales)),
             start_pose=start, target=data.target)
         errors = [np.max(np.abs(np.degrees(np.subtract(fit.parameters.touchdown_angles,
                                                        angles))))

@@ -407,7 +407,7 @@ def test_the_geometry_fit_keeps_the_sway_of_long_finely_sampled_runs(data_seed):
     from octoroach_model.diagnosis.modelfit import (
         FitSettings, fit_geometry, FittedModel, RunData)
     from octoroach_model.fitting import mean_start_pose
-    from octoroach_model.fitting.gait import stride_samples, sway_features
+    from octoroach_model.fitting.gait import stride_samples, gait_features
 
     robot = replace(om.ModelParameters.nominal(), leg_length=0.0238,
                     touchdown_angles=(0.915, 0.614, 0.761, 0.685), stride_frequency=1.5,
@@ -425,7 +425,7 @@ def test_the_geometry_fit_keeps_the_sway_of_long_finely_sampled_runs(data_seed):
 
     def sideways_sway(paths: om.Paths) -> tuple[float, float]:
         cycle = stride_samples(1.5, float(paths.t[1] - paths.t[0]))
-        sway = sway_features(paths.t, paths.poses[..., :2], paths.poses[..., 2], 1.5, cycle)[:, 1]
+        sway = gait_features(paths.t, paths.poses[..., :2], paths.poses[..., 2], 1.5, cycle)[:, 1]
         return float(sway.mean()), float(sway.std(ddof=1) / math.sqrt(len(sway)))
 
     (data, data_se), (model, model_se) = sideways_sway(measured), sideways_sway(model_runs)

@@ -148,11 +148,11 @@ def test_the_fit_refuses_a_non_finite_average_path():
         fit_nominal(om.Paths(runs.t, poses))
 
 
-def test_the_sway_target_reads_simulated_runs_as_the_features_read_the_data():
+def test_the_gait_target_reads_simulated_runs_as_the_features_read_the_data():
     """
     The geometry fit compares like with like.
 
-    The sway target's five means (sway, stride frequency, heading to travel angle) of the
+    The gait target's five means (sway, stride frequency, heading to travel angle) of the
     data's own runs, read as simulated runs are read (cut to the same lengths, the angle over
     the same window), are the data's values.
     """
@@ -165,7 +165,29 @@ def test_the_sway_target_reads_simulated_runs_as_the_features_read_the_data():
     poses = runs.poses.copy()
     poses[::3, -40:] = np.nan                       # a third of the runs end early
     data = RunData(om.Paths(runs.t, poses), robot.stride_frequency, math.pi / 2)
-    target = data.sway
+    target = data.gait
     read = np.nanmean(target.of_runs(poses, robot.stride_frequency), axis=0)
     assert read == pytest.approx(np.asarray(target.values), rel=1e-9, abs=1e-12)
     assert abs(target.values[4]) > math.radians(0.5)   # the slip shows in the angle
+
+
+def test_a_gait_target_without_its_standard_errors_is_refused_at_once():
+    """
+    A gait target's stride frequency (Hz) and angles share no unit with the path's cm.
+
+    It is matched in the data's standard errors only; without them the fit used to fail
+    deep inside least squares with numpy's broadcasting message (five gaps, three weights).
+    """
+    from octoroach_model.diagnosis.modelfit import RunData
+    from octoroach_model.fitting.nominal import MeanPathSettings
+    from octoroach_model.fitting.target import residual_vector
+
+    runs = om.simulate(40, seed=5, cycles=4)
+    data = RunData(runs, 2.0, math.pi / 2)
+    sigmas = om.model.nominal_sigmas()
+    with pytest.raises(ValueError, match='give scales too'):
+        MeanPathSettings(sigmas, 40, 1, gait=data.gait)
+    assert MeanPathSettings(sigmas, 40, 1, gait=data.gait, scales=data.scales).gait is not None
+    with pytest.raises(ValueError, match='matched in standard errors'):
+        residual_vector(np.zeros((3, 2)), None, np.zeros(5), 0.13, None)
+    assert residual_vector(np.zeros((3, 2)), np.zeros(3), None, 0.13, None).shape == (9,)

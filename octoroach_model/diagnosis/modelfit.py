@@ -30,12 +30,12 @@ from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind, MIXTURE_FRACTION
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.fitting.covariance import path_covariance
-from octoroach_model.fitting.gait import stride_frequency_estimate, stride_samples, SWAY_FEATURES
+from octoroach_model.fitting.gait import GAIT_FEATURES, stride_frequency_estimate, stride_samples
 from octoroach_model.fitting.lines import bootstrap_se, paired_relative_se, read_line
 from octoroach_model.fitting.nominal import (
     fit_nominal, FreeEffect, MeanPathSettings, NominalFitSettings)
 from octoroach_model.fitting.target import (
-    average_target, AverageTarget, ResidualScales, sway_weight_for, SwayTarget)
+    average_target, AverageTarget, gait_weight_for, GaitTarget, ResidualScales)
 from octoroach_model.model import model_poses, ModelParameters, nominal_sigmas, RandomStreams
 from octoroach_model.model.effects import mean_gait_rate
 from octoroach_model.model.extensions import TERM_BY_NAME
@@ -166,16 +166,16 @@ class RunData:
 
     @property
     def scales(self) -> ResidualScales:
-        """Return the standard errors of the average path, heading and sway: the fit's units."""
-        return self.target.scales(self.features[:, SWAY_COLUMNS], sway_weight=sway_weight_for(
+        """Return the standard errors of the average path, heading and gait: the fit's units."""
+        return self.target.scales(self.features[:, GAIT_COLUMNS], gait_weight=gait_weight_for(
             self.paths.rate_hz, self.stride_frequency))
 
     @property
-    def sway(self) -> SwayTarget:
-        """Return the runs' mean sway as recorded, for the geometry fit to match."""
-        means = tuple(float(v) for v in self.features[:, SWAY_COLUMNS].mean(0))
+    def gait(self) -> GaitTarget:
+        """Return the runs' mean gait as recorded, for the geometry fit to match."""
+        means = tuple(float(v) for v in self.features[:, GAIT_COLUMNS].mean(0))
         cycle = stride_samples(self.stride_frequency, float(self.paths.t[1] - self.paths.t[0]))
-        return SwayTarget(means, self.paths.t, self.lengths, cycle)
+        return GaitTarget(means, self.paths.t, self.lengths, cycle)
 
     @property
     def lengths(self) -> IntArray:
@@ -260,7 +260,7 @@ class Simulator:
         return Paths(t, poses), positions
 
 
-SWAY_COLUMNS = [INDEX[name] for name in SWAY_FEATURES]
+GAIT_COLUMNS = [INDEX[name] for name in GAIT_FEATURES]
 MOMENTS = 11     # purpose codes of the simulations (each its own random numbers)
 SPREAD = 12
 
@@ -558,14 +558,14 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
     held = {name: values for name, values in model.effects.items() if name not in path_causes}
     mean = MeanPathSettings(model.sigmas, settings.mean_path_runs,
                             int(np.random.SeedSequence([settings.seed, 5]).generate_state(1)[0]),
-                            sway=data.sway, scales=data.scales)
+                            gait=data.gait, scales=data.scales)
     fit = fit_nominal(data.paths, model.parameters, NominalFitSettings(
         heading_weight_m=settings.heading_weight_m, effects=held, free=free, multistart=False,
         mean=mean, refine=True, tolerance=settings.tolerance),
         start_pose=model.start_pose, target=data.target)
     fitted = replace(model, parameters=fit.parameters, effects={
         name: dict(fit.effects.get(name, values)) for name, values in model.effects.items()})
-    data_part, model_part = path_covariance(fit, data.target, data.features[:, SWAY_COLUMNS],
+    data_part, model_part = path_covariance(fit, data.target, data.features[:, GAIT_COLUMNS],
                                             mean, settings.seed)
     covariance = data_part + model_part
     errors = np.sqrt(np.diag(covariance))

@@ -15,14 +15,14 @@ from octoroach_model.fitting.nominal import MeanPathSettings, NominalFit, simula
 from octoroach_model.fitting.target import AverageTarget, residual_vector
 
 
-def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: FloatArray,
+def path_covariance(fit: NominalFit, target: AverageTarget, data_gait: FloatArray,
                     mean: MeanPathSettings, seed: int, n_boot: int = 60
                     ) -> tuple[FloatArray, FloatArray]:
     """
     Return the covariance of the fit's vector from the measured and from the simulated runs.
 
-    `target` is what the fit matched, `data_sway` (n, 5) each measured run's sway target values
-    (their means the target), `mean` the fit's simulated runs (with the sway matched), `seed` that
+    `target` is what the fit matched, `data_gait` (n, 5) each measured run's gait target values
+    (their means the target), `mean` the fit's simulated runs (with the gait matched), `seed` that
     of the resamples.
 
     Returns
@@ -33,35 +33,35 @@ def path_covariance(fit: NominalFit, target: AverageTarget, data_sway: FloatArra
     """
     assert fit.jacobian is not None, 'a fit by least squares has its Jacobian'
     pseudo_inverse = np.linalg.pinv(fit.jacobian)
-    sway = mean.sway
-    assert sway is not None, 'the covariance is of a fit with the sway matched'
-    full = simulated_runs(fit.parameters, fit.start_pose, sway.t, fit.effects, mean)
-    model_sway = sway.of_runs(full, fit.parameters.stride_frequency)
+    gait = mean.gait
+    assert gait is not None, 'the covariance is of a fit with the gait matched'
+    full = simulated_runs(fit.parameters, fit.start_pose, gait.t, fit.effects, mean)
+    model_gait = gait.of_runs(full, fit.parameters.stride_frequency)
     runs = full[:, :len(target.t)]
 
-    def vector(xy: FloatArray, turn: FloatArray, sway: FloatArray) -> FloatArray:
-        return residual_vector(xy, turn, sway, fit.heading_weight_m, mean.scales)
+    def vector(xy: FloatArray, turn: FloatArray, gait: FloatArray) -> FloatArray:
+        return residual_vector(xy, turn, gait, fit.heading_weight_m, mean.scales)
 
     rng = np.random.default_rng([seed, 17])
-    n_runs = len(data_sway)
-    base = vector(target.average, target.turn, np.nanmean(data_sway, axis=0))
+    n_runs = len(data_gait)
+    base = vector(target.average, target.turn, np.nanmean(data_gait, axis=0))
     data_steps = []
     for _ in range(n_boot):
         pick = rng.integers(0, n_runs, n_runs)
         resampled = target.resampled(pick)
         change = vector(resampled.average, resampled.turn,
-                        np.nanmean(data_sway[pick], axis=0)) - base
+                        np.nanmean(data_gait[pick], axis=0)) - base
         data_steps.append(pseudo_inverse @ change)
     half = mean.runs // 2
     pairs = 0.5 * (runs[:half] + runs[half:2 * half])          # antithetic pair means
-    pair_sway = 0.5 * (model_sway[:half] + model_sway[half:2 * half])
+    pair_gait = 0.5 * (model_gait[:half] + model_gait[half:2 * half])
     centre = vector(pairs[..., :2].mean(axis=0), pairs[..., 2].mean(axis=0),
-                    pair_sway.mean(axis=0))
+                    pair_gait.mean(axis=0))
     model_steps = []
     for _ in range(n_boot):
         pick = rng.integers(0, half, half)
         change = vector(pairs[pick, :, :2].mean(axis=0), pairs[pick, :, 2].mean(axis=0),
-                        pair_sway[pick].mean(axis=0)) - centre
+                        pair_gait[pick].mean(axis=0)) - centre
         model_steps.append(pseudo_inverse @ change)
     measured = np.atleast_2d(np.cov(np.array(data_steps), rowvar=False))
     simulated = np.atleast_2d(np.cov(np.array(model_steps), rowvar=False))

@@ -233,15 +233,15 @@ def slip_angle(xy: FloatArray, heading: FloatArray, cycle: int) -> FloatArray:
     return mean_offset
 
 
-# the columns of `sway_features`, named as the diagnosis's run features name them
-SWAY_FEATURES = ('sway_amplitude', 'lateral_sway_1', 'lateral_sway_2', 'stride_frequency',
+# the columns of `gait_features`, named as the diagnosis's run features name them
+GAIT_FEATURES = ('sway_amplitude', 'lateral_sway_1', 'lateral_sway_2', 'stride_frequency',
                  'slip_angle')
 
 
-def sway_features(t: FloatArray, xy: FloatArray, heading: FloatArray,
+def gait_features(t: FloatArray, xy: FloatArray, heading: FloatArray,
                   guess_hz: float, cycle: int) -> FloatArray:
     """
-    (n, 5) per run, columns `SWAY_FEATURES`: sway amplitude, sideways sway at f and 2f, Hz.
+    (n, 5) per run, columns `GAIT_FEATURES`: the sway, the strides and the travel angle.
 
     In rad, m, m, Hz, rad; the last is the heading to travel angle (`slip_angle`).
 

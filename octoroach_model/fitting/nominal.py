@@ -47,8 +47,8 @@ from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import DataError
 from octoroach_model.fitting.gait import stride_frequency_estimate
 from octoroach_model.fitting.target import (
-    average_target, AverageTarget, mean_start_pose, residual_vector, ResidualScales,
-    SwayTarget)
+    average_target, AverageTarget, GaitTarget, mean_start_pose, residual_vector,
+    ResidualScales)
 from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
 from octoroach_model.model.kinematics import integrate_stances
 from octoroach_model.model.parameters import ParameterTable, StartPoseTable
@@ -112,17 +112,21 @@ class MeanPathSettings:
     """
     Fit the mean of `runs` simulated runs at `sigmas` (rad), drawn from `seed`.
 
-    With `sway`, the runs' mean sway (heading sway amplitude, sideways sway at f and 2f: what
-    one run does within a stride, which an average over runs blurs) is matched to the data's
-    as well, each mismatch weighted as a path offset of that size held over the whole run
-    (heading through `heading_weight_m`, `sway_weights`).
+    With `gait`, the runs' mean gait (heading sway amplitude, sideways sway at f and 2f: what
+    one run does within a stride, which an average over runs blurs; the stride frequency and
+    the heading to travel angle) is matched to the data's as well, in the data's standard
+    errors (`scales`, which a gait target needs: its quantities share no unit with the path).
     """
 
     sigmas: tuple[float, float]
     runs: int = 200
     seed: int = 0
-    sway: SwayTarget | None = None
+    gait: GaitTarget | None = None
     scales: ResidualScales | None = None
+
+    def __post_init__(self) -> None:
+        if self.gait is not None and self.scales is None:
+            raise ValueError('a gait target is matched in standard errors: give scales too')
 
 
 @dataclass(frozen=True)
@@ -303,9 +307,9 @@ class NominalProblem:
         return parameters, check_effects(model_effects)
 
     @property
-    def sway(self) -> SwayTarget | None:
+    def gait(self) -> GaitTarget | None:
         mean = self.settings.mean
-        return mean.sway if mean is not None else None
+        return mean.gait if mean is not None else None
 
     def runs_of(self, parameters: ModelParameters, model_effects: Effects) -> FloatArray:
         """Return the model's (runs, T', 3) runs: one deterministic, or the simulated ones."""
@@ -315,8 +319,8 @@ class NominalProblem:
         if self.settings.align_gait:
             model_effects = {name: values for name, values in model_effects.items()
                              if name != 'gait_frequency_variation'}
-        sway = self.sway
-        grid = sway.t if sway is not None else self.t    # t is a prefix of the recorded grid
+        gait = self.gait
+        grid = gait.t if gait is not None else self.t    # t is a prefix of the recorded grid
         return simulated_runs(parameters, self.start_pose, grid, model_effects, mean)
 
     def path_of(self, parameters: ModelParameters, model_effects: Effects) -> FloatArray:
@@ -331,11 +335,11 @@ class NominalProblem:
         path = runs[:, :len(self.t)].mean(axis=0)
         turn_gap = (path[:, 2] - self.start_pose[2] - self.average_heading
                     if self.average_heading is not None else None)
-        sway = self.sway
-        sway_gap = (np.nanmean(sway.of_runs(runs, parameters.stride_frequency), axis=0)
-                    - np.asarray(sway.values) if sway is not None else None)
+        gait = self.gait
+        gait_gap = (np.nanmean(gait.of_runs(runs, parameters.stride_frequency), axis=0)
+                    - np.asarray(gait.values) if gait is not None else None)
         scales = self.settings.mean.scales if self.settings.mean is not None else None
-        return residual_vector(path[:, :2] - self.average, turn_gap, sway_gap,
+        return residual_vector(path[:, :2] - self.average, turn_gap, gait_gap,
                                self.settings.heading_weight_m, scales)
 
     def bounds(self) -> tuple[list[float], list[float], list[float]]:

@@ -1,10 +1,11 @@
 """
-What a fit of the model matches: the measured average path, heading and sway, and its units.
+What a fit of the model matches: the measured average path, heading and gait, and its units.
 
 The average of the runs (`AverageTarget`, on the recorded grid or a common gait clock), the
-runs' mean start pose (Table I's means), their mean sway within a stride (`SwayTarget`), and
-the residuals of a model against them (`residual_vector`), in cm or in the data's own
-standard errors (`ResidualScales`). Used by the nominal fit (nominal.py) and by the
+runs' mean start pose (Table I's means), their mean gait within a stride (`GaitTarget`: sway,
+stride frequency, heading to travel angle), and the residuals of a model against them
+(`residual_vector`), in cm (the path and heading alone) or in the data's own standard
+errors (`ResidualScales`). Used by the nominal fit (nominal.py) and by the
 diagnosis's fits alike.
 """
 from __future__ import annotations
@@ -15,16 +16,14 @@ import math
 import numpy as np
 
 from octoroach_model.arrays import FloatArray, IntArray
-from octoroach_model.fitting.gait import aligned_runs, SWAY_FEATURES, sway_features
+from octoroach_model.fitting.gait import aligned_runs, GAIT_FEATURES, gait_features
 from octoroach_model.paths import Paths
-
-SWAY_WEIGHT = 5.0
 
 
 @dataclass(frozen=True)
-class SwayTarget:
+class GaitTarget:
     """
-    The data's mean sway within a stride and how the body travels against its heading.
+    The data's mean gait: its sway within a stride, its strides, its travel against its heading.
 
     Heading sway amplitude [rad], sideways sway at f and 2f [m], stride frequency [Hz] and
     heading to travel angle [rad], each the mean over the runs as the runs' features read
@@ -38,17 +37,17 @@ class SwayTarget:
     the same lengths before they are compared.
     """
 
-    values: tuple[float, ...]          # one per SWAY_FEATURES
+    values: tuple[float, ...]          # one per GAIT_FEATURES
     t: FloatArray
     lengths: IntArray
     cycle: int
 
     def of_runs(self, runs: FloatArray, guess_hz: float) -> FloatArray:
-        """Return the (runs, 5) of simulated runs on `t`, cut like the data's runs."""
+        """Return the (runs, GAIT_FEATURES) of simulated runs on `t`, cut like the data's."""
         picks = self.lengths[np.arange(runs.shape[0]) % len(self.lengths)]
         cut = np.arange(len(self.t))[None, :] >= picks[:, None]
         runs = np.where(cut[..., None], np.nan, runs)
-        return sway_features(self.t, runs[..., :2], runs[..., 2], guess_hz, self.cycle)
+        return gait_features(self.t, runs[..., :2], runs[..., 2], guess_hz, self.cycle)
 
 
 @dataclass(frozen=True)
@@ -57,16 +56,16 @@ class ResidualScales:
     Standard errors that make the fit's residuals dimensionless.
 
     They are those of the average path at each time (G, 2) [m], of the average heading change
-    (G,) [rad] and of the sway target's five (`SwayTarget`).
+    (G,) [rad] and of the gait target's means (`GaitTarget`, one per GAIT_FEATURES).
 
     From the data's own run-to-run spread: where the runs scatter widely (late in a run, or
     under a random turning rate), the average is uncertain and a gap there weighs little, so
     the geometry does not bend to follow the chance curvature of an average path.
 
-    `sway_weight` multiplies the sway's residuals: the samples of the average path within one
+    `gait_weight` multiplies the gait's residuals: the samples of the average path within one
     stride move together (its chance deviation grows stride by stride), so G path residuals
-    are far fewer independent looks than G, while each sway residual is one. Weighed as a
-    stride's samples of the path (`sway_weight_for`), the sway keeps its say on long runs
+    are far fewer independent looks than G, while each gait residual is one. Weighed as a
+    stride's samples of the path (`gait_weight_for`), the gait keeps its say on long runs
     finely sampled: at weight 1 a robot of 34 strides a run at 126 samples a stride fitted
     its angles to the chance wander of 30 runs' average path and left the sideways sway at
     the stride frequency 5-6 standard errors off the data's (test_diagnosis.py).
@@ -74,18 +73,18 @@ class ResidualScales:
 
     path: FloatArray
     turn: FloatArray
-    sway: FloatArray
-    sway_weight: float = 1.0
+    gait: FloatArray
+    gait_weight: float = 1.0
 
 
 def residual_vector(path_gap: FloatArray, turn_gap: FloatArray | None,
-                    sway_gap: FloatArray | None, heading_weight_m: float,
+                    gait_gap: FloatArray | None, heading_weight_m: float,
                     scales: ResidualScales | None) -> FloatArray:
     """
     Return the fit's residuals from model-minus-data gaps.
 
-    In standard errors with `scales`, else in cm (heading through `heading_weight_m`, sway
-    through `sway_weights`).
+    In standard errors with `scales`, else in cm (heading through `heading_weight_m`); a gait
+    gap has no unit in common with the path's and is matched in standard errors only.
 
     Parameters
     ----------
@@ -93,8 +92,8 @@ def residual_vector(path_gap: FloatArray, turn_gap: FloatArray | None,
         Model minus data average path, m.
     turn_gap : array, shape (G,), or None
         Heading change gap, rad.
-    sway_gap : array, shape (5,), or None
-        Gap to the sway target (rad, m, m, Hz, rad).
+    gait_gap : array, shape (5,), or None
+        Gap to the gait target (rad, m, m, Hz, rad); needs `scales`.
     heading_weight_m : float
         m per rad of heading, without `scales`.
     scales : ResidualScales or None
@@ -102,7 +101,7 @@ def residual_vector(path_gap: FloatArray, turn_gap: FloatArray | None,
 
     Returns
     -------
-    array, shape (2 G,), plus G with `turn_gap`, plus 3 with `sway_gap`
+    array, shape (2 G,), plus G with `turn_gap`, plus 5 with `gait_gap`
         The parts given, flattened in that order.
 
     """
@@ -110,39 +109,20 @@ def residual_vector(path_gap: FloatArray, turn_gap: FloatArray | None,
         parts = [(path_gap / scales.path).ravel()]
         if turn_gap is not None:
             parts.append(turn_gap / scales.turn)
-        if sway_gap is not None:
-            parts.append(sway_gap / scales.sway * scales.sway_weight)
+        if gait_gap is not None:
+            parts.append(gait_gap / scales.gait * scales.gait_weight)
         return np.concatenate(parts)
+    if gait_gap is not None:
+        raise ValueError('a gait target is matched in standard errors: give its ResidualScales')
     parts = [path_gap.ravel()]
     if turn_gap is not None:
         parts.append(turn_gap * heading_weight_m)
-    if sway_gap is not None:
-        parts.append(sway_gap * sway_weights(heading_weight_m, len(path_gap)))
     return np.concatenate(parts) * 100.0
 
 
-def sway_weights(heading_weight_m: float, samples: int) -> FloatArray:
+def gait_weight_for(rate_hz: float, stride_frequency_hz: float) -> float:
     """
-    Weigh the sway residuals against the path's.
-
-    A mismatch counts SWAY_WEIGHT times as much as a path offset of its size held over the
-    `samples` of the average path (heading through `heading_weight_m`). At weight 1 the path
-    outweighs the sway and the fitted angles leave the heading sway several standard errors
-    off on robots away from Table II; at 5 it is matched within its error (and the angles
-    come closer to the truth).
-
-    Returns
-    -------
-    array, shape (3,)
-        Of the heading sway (m per rad), then of the two sideways sways (m per m).
-
-    """
-    return np.array([max(heading_weight_m, 0.0), 1.0, 1.0]) * SWAY_WEIGHT * math.sqrt(samples)
-
-
-def sway_weight_for(rate_hz: float, stride_frequency_hz: float) -> float:
-    """
-    Return the weight of a sway residual: as much as one stride's samples of the average path.
+    Return the weight of a gait residual: as much as one stride's samples of the average path.
 
     The square root of the samples per stride, at least 1 (ResidualScales); 1 where the
     stride frequency is unknown.
@@ -182,12 +162,12 @@ class AverageTarget:
     def turn(self) -> FloatArray:
         return _nanmean_rows(self.runs_turn)
 
-    def scales(self, sway_per_run: FloatArray | None = None,
-               floor_m: float = 1e-5, sway_weight: float = 1.0) -> ResidualScales:
+    def scales(self, gait_per_run: FloatArray | None = None,
+               floor_m: float = 1e-5, gait_weight: float = 1.0) -> ResidualScales:
         """
-        Return the standard errors of this target's averages (and of `sway_per_run`'s mean).
+        Return the standard errors of this target's averages (and of `gait_per_run`'s mean).
 
-        Never below `floor_m` (positions; the same in rad for the heading); `sway_weight` as
+        Never below `floor_m` (positions; the same in rad for the heading); `gait_weight` as
         in `ResidualScales`.
         """
         def standard_error(values: FloatArray) -> FloatArray:
@@ -197,10 +177,10 @@ class AverageTarget:
             error: FloatArray = np.maximum(np.nan_to_num(spread / np.sqrt(count)), floor_m)
             return error
 
-        sway = (standard_error(sway_per_run) if sway_per_run is not None
-                else np.full(len(SWAY_FEATURES), floor_m))
+        gait = (standard_error(gait_per_run) if gait_per_run is not None
+                else np.full(len(GAIT_FEATURES), floor_m))
         return ResidualScales(standard_error(self.runs_xy), standard_error(self.runs_turn),
-                              np.maximum(sway, 1e-12), sway_weight)
+                              np.maximum(gait, 1e-12), gait_weight)
 
     def resampled(self, index: IntArray) -> AverageTarget:
         """Return the target of the runs picked by `index` (a bootstrap resample)."""
