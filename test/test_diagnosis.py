@@ -19,9 +19,9 @@ from __future__ import annotations
 from dataclasses import replace
 import json
 import math
-import os
 import random
 
+from hidden_effects import FAST, SEED
 from hypothesis import given, settings as hypothesis_settings, strategies as st
 import numpy as np
 import pytest
@@ -40,10 +40,6 @@ HIDDEN_RANGE = {
     'lateral_slip': (1.0, 3.0, True, {}),
     'persistent_turning': (5.0, 12.0, False, {}),
 }
-# detection limits are the report's, checked in the report test; the others need not pay them
-FAST = DiagnosisSettings(validate_models=False, score_runs=800, moment_runs=300,
-                         mean_path_runs=200, bootstrap=60, workers=1, detection_limits=False)
-SEED = int(os.environ.get('OCTOROACH_TEST_SEED', random.SystemRandom().randrange(10 ** 6)))
 
 
 def main_parameter(cause: str) -> str:

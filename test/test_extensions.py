@@ -13,23 +13,20 @@ from __future__ import annotations
 from dataclasses import replace
 import json
 import math
-import os
 import random
 import subprocess
 import sys
 
+from hidden_effects import FAST, SEED
 import numpy as np
 import pytest
 
 import octoroach_model as om
-from octoroach_model.diagnosis import diagnose, DiagnosisSettings, write_report
+from octoroach_model.diagnosis import diagnose, write_report
 from octoroach_model.diagnosis.features import INDEX, run_features
 
 N = 400
-SEED = int(os.environ.get('OCTOROACH_TEST_SEED', random.SystemRandom().randrange(10 ** 6)))
 DETERMINISTIC = {'sigma1': 0.0, 'sigma2': 0.0}
-FAST = DiagnosisSettings(validate_models=False, score_runs=800, moment_runs=300,
-                         mean_path_runs=200, bootstrap=60, workers=1, detection_limits=False)
 
 
 def replay(what: str) -> str:
