@@ -536,6 +536,11 @@ def test_which_group_of_runs_turns_is_told_by_the_geometry(share):
     the other way round, with a geometry made to turn by itself (CI, seed 320706: a 44 %
     share at 8.4 deg/s, labelled the other way round on 150 calibration runs, lost the race
     to persistent_turning). The old rule fits 0.315 at -9.5 deg/s here at seed 1.
+
+    The other labelling is 1 - share away at the opposite rate; the fitted share may miss the
+    drawn one by its reported error and by the binomial spread of the calibration runs that
+    happen to turn (each run is drawn turning or not): at suite seed 61803, 94 of 120 showed
+    a turning rate for a share of 0.65, and 0.80 was fitted (reported error 0.04).
     """
     from octoroach_model.diagnosis.diagnose import _baseline, _prepare
     from octoroach_model.diagnosis.modelfit import fit_causes
@@ -547,8 +552,12 @@ def test_which_group_of_runs_turns_is_told_by_the_geometry(share):
     baseline = _baseline(halves, chosen).model
     fitted = fit_causes(halves.train, baseline, ('run_mixture',), chosen.fit(), rounds=1)
     found = fitted.model.effects['run_mixture']
-    message = replay(f'{share:.0%} of 240 runs turning at 9 deg/s: fitted {found}')
-    assert abs(found['fraction'] - share) < 0.12, message
+    error = math.hypot(fitted.estimates['run_mixture'].others['fraction'],
+                       math.sqrt(share * (1 - share) / halves.train.n))
+    message = replay(f'{share:.0%} of 240 runs turning at 9 deg/s: fitted {found}, '
+                     f'share error {error:.3f}')
+    assert abs(found['fraction'] - share) < abs(found['fraction'] - (1 - share)), message
+    assert abs(found['fraction'] - share) < 3 * error, message
     assert 6.75 < found['yaw_rate_deg_s'] < 11.25, message
 
 
