@@ -539,8 +539,8 @@ def test_which_group_of_runs_turns_is_told_by_the_geometry(share):
 
     The other labelling is 1 - share away at the opposite rate; the fitted share may miss the
     drawn one by its reported error and by the binomial spread of the calibration runs that
-    happen to turn (each run is drawn turning or not): at suite seed 61803, 94 of 120 showed
-    a turning rate for a share of 0.65, and 0.80 was fitted (reported error 0.04).
+    happen to turn (each run is drawn turning or not): at suite seed 61803 more of the
+    calibration runs turned than 0.65 of them, and 0.80 was fitted (reported error 0.04).
     """
     from octoroach_model.diagnosis.diagnose import _baseline, _prepare
     from octoroach_model.diagnosis.modelfit import fit_causes
