@@ -55,7 +55,7 @@ import numpy as np
 
 from octoroach_model.arrays import FloatArray
 from octoroach_model.fitting.gait import (
-    heading_sway, lateral_sway, slip_angle, stride_samples, valid_mask, windowed_sway)
+    GAIT_FEATURES, gait_features, stride_samples, valid_mask, windowed_sway)
 from octoroach_model.paths import Paths
 
 FEATURES = ('start_heading', 'start_x', 'start_y', 'log_noise', 'slip_angle',
@@ -136,11 +136,10 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     median = np.median(fourth, axis=(1, 2)) if complete else _nanmedian_rows(fourth)
     values['log_noise'] = np.log(np.nan_to_num(median, nan=0.0) + RESOLUTION_NOISE_M2)
     cycle = stride_samples(stride_frequency, dt)
-    values['slip_angle'] = slip_angle(xy, heading, cycle)
     windowed = windowed_sway(heading, t)
-    frequencies, values['sway_amplitude'] = heading_sway(heading, t, stride_frequency, windowed)
-    values['stride_frequency'] = frequencies
-    values['lateral_sway_1'], values['lateral_sway_2'] = lateral_sway(xy, heading, t, frequencies)
+    # the geometry fit reads simulated runs the same way (fitting.target.GaitTarget)
+    gait = gait_features(t, xy, heading, stride_frequency, cycle, windowed)
+    values.update(zip(GAIT_FEATURES, gait.T))
     half = lengths // 2
     first_half = np.linalg.norm(xy[rows, half] - xy[:, 0], axis=-1)
     second_half = np.linalg.norm(xy[rows, last] - xy[rows, half], axis=-1)

@@ -640,7 +640,7 @@ def change_point_step(simulator: Simulator, model: FittedModel, n_boot: int = 0
     without = {name: values for name, values in model.effects.items() if name != 'change_point'}
     t = data.paths.t
     simulated = simulator.paths(model, CHANGE_POINT_RUNS, MOMENTS, without)
-    cycle = max(2, int(round(1.0 / (data.stride_frequency * float(t[1] - t[0])))))
+    cycle = stride_samples(data.stride_frequency, float(t[1] - t[0]))
 
     def cycle_speeds(paths: Paths) -> FloatArray:
         xy = paths.positions

@@ -25,6 +25,7 @@ from octoroach_model.arrays import FloatArray  # noqa: E402
 from octoroach_model.diagnosis.discrepancies import Discrepancy  # noqa: E402
 from octoroach_model.diagnosis.features import (  # noqa: E402
     heading_amplitudes, INDEX, run_features)
+from octoroach_model.fitting.gait import stride_samples  # noqa: E402
 from octoroach_model.paths import Paths  # noqa: E402
 from octoroach_model.validation.region import t_multiplier  # noqa: E402
 
@@ -329,7 +330,7 @@ def _speed_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                  extension: NamedExtension) -> None:
     frequency = report.nominal['stride_frequency_hz']
     dt = float(measured.t[1] - measured.t[0])
-    cycle = max(2, int(round(1.0 / (frequency * dt))))
+    cycle = stride_samples(frequency, dt)
 
     def speed(paths: Paths) -> FloatArray:
         step = np.linalg.norm(paths.positions[:, cycle:] - paths.positions[:, :-cycle], axis=-1)

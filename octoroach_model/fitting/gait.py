@@ -239,7 +239,8 @@ GAIT_FEATURES = ('sway_amplitude', 'lateral_sway_1', 'lateral_sway_2', 'stride_f
 
 
 def gait_features(t: FloatArray, xy: FloatArray, heading: FloatArray,
-                  guess_hz: float, cycle: int) -> FloatArray:
+                  guess_hz: float, cycle: int,
+                  windowed: tuple[FloatArray, FloatArray] | None = None) -> FloatArray:
     """
     (n, 5) per run, columns `GAIT_FEATURES`: the sway, the strides and the travel angle.
 
@@ -257,9 +258,11 @@ def gait_features(t: FloatArray, xy: FloatArray, heading: FloatArray,
         Stride frequency guess, Hz.
     cycle : int
         Samples of the window of the heading to travel angle (`stride_samples`).
+    windowed : (sway, window) or None
+        `windowed_sway` of `heading`, where the caller has it.
 
     """
-    frequency, amplitude = heading_sway(heading, t, guess_hz)
+    frequency, amplitude = heading_sway(heading, t, guess_hz, windowed)
     first, second = lateral_sway(xy, heading, t, frequency)
     return np.column_stack([amplitude, first, second, frequency,
                             slip_angle(xy, heading, cycle)])
