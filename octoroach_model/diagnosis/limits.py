@@ -47,8 +47,8 @@ from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind
 from octoroach_model.diagnosis.decide import POWER, se_u_if_true
 from octoroach_model.diagnosis.features import INDEX
 from octoroach_model.diagnosis.modelfit import (
-    at_size, fit_spread, FitSettings, FittedModel, MIXTURE_EVIDENCE_NATS, Simulator,
-    SizeEstimate, spread_statistic, two_groups, two_groups_evidence)
+    at_size, fit_spread, FitSettings, FittedModel, MIXTURE_EVIDENCE_NATS, same_strides,
+    Simulator, SizeEstimate, spread_statistic, two_groups, two_groups_evidence)
 from octoroach_model.diagnosis.scoring import feature_log_score
 
 PSEUDO_RUNS = 1000
@@ -150,13 +150,17 @@ def simulated_gains(simulator: Simulator, without: FittedModel, without_features
     Return (per-run gains, the pseudo-data runs' features in SI units) at `size`.
 
     The gain is the extended model's score less that of the model without the cause as the
-    diagnosis would fit it to those runs (`spread_absorbed`); `fit` sizes that refit.
+    diagnosis would fit it to those runs: a term that slows or speeds the gait clock (speed_decay,
+    change_point) enters with the strides per run of the model without it (`same_strides`),
+    as the race's baseline, fitted to runs with the term, matches their stride frequency; a
+    heading term's spread is refit (`spread_absorbed`); `fit` sizes that refit.
     """
     values = at_size(cause, size, fitted_values, simulator.data)
     if cause.name == 'initial_pose_error':
         values['position_std_cm'] = float((without.effects.get(cause.name) or {}).get(
             'position_std_cm', 0.0))
-    extended = without.with_effect(cause.name, values)
+    extended = same_strides(without.with_effect(cause.name, values), without,
+                            float(simulator.data.paths.t[-1]))
     # as many pseudo-data runs as the models are scored with, at most PSEUDO_RUNS
     runs = simulator.features(extended, min(PSEUDO_RUNS, score_runs), PSEUDO_PURPOSE)
     pseudo = runs / scales
