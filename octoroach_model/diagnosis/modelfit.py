@@ -30,7 +30,8 @@ from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind, MIXTURE_FRACTION
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.fitting.covariance import path_covariance
-from octoroach_model.fitting.gait import GAIT_FEATURES, stride_frequency_estimate, stride_samples
+from octoroach_model.fitting.gait import (
+    cycle_distances, GAIT_FEATURES, stride_frequency_estimate, stride_samples)
 from octoroach_model.fitting.lines import bootstrap_se, paired_relative_se, read_line
 from octoroach_model.fitting.nominal import (
     fit_nominal, FreeEffect, MeanPathSettings, NominalFitSettings)
@@ -642,14 +643,9 @@ def change_point_step(simulator: Simulator, model: FittedModel, n_boot: int = 0
     simulated = simulator.paths(model, CHANGE_POINT_RUNS, MOMENTS, without)
     cycle = stride_samples(data.stride_frequency, float(t[1] - t[0]))
 
-    def cycle_speeds(paths: Paths) -> FloatArray:
-        xy = paths.positions
-        speeds: FloatArray = np.linalg.norm(xy[:, cycle:] - xy[:, :-cycle], axis=-1)
-        return speeds
-
     with np.errstate(invalid='ignore'):
-        model_speed = np.nanmean(cycle_speeds(simulated), axis=0)
-        runs = cycle_speeds(data.paths)
+        model_speed = np.nanmean(cycle_distances(simulated.positions, cycle), axis=0)
+        runs = cycle_distances(data.paths.positions, cycle)
     middle = t[:len(model_speed)] + 0.5 * cycle * float(t[1] - t[0])
     duration = float(t[-1])
 

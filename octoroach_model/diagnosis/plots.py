@@ -25,7 +25,7 @@ from octoroach_model.arrays import FloatArray  # noqa: E402
 from octoroach_model.diagnosis.discrepancies import Discrepancy  # noqa: E402
 from octoroach_model.diagnosis.features import (  # noqa: E402
     heading_amplitudes, INDEX, run_features)
-from octoroach_model.fitting.gait import stride_samples  # noqa: E402
+from octoroach_model.fitting.gait import cycle_distances, stride_samples  # noqa: E402
 from octoroach_model.paths import Paths  # noqa: E402
 from octoroach_model.validation.region import t_multiplier  # noqa: E402
 
@@ -333,9 +333,9 @@ def _speed_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
     cycle = stride_samples(frequency, dt)
 
     def speed(paths: Paths) -> FloatArray:
-        step = np.linalg.norm(paths.positions[:, cycle:] - paths.positions[:, :-cycle], axis=-1)
         with np.errstate(invalid='ignore'):
-            speed_cm_s: FloatArray = np.nanmean(step, axis=0) / (cycle * dt) * 100
+            speed_cm_s: FloatArray = np.nanmean(cycle_distances(paths.positions, cycle),
+                                                axis=0) / (cycle * dt) * 100
         return speed_cm_s
 
     middle = measured.t[:-cycle] + 0.5 * cycle * dt

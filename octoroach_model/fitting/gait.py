@@ -208,6 +208,18 @@ def stride_samples(stride_frequency: float, dt: float) -> int:
     return max(2, int(round(1.0 / (stride_frequency * dt))))
 
 
+def cycle_distances(xy: FloatArray, cycle: int) -> FloatArray:
+    """
+    Return the (n, T - cycle) distance each run covers over each window of `cycle` samples.
+
+    A stride's worth of samples (`stride_samples`) takes the sway out of a speed: what a
+    change of speed within a run is read from (the change point's fit and its plot). NaN
+    where a window reaches past a run's end.
+    """
+    distances: FloatArray = np.linalg.norm(xy[:, cycle:] - xy[:, :-cycle], axis=-1)
+    return distances
+
+
 def slip_angle(xy: FloatArray, heading: FloatArray, cycle: int) -> FloatArray:
     """
     Per run, the mean over cycle-long windows of (direction of travel - mean heading), rad.
