@@ -17,7 +17,7 @@ Three parts:
   calibration group, the counts power.CALIBRATION_COUNTS holds.
 
 Run: .venv/bin/python benchmarks/bench_plan.py [--compare [CASE ...]] [--fresh]
-     [--evidence CASE N1,N2 R] [--calibrate [--checks K]] [--workers N]
+     [--evidence CASE N1,N2 R] [--calibrate [--checks K] [--terms TERM ...]] [--workers N]
 CASE is TERM=SIZE, e.g. persistent_turning=3.
 """
 from __future__ import annotations
@@ -142,12 +142,13 @@ def evidence(case: str, counts: list[int], replicates: int, workers: int) -> Non
               f'({low:.0%}-{high:.0%})')
 
 
-def calibrate(workers: int, checks: int) -> None:
+def calibrate(workers: int, checks: int, terms: list[str]) -> None:
     """
     Measure the power model's calibration (module docstring) and print the counts.
 
     Each term's outcome is kept in out/bench_plan/calibration/TERM=SIZE.json and reused
-    while its size and the number of checks stay the same.
+    while its size and the number of checks stay the same (delete the file to measure a
+    term again after a change of the package). `terms`: those measured, in this order.
     """
     from octoroach_model.diagnosis.decide import decision_z
     from octoroach_model.workers import executor_for
@@ -165,7 +166,8 @@ def calibrate(workers: int, checks: int) -> None:
     print('| term | size | predicted runs for 80 % | checks named |')
     print('| --- | --- | --- | --- |')
     with executor_for(None, workers) as pool:
-        for term, size in CALIBRATION_SIZES.items():
+        for term in terms:
+            size = CALIBRATION_SIZES[term]
             kept = folder / f'{term.replace(":", ".")}={size:g}.json'
             entry = json.loads(kept.read_text()) if kept.exists() else None
             if entry is None or entry['checks'] != checks:
@@ -206,10 +208,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--evidence', nargs=3, default=None, metavar=('CASE', 'COUNTS', 'R'))
     parser.add_argument('--calibrate', action='store_true')
     parser.add_argument('--checks', type=int, default=16)
+    parser.add_argument('--terms', nargs='+', default=list(CALIBRATION_SIZES),
+                        choices=list(CALIBRATION_SIZES), help='--calibrate: these terms only')
     parser.add_argument('--workers', type=int, default=2)
     args = parser.parse_args(argv)
     if args.calibrate:
-        calibrate(args.workers, args.checks)
+        calibrate(args.workers, args.checks, args.terms)
     elif args.evidence:
         case, counts, replicates = args.evidence
         evidence(case, [int(n) for n in counts.split(',')], int(replicates), args.workers)

@@ -14,8 +14,9 @@ sets simulated and diagnosed in full at several run counts, as follows.
    run count (common random numbers: for most causes a smaller data set is the first runs of
    a larger one).
 3. Fit: power(n) = 1 / (1 + exp(-(a + b ln n))) by maximum likelihood over every diagnosed
-   data set; the answer is the n where the fit reaches the requested power, and its 95 %
-   interval comes from refitting on replicates drawn with replacement (bootstrap).
+   data set (studies/power_curve.py); the answer is the n where the fit reaches the
+   requested power, with its profile-likelihood 95 % interval, scaled for the replicates'
+   common random numbers.
 4. Refine: if the answer lies beyond the grid, the grid grows by doubling (or halving) up to
    max_runs (down to min_runs); otherwise one more run count at the answer is diagnosed and
    the fit repeated. At most MAX_ROUNDS rounds after the coarse grid.
@@ -40,6 +41,7 @@ from octoroach_model.jsonio import dumps
 from octoroach_model.settings import setting
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
+from octoroach_model.studies.power_curve import fit_power_curve, INTERVAL_METHOD, PowerFit
 from octoroach_model.studies.rows import Status, StudyRow
 from octoroach_model.studies.spec import (
     Arm, ArmKind, nominal_robot, NULL, parse_spec, robot_spec, RobotSpec, StudySpec)
@@ -54,10 +56,6 @@ if TYPE_CHECKING:
 PILOT_RUNS = 200
 BUDGET_S = 15.0             # method 'model': seconds a plan may take, pilots and checks
 MAX_ROUNDS = 3
-BOOTSTRAP = 400
-MAX_SLOPE = 20.0            # per unit of ln(runs): power 10 % -> 90 % over at least x1.25 runs
-RIDGE = 1e-3                # keeps the fit finite when every data set agrees
-HUGE = 1e300                # stands for an infinite run count inside percentiles
 Progress = Callable[[float, str], None]
 
 
@@ -100,7 +98,7 @@ class PlanSettings:
     replicates: int = setting(6, 'for --method simulate: data sets per run count (more on a '
                               'cluster: tighter intervals)', low=1)
     max_runs: int = setting(2000, 'the largest run count tried', low=MIN_RUNS)
-    seed: int = setting(0, 'seed of every data set and of the bootstrap', low=0)
+    seed: int = setting(0, 'seed of every data set', low=0)
 
 
 PLAN = PlanSettings()
@@ -131,7 +129,7 @@ class LogisticFit:
     intercept: float
     slope: float
     runs_at_target: float | None     # None: the fit never reaches the power asked
-    bootstrap: int
+    interval_method: str
 
 
 @dataclass(frozen=True)
@@ -281,12 +279,12 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
         counts = list(run_counts)
         rows += run(_with_runs(base, counts), 'coarse grid')
         for round_number in range(1, rounds + 1):
-            fit = fit_power_curve(rows, cause, power, seed=seed)
+            fit = fit_power_curve(rows, cause, power)
             more = _next_counts(fit, sorted({row.runs for row in rows}), min_runs, max_runs)
             if not more:
                 break
             rows += run(_with_runs(base, more), f'refinement {round_number}')
-    fit = fit_power_curve(rows, cause, power, seed=seed)
+    fit = fit_power_curve(rows, cause, power)
     result = _result(base, cause, size, power, rows, fit, pilot, seed, replicates,
                      min_runs, max_runs, time.perf_counter() - started)
     if out_dir is not None:
@@ -411,101 +409,6 @@ def _coarse_grid(guess: float, min_runs: int, max_runs: int) -> list[int]:
     return sorted(counts)
 
 
-class PowerFit(NamedTuple):
-    """
-    The fit power(n) = expit(a + b ln n) and the n where it reaches the target.
-
-    `interval_95` is a bootstrap 95 % interval of that n (inf where a refit never reaches
-    the target).
-    """
-
-    intercept: float
-    slope: float
-    runs_at_target: float
-    interval_95: tuple[float, float]
-    counts: tuple[int, ...]
-
-
-def fit_power_curve(rows: Sequence[StudyRow], cause: str, target: float,
-                    bootstrap: int = BOOTSTRAP, seed: int = 0) -> PowerFit:
-    """Fit named / not named against ln(runs) over `rows` (status ok only), logistically."""
-    usable = [row for row in rows if row.ok]
-    if not usable:
-        raise ParameterError('no data set of the plan could be diagnosed; see the rows')
-    x = np.log([row.runs for row in usable])
-    y = np.array([1.0 if row.terms[cause].named else 0.0 for row in usable])
-    replicate = np.array([row.replicate for row in usable])
-    intercept, slope = _logistic(x, y)
-    crossing = _crossing(intercept, slope, target)
-    rng = np.random.default_rng(seed)
-    ids = np.unique(replicate)
-    members = {r: np.flatnonzero(replicate == r) for r in ids}
-    crossings = []
-    for _ in range(bootstrap):
-        pick = np.concatenate([members[r] for r in rng.choice(ids, len(ids))])
-        crossings.append(_crossing(*_logistic(x[pick], y[pick]), target))
-    # a refit that never reaches the target counts as an infinite run count
-    finite = np.minimum(np.array(crossings), HUGE)
-    low, high = (math.inf if value >= HUGE else float(value)
-                 for value in np.percentile(finite, [2.5, 97.5]))
-    counts = tuple(sorted({int(row.runs) for row in usable}))
-    return PowerFit(intercept, slope, crossing, (low, high), counts)
-
-
-def _logistic(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
-    """
-    Fit expit(a + b (x - mean x)) by maximum likelihood; return (a, b) on x itself.
-
-    Newton steps with a halving line search; b is kept in [0, MAX_SLOPE] and a small ridge
-    keeps the fit finite when every data set agrees. The outcomes are counted per distinct x
-    first (a few run counts), so a fit costs microseconds and the bootstrap is cheap.
-    """
-    from scipy.special import expit, log_expit
-
-    centre = float(x.mean())
-    levels, index = np.unique(x, return_inverse=True)
-    trials = np.bincount(index).astype(float)
-    successes = np.bincount(index, weights=y)
-    design = np.stack([np.ones_like(levels), levels - centre], axis=1)
-
-    def loss(theta: np.ndarray) -> float:
-        eta = design @ theta
-        return float(-(successes * log_expit(eta) + (trials - successes) * log_expit(-eta)).sum()
-                     + RIDGE * (theta @ theta))
-
-    theta = np.zeros(2)
-    current = loss(theta)
-    for _ in range(100):
-        p = expit(design @ theta)
-        gradient = design.T @ (trials * p - successes) + 2 * RIDGE * theta
-        hessian = (design.T * (trials * p * (1 - p))) @ design + 2 * RIDGE * np.eye(2)
-        step = np.linalg.solve(hessian, gradient)
-        for _ in range(40):
-            trial = theta - step
-            trial[1] = min(max(trial[1], 0.0), MAX_SLOPE)
-            value = loss(trial)
-            if value <= current:
-                break
-            step = step / 2
-        else:
-            break
-        done = abs(current - value) < 1e-12
-        theta, current = trial, value
-        if done:
-            break
-    a, b = float(theta[0]), float(theta[1])
-    return a - b * centre, b
-
-
-def _crossing(intercept: float, slope: float, target: float) -> float:
-    """Return the n where expit(a + b ln n) = target (inf if the fit never rises to it)."""
-    logit = math.log(target / (1 - target))
-    if slope <= 1e-9:
-        return math.inf if intercept < logit else 0.0
-    exponent = (logit - intercept) / slope
-    return math.exp(exponent) if exponent < 700 else math.inf
-
-
 def _next_counts(fit: PowerFit, counts: list[int], min_runs: int, max_runs: int) -> list[int]:
     """
     Return the run counts of the next round ([] when the answer is pinned down).
@@ -557,7 +460,8 @@ def _result(base: StudySpec, cause: str, size: float, power: float,
     interval_low, interval_high = (float(max(v, min_runs)) if math.isfinite(v) else None
                                    for v in fit.interval_95)
     logistic = LogisticFit(LOGISTIC_MODEL, fit.intercept, fit.slope,
-                           fit.runs_at_target if math.isfinite(answer) else None, BOOTSTRAP)
+                           fit.runs_at_target if math.isfinite(answer) else None,
+                           INTERVAL_METHOD)
     return PlanResult(cause, parameter, size, power, needed, (interval_low, interval_high),
                       status, statement, tuple(curve), logistic, pilot, base.robot,
                       replicates, seed, round(elapsed_s, 2),
@@ -686,7 +590,7 @@ def plot_power_curve(result: PlanResult, path: Path) -> None:
         low, high = result.runs_needed_interval_95
         if low is not None or high is not None:
             axis.axvspan(low or grid[0], high or grid[-1], color='tab:red', alpha=0.12,
-                         label='95 % interval of the answer (bootstrap)')
+                         label='95 % interval of the answer (profile likelihood)')
     axis.set_xscale('log')
     axis.set_ylim(-0.02, 1.02)
     axis.set_xlabel('runs recorded (log scale)')
