@@ -684,15 +684,16 @@ def test_a_limit_weighs_a_clock_term_against_a_model_striding_as_the_runs_do(cau
     """
     A term that slows the gait clock is weighed as the race weighs it: at the same strides.
 
-    The race's baseline, fitted to runs whose clock slows, matches their stride frequency (the
-    gait target), so the decay's gain over it is the trend within a run alone. The limit's
-    runs with the decay were simulated at the stride frequency of the model without it, and
-    the test also scored the mean stride frequency they lost: in open_world (commit 4394bf4)
-    speed_decay's limit fell by a fifth and the decay at it was named in 0 of 4 data sets.
+    The race's baseline, fitted to runs whose clock slows (a decay over the run, or a change
+    of speed partway), matches their stride frequency (the gait target), so the term's gain
+    over it is the change within a run alone. The limit's runs with the term were simulated
+    at the stride frequency of the model without it, and the test also scored the mean
+    stride frequency they lost: in open_world (commit 4394bf4) speed_decay's limit fell by a
+    fifth and the decay at it was named in 0 of 4 data sets.
     """
+    from octoroach_model.diagnosis.causes import BY_NAME
     from octoroach_model.diagnosis.features import INDEX
     from octoroach_model.diagnosis.limits import limit_base, simulated_gains
-    from octoroach_model.diagnosis.causes import BY_NAME
     from octoroach_model.diagnosis.modelfit import at_size, FittedModel, RunData, Simulator
     from octoroach_model.fitting import mean_start_pose
 
