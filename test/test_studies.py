@@ -13,7 +13,7 @@ from pathlib import Path
 import random
 from types import SimpleNamespace
 
-from hypothesis import given, seed, settings, strategies as st
+from hypothesis import example, given, seed, settings, strategies as st
 import numpy as np
 import pytest
 import yaml
@@ -439,6 +439,7 @@ def test_the_power_fit_finds_the_run_count_of_a_known_power_curve(replicates, pl
 @settings(max_examples=60, deadline=None, database=None)
 @given(st.lists(st.lists(st.booleans(), min_size=3, max_size=3), min_size=1, max_size=12),
        st.sampled_from([0.5, 0.8, 0.9]))
+@example([[False, True, True], [False, False, True], [False, True, True]], 0.8)
 def test_the_power_fits_interval_holds_its_answer_whatever_the_outcomes(outcomes, target):
     rows = [a_plan_row(runs, replicate, named) for replicate, seen in enumerate(outcomes)
             for runs, named in zip((50, 100, 200), seen)]
@@ -446,9 +447,8 @@ def test_the_power_fits_interval_holds_its_answer_whatever_the_outcomes(outcomes
     low, high = fit.interval_95
     assert 0.0 <= low <= fit.runs_at_target <= high, fit
     assert 0.0 <= fit.slope <= 20.0
-    if math.isfinite(fit.runs_at_target):
-        power = 1 / (1 + math.exp(-(fit.intercept + fit.slope * math.log(fit.runs_at_target))))
-        assert power == pytest.approx(target)
+    if all(not seen[0] and seen[2] for seen in outcomes):    # every replicate turns between
+        assert 50 < fit.runs_at_target < 200, fit
     if all(all(seen) for seen in outcomes):          # named everywhere: below the counts
         assert fit.runs_at_target < 50 and low == 0.0
     if not any(any(seen) for seen in outcomes):      # named nowhere: no upper end

@@ -87,7 +87,7 @@ def fit_power_curve(rows: Sequence[StudyRow], cause: str, target: float) -> Powe
     low = 0.0 if inside[0] == 0 else math.exp(crossings[inside[0]])
     high = math.inf if inside[-1] == CROSSINGS - 1 else math.exp(crossings[inside[-1]])
     answer = math.inf if best == CROSSINGS - 1 else math.exp(crossing)
-    counts = tuple(int(round(math.exp(value))) for value in levels)
+    counts = tuple(sorted({int(row.runs) for row in usable}))
     return PowerFit(_logit(target) - slope * crossing, slope, answer,
                     (min(low, answer), max(high, answer)), counts)
 
