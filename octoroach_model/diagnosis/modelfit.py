@@ -25,16 +25,17 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
 from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind, MIXTURE_FRACTION
 from octoroach_model.diagnosis.features import INDEX, run_features
-from octoroach_model.fitting.covariance import path_covariance
+from octoroach_model.fitting.covariance import cost_gap_se, path_covariance, target_changes
 from octoroach_model.fitting.gait import (
     cycle_distances, GAIT_FEATURES, stride_frequency_estimate, stride_samples)
 from octoroach_model.fitting.lines import bootstrap_se, paired_relative_se, read_line
 from octoroach_model.fitting.nominal import (
-    fit_nominal, FreeEffect, MeanPathSettings, NominalFitSettings)
+    fit_nominal, FreeEffect, MeanPathSettings, NominalFitSettings, NominalProblem)
 from octoroach_model.fitting.target import (
     average_target, AverageTarget, gait_weight_for, GaitTarget, ResidualScales)
 from octoroach_model.model import model_poses, ModelParameters, nominal_sigmas, RandomStreams
@@ -313,6 +314,8 @@ class CausesFit:
     model: FittedModel
     estimates: dict[str, SizeEstimate]
     geometry: GeometryUncertainty | None = None
+    # geometries from other starts that ended in other valleys (`distinct_geometries`)
+    alternatives: tuple[ModelParameters, ...] = ()
 
 
 def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
@@ -543,14 +546,14 @@ def same_strides(model: FittedModel, before: FittedModel, duration_s: float | No
     return replace(model, parameters=replace(model.parameters, stride_frequency=frequency))
 
 
-def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...],
-                 settings: FitSettings
-                 ) -> tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]:
+def geometry_problem(data: RunData, model: FittedModel, path_causes: tuple[str, ...],
+                     settings: FitSettings) -> NominalFitSettings:
     """
-    Fit the geometry and the path-cause sizes, with their covariance.
+    Return the settings of the geometry fit of `model` on `data` (what `fit_geometry` solves).
 
-    Geometry and path-cause sizes on the average path and the sway within a stride (means of
-    simulated runs); their covariance from resampling the runs through the fit's Jacobian.
+    The free parameters are the path causes', within their bounds; every other effect is held;
+    the mean path is of `settings.mean_path_runs` simulated runs on their own seed, the gait
+    matched in the data's standard errors.
     """
     free = tuple(FreeEffect(cause, parameter, low, high,
                             start=float(np.clip(model.effects[cause][parameter], low, high)))
@@ -560,10 +563,25 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
     mean = MeanPathSettings(model.sigmas, settings.mean_path_runs,
                             int(np.random.SeedSequence([settings.seed, 5]).generate_state(1)[0]),
                             gait=data.gait, scales=data.scales)
-    fit = fit_nominal(data.paths, model.parameters, NominalFitSettings(
+    return NominalFitSettings(
         heading_weight_m=settings.heading_weight_m, effects=held, free=free, multistart=False,
-        mean=mean, refine=True, tolerance=settings.tolerance),
-        start_pose=model.start_pose, target=data.target)
+        mean=mean, refine=True, tolerance=settings.tolerance)
+
+
+def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...],
+                 settings: FitSettings
+                 ) -> tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]:
+    """
+    Fit the geometry and the path-cause sizes, with their covariance.
+
+    Geometry and path-cause sizes on the average path and the sway within a stride (means of
+    simulated runs); their covariance from resampling the runs through the fit's Jacobian.
+    """
+    problem = geometry_problem(data, model, path_causes, settings)
+    free, mean = problem.free, problem.mean
+    assert mean is not None, 'the geometry fit matches the mean of simulated runs'
+    fit = fit_nominal(data.paths, model.parameters, problem, start_pose=model.start_pose,
+                      target=data.target)
     fitted = replace(model, parameters=fit.parameters, effects={
         name: dict(fit.effects.get(name, values)) for name, values in model.effects.items()})
     data_part, model_part = path_covariance(fit, data.target, data.features[:, GAIT_COLUMNS],
@@ -581,6 +599,114 @@ def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...]
                                              simulation_se=float(simulated[6 + offset]))
     return fitted, estimates, GeometryUncertainty(
         tuple((item.cause, item.parameter) for item in free), covariance, fit.cost)
+
+
+def geometry_residuals(data: RunData, model: FittedModel, path_causes: tuple[str, ...],
+                       settings: FitSettings) -> FloatArray:
+    """Return the geometry fit's residuals at `model` as it stands (no fitting)."""
+    problem = geometry_problem(data, model, path_causes, settings)
+    parameters = model.parameters
+    vector = np.array([parameters.leg_length, *parameters.touchdown_angles,
+                       parameters.stride_frequency]
+                      + [float(model.effects[item.cause][item.parameter])
+                         for item in problem.free])
+    residuals: FloatArray = NominalProblem.of(parameters.with_paper_liftoff(), model.start_pose,
+                                              data.target, problem).residuals(vector)
+    return residuals
+
+
+# a fit from another start that ends this many standard errors away in some entry of the
+# geometry (leg, angles, stride frequency) is in another valley of the objective
+DISTINCT_SE = 2.0
+RIVAL_BOOTSTRAP = 60
+
+
+def distinct_geometries(best: tuple[FittedModel, GeometryUncertainty],
+                        others: Sequence[FittedModel]) -> tuple[ModelParameters, ...]:
+    """
+    Return the geometries of `others` that lie in another valley than `best`'s.
+
+    Another valley: some entry of the geometry's vector more than DISTINCT_SE of `best`'s
+    standard errors away; of several in the same place, the first.
+    """
+    model, uncertainty = best
+    errors = np.sqrt(np.maximum(np.diag(uncertainty.covariance)[:6], 1e-300))
+    kept: list[FloatArray] = [geometry_vector(model.parameters)]
+    found = []
+    for other in others:
+        vector = geometry_vector(other.parameters)
+        if all(np.max(np.abs(vector - seen) / errors) > DISTINCT_SE for seen in kept):
+            kept.append(vector)
+            found.append(other.parameters)
+    return tuple(found)
+
+
+def geometry_vector(parameters: ModelParameters) -> FloatArray:
+    """Return [leg length, touchdown angles, stride frequency], the fit's geometry entries."""
+    return np.array([parameters.leg_length, *parameters.touchdown_angles,
+                     parameters.stride_frequency])
+
+
+@dataclass(frozen=True)
+class RivalGeometry:
+    """
+    Another valley of the geometry fit's objective, and how much the runs prefer the fit's.
+
+    `cost_gap` is the rival's cost minus the fit's (half a sum of squared residuals in standard
+    errors: the path's samples move together, so it is no likelihood ratio), `gap_se` its
+    standard error over resamples of the runs (`cost_gap_se`).
+    """
+
+    model: FittedModel
+    cost_gap: float
+    gap_se: float
+
+    @property
+    def weight(self) -> float:
+        """Return the chance that the runs, drawn again, would prefer the rival (normal gap)."""
+        if not self.gap_se > 0:
+            return 0.0 if self.cost_gap > 0 else 1.0
+        return float(stats.norm.sf(self.cost_gap / self.gap_se))
+
+
+def rival_geometries(data: RunData, fit: CausesFit, alternatives: Sequence[ModelParameters],
+                     settings: FitSettings) -> tuple[RivalGeometry, ...]:
+    """
+    Refit `fit`'s model on `data` from each other geometry, and weigh each valley it ends in.
+
+    The geometry fit's covariance is local: where the objective has a second valley that the
+    runs do not tell from the fit's (a fast robot of few long runs: test_diagnosis.py,
+    `test_a_second_valley_the_runs_do_not_rule_out_counts_in_the_adequacy_check`), the fit may
+    sit in either, and the statistics of the two differ by more than the covariance allows.
+    Each rival comes with the chance that resampled runs would prefer it; `fit_errors` counts
+    the difference of the statistics at that weight. A refit that ends in the fit's own valley
+    is left out. Both costs are evaluated at the model's spread scale, where the rival's
+    geometry was fitted; its statistics at its own, fitted after.
+    """
+    if fit.geometry is None or not alternatives:
+        return ()
+    model = fit.model
+    path_causes = tuple(cause for cause in model.causes
+                        if BY_NAME[cause].kind == EstimateKind.PATH)
+    residuals = geometry_residuals(data, model, path_causes, settings)
+    changes = target_changes(data.target, data.features[:, GAIT_COLUMNS],
+                             settings.heading_weight_m, data.scales,
+                             np.random.default_rng([settings.seed, 19]), RIVAL_BOOTSTRAP)
+    simulator = Simulator(data, settings.seed)
+    rivals = []
+    for parameters in alternatives:
+        start = replace(model, parameters=replace(
+            parameters, sample_rate=model.parameters.sample_rate).with_paper_liftoff())
+        refit, _, _ = fit_geometry(data, start, path_causes, settings)
+        if not distinct_geometries((model, fit.geometry), [refit]):
+            continue
+        rival_residuals = geometry_residuals(data, refit, path_causes, settings)
+        gap = 0.5 * float(rival_residuals @ rival_residuals - residuals @ residuals)
+        # the rival's statistics at its own spread scale, as fit_causes would leave it
+        refit = replace(refit, sigma_scale=fit_spread(simulator, refit, settings))
+        rivals.append(RivalGeometry(refit, gap, cost_gap_se(residuals, rival_residuals,
+                                                            changes)))
+    return tuple(rivals)
 
 
 def free_parameters(cause: Cause, data: RunData) -> list[tuple[str, tuple[float, float]]]:

@@ -1,10 +1,12 @@
 """
-The covariance of a mean-path fit's vector, without refitting.
+The covariance of a mean-path fit's vector, without refitting; how sure the runs are of it.
 
 Two sources of error, each resampled and carried to the vector by one Gauss-Newton step from
 the fit (`-pinv(jacobian) @ d(residual)`): the measured runs (a bootstrap over runs) and the
 simulated runs whose mean the model is (a bootstrap of their antithetic pairs). Only the first
 shrinks with more measured runs (diagnosis/power.py), so the two are returned apart.
+The same resamples of the runs say whether they prefer one of two fits (two valleys of the
+objective) over the other: `cost_gap_se` is the spread of the cost gap between them.
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import numpy as np
 
 from octoroach_model.arrays import FloatArray
 from octoroach_model.fitting.nominal import MeanPathSettings, NominalFit, simulated_runs
-from octoroach_model.fitting.target import AverageTarget, residual_vector
+from octoroach_model.fitting.target import AverageTarget, residual_vector, ResidualScales
 
 
 def path_covariance(fit: NominalFit, target: AverageTarget, data_gait: FloatArray,
@@ -43,15 +45,8 @@ def path_covariance(fit: NominalFit, target: AverageTarget, data_gait: FloatArra
         return residual_vector(xy, turn, gait, fit.heading_weight_m, mean.scales)
 
     rng = np.random.default_rng([seed, 17])
-    n_runs = len(data_gait)
-    base = vector(target.average, target.turn, np.nanmean(data_gait, axis=0))
-    data_steps = []
-    for _ in range(n_boot):
-        pick = rng.integers(0, n_runs, n_runs)
-        resampled = target.resampled(pick)
-        change = vector(resampled.average, resampled.turn,
-                        np.nanmean(data_gait[pick], axis=0)) - base
-        data_steps.append(pseudo_inverse @ change)
+    changes = target_changes(target, data_gait, fit.heading_weight_m, mean.scales, rng, n_boot)
+    data_steps = [pseudo_inverse @ change for change in changes]
     half = mean.runs // 2
     pairs = 0.5 * (runs[:half] + runs[half:2 * half])          # antithetic pair means
     pair_gait = 0.5 * (model_gait[:half] + model_gait[half:2 * half])
@@ -66,3 +61,42 @@ def path_covariance(fit: NominalFit, target: AverageTarget, data_gait: FloatArra
     measured = np.atleast_2d(np.cov(np.array(data_steps), rowvar=False))
     simulated = np.atleast_2d(np.cov(np.array(model_steps), rowvar=False))
     return measured, simulated
+
+
+def target_changes(target: AverageTarget, data_gait: FloatArray, heading_weight_m: float,
+                   scales: ResidualScales | None, rng: np.random.Generator, n_boot: int
+                   ) -> FloatArray:
+    """
+    Return how the fit's target moves when the measured runs are resampled: (n_boot, m).
+
+    Each row is the change of the target's residual vector (`residual_vector` of the data's
+    average path, heading and gait) under one bootstrap resample of the runs; a fit's
+    residuals move by minus it.
+    """
+    def vector(xy: FloatArray, turn: FloatArray, gait: FloatArray) -> FloatArray:
+        return residual_vector(xy, turn, gait, heading_weight_m, scales)
+
+    n_runs = len(data_gait)
+    base = vector(target.average, target.turn, np.nanmean(data_gait, axis=0))
+    changes = []
+    for _ in range(n_boot):
+        pick = rng.integers(0, n_runs, n_runs)
+        resampled = target.resampled(pick)
+        changes.append(vector(resampled.average, resampled.turn,
+                              np.nanmean(data_gait[pick], axis=0)) - base)
+    return np.array(changes)
+
+
+def cost_gap_se(residuals: FloatArray, rival_residuals: FloatArray,
+                changes: FloatArray) -> float:
+    """
+    Return the standard error of the cost gap between two fits over resamples of the runs.
+
+    Each fit's cost is half its sum of squared residuals; when the target moves by `change`
+    the gap between the two moves by exactly -(rival - fit) . change (the squares of the
+    change cancel), so its spread over the bootstrap changes (`target_changes`) is the gap's
+    standard error, with the two models held where they are (refitting each moves its cost
+    by the same amount to first order).
+    """
+    moves = changes @ (np.asarray(rival_residuals) - np.asarray(residuals))
+    return float(np.std(moves, ddof=1)) if len(moves) > 1 else 0.0
