@@ -6,8 +6,9 @@ Three parts:
 - `--compare` (default): for each case (a term and a size, Table II's robot), the answer of
   `plan` (the model, two local workers) and of `plan --method simulate` (two local Dask
   workers), each with its 95 % interval and wall time, side by side. The simulated plans take
-  minutes each: their answers are kept in out/bench_plan/CASE.json and reused
-  (`--fresh` runs them again); the model's are measured anew on every call.
+  minutes each: their answers are kept in out/bench_plan/CASE.json and reused while the
+  package's code is the same (`--fresh` runs them again); the model's are measured anew on
+  every call.
 - `--evidence CASE N1,N2 R`: R more data sets diagnosed in full at run counts N1, N2 (new
   replicates, seeds the plans did not use): the share named at each with its Wilson
   interval, for a case where the two answers disagree.
@@ -42,6 +43,40 @@ CALIBRATION_SIZES = {
     'periodic_heading': 1.5, 'change_point': 0.05, 'run_mixture': 8.0}
 
 
+def package_fingerprint() -> str:
+    """
+    Return a digest of the package's source: a kept answer is reused only under the same code.
+
+    The answers kept in out/bench_plan come from minutes of diagnoses; read back after a
+    change of the package they would print its former behaviour as its present one.
+    """
+    import hashlib
+
+    digest = hashlib.sha256()
+    package = REPO / 'octoroach_model'
+    for path in sorted(package.rglob('*.py')):
+        digest.update(path.relative_to(package).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def kept_answer(path: Path, **fields: object) -> dict | None:
+    """Return the answer kept at `path` if it was measured with this code and `fields`."""
+    if not path.exists():
+        return None
+    entry: dict = json.loads(path.read_text())
+    wanted = {'package': package_fingerprint(), **fields}
+    return entry if all(entry.get(key) == value for key, value in wanted.items()) else None
+
+
+def keep_answer(path: Path, entry: dict) -> None:
+    """Write `entry` to `path` with this code's fingerprint, whole or not at all."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(path.name + '.partial')
+    partial.write_text(json.dumps({**entry, 'package': package_fingerprint()}, indent=2) + '\n')
+    partial.replace(path)
+
+
 def case_of(text: str) -> tuple[str, float]:
     term, _, size = text.partition('=')
     return term, float(size)
@@ -65,14 +100,14 @@ def plan_simulated(term: str, size: float, workers: int, fresh: bool) -> dict:
     import octoroach_model as om
 
     path = OUT / f'{term.replace(":", ".")}={size:g}.json'
-    if path.exists() and not fresh:
-        return json.loads(path.read_text())
+    kept = None if fresh else kept_answer(path)
+    if kept is not None:
+        return kept
     started = time.perf_counter()
     result = om.plan_runs(term, size, method='simulate', workers=workers)
     answer = json.loads(__import__('octoroach_model.jsonio', fromlist=['dumps']).dumps(result))
     answer['wall_s'] = time.perf_counter() - started
-    OUT.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(answer, indent=2) + '\n')
+    keep_answer(path, answer)
     return answer
 
 
@@ -147,8 +182,8 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
     Measure the power model's calibration (module docstring) and print the counts.
 
     Each term's outcome is kept in out/bench_plan/calibration/TERM=SIZE.json and reused
-    while its size and the number of checks stay the same (delete the file to measure a
-    term again after a change of the package). `terms`: those measured, in this order.
+    while the package's code, the size and the number of checks stay the same
+    (`kept_answer`). `terms`: those measured, in this order.
     """
     from octoroach_model.diagnosis.decide import decision_z
     from octoroach_model.workers import executor_for
@@ -169,8 +204,8 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
         for term in terms:
             size = CALIBRATION_SIZES[term]
             kept = folder / f'{term.replace(":", ".")}={size:g}.json'
-            entry = json.loads(kept.read_text()) if kept.exists() else None
-            if entry is None or entry['checks'] != checks:
+            entry = kept_answer(kept, checks=checks)
+            if entry is None:
                 spec = _base_spec(term, size, None, None, 6, 0, None, 40, 2000, 0.8)
                 question = Question(term, size)
                 pilots = [future.result()[0] for future in [
@@ -184,7 +219,7 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
                         for replicate in range(checks)]] if outcome.status == 'ok']
                 entry = {'term': term, 'size': size, 'runs': runs, 'checks': checks,
                          'named': named}
-                kept.write_text(json.dumps(entry) + '\n')
+                keep_answer(kept, entry)
             named = entry['named']
             if not named:
                 print(f'| {term} | {size:g} | {entry["runs"]:.0f} | (not checked: at a '
