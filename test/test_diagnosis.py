@@ -292,6 +292,52 @@ def test_the_cost_gap_of_two_fits_has_the_spread_its_bootstrap_says():
     assert 0.8 < ratio < 1.25, (ratio, SEED)
 
 
+def test_a_rival_geometry_counts_at_its_weight_and_only_from_another_valley():
+    """
+    A second valley of the geometry fit enters a statistic's error at the rival's weight.
+
+    Its weight is the chance that the runs, drawn again, prefer it (a cost gap of 0 is even
+    odds); the statistic's error then holds the difference between the two fits' values at
+    that weight. A fit from another start that ends within two standard errors of the model
+    is the model's own valley, and of two rivals in one place only the first is kept.
+    """
+    from octoroach_model.diagnosis.diagnose import _prepare, DISCREPANCY_PURPOSE, fit_errors
+    from octoroach_model.diagnosis.discrepancies import statistic_values
+    from octoroach_model.diagnosis.modelfit import (
+        distinct_geometries, FittedModel, GeometryUncertainty, RivalGeometry, Simulator)
+
+    measured = om.simulate(40, seed=SEED % 1000, cycles=4)
+    data = _prepare(measured, FAST).every
+    parameters = om.ModelParameters.nominal()
+    model = FittedModel(parameters, (0.0, 0.0, 0.0), 1.0)
+
+    def moved(degrees: float) -> FittedModel:
+        angles = tuple(a + math.radians(degrees) * sign
+                       for a, sign in zip(parameters.touchdown_angles, (1, -1, 1, -1)))
+        return replace(model, parameters=replace(
+            parameters, touchdown_angles=angles).with_paper_liftoff())
+
+    errors = np.array([0.001] + [math.radians(1.0)] * 4 + [0.05])     # leg, angles, stride
+    uncertainty = GeometryUncertainty((), np.diag(errors ** 2))
+    near, far, again = moved(1.5), moved(6.0), moved(6.2)
+    assert distinct_geometries((model, uncertainty), [near, far, again]) == (far.parameters,)
+
+    simulator = Simulator(data, FAST.seed)
+    rival = far
+    even = RivalGeometry(rival, cost_gap=0.0, gap_se=100.0)
+    unlikely = RivalGeometry(rival, cost_gap=300.0, gap_se=100.0)     # weight 0.00135
+    assert even.weight == pytest.approx(0.5) and unlikely.weight == pytest.approx(0.00135,
+                                                                                  rel=0.01)
+    difference = (statistic_values(simulator.features(rival, 400, DISCREPANCY_PURPOSE))
+                  - statistic_values(simulator.features(model, 400, DISCREPANCY_PURPOSE)))
+    for candidate in (even, unlikely):
+        error = fit_errors(simulator, model, None, 400, rivals=[candidate])
+        assert error is not None
+        np.testing.assert_allclose(error, np.sqrt(candidate.weight) * np.abs(difference),
+                                   rtol=1e-9, atol=1e-15)
+    assert np.nanmax(np.abs(difference)) > 0       # the far rival differs in some statistic
+
+
 def test_a_start_heading_spread_of_exactly_zero_still_gets_a_detection_limit():
     """
     Runs simulated without a start heading spread have a variance of 1e-32 rad^2.
