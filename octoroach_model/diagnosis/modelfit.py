@@ -675,13 +675,14 @@ def rival_geometries(data: RunData, fit: CausesFit, alternatives: Sequence[Model
     Refit `fit`'s model on `data` from each other geometry, and weigh each valley it ends in.
 
     The geometry fit's covariance is local: where the objective has a second valley that the
-    runs do not tell from the fit's (a fast robot of few long runs: test_diagnosis.py,
-    `test_a_second_valley_the_runs_do_not_rule_out_counts_in_the_adequacy_check`), the fit may
-    sit in either, and the statistics of the two differ by more than the covariance allows.
-    Each rival comes with the chance that resampled runs would prefer it; `fit_errors` counts
-    the difference of the statistics at that weight. A refit that ends in the fit's own valley
-    is left out. Both costs are evaluated at the model's spread scale, where the rival's
-    geometry was fitted; its statistics at its own, fitted after.
+    runs do not tell from the fit's (a fast robot of few long runs: replicate 21 of
+    studies/adequacy_few_runs.yaml, `benchmarks/bench_geometry_valleys.py`), the fit may sit in
+    either, and the statistics of the two differ by more than the covariance allows. Each
+    rival comes with the chance that resampled runs would prefer it; `fit_errors` counts the
+    difference of the statistics at that weight. A refit that ends in the fit's own valley is
+    left out. Both costs are evaluated at the model's spread scale, where the rival's geometry
+    was fitted (the model's own was fitted at the spread before the last refit of it, a small
+    advantage to the rival); the rival's statistics at its own spread, fitted after.
     """
     if fit.geometry is None or not alternatives:
         return ()
