@@ -26,11 +26,24 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from octoroach_model.studies.design import Task
+    from octoroach_model.studies.spec import StudySpec
+
 REPO = Path(__file__).resolve().parents[1]
 ANGLES = slice(1, 5)        # the touchdown angles in the fit's vector (leg first)
+
+
+def null_task(spec: StudySpec, replicate: int, runs: int) -> Task | None:
+    """Return the study's null data set of `runs` runs in `replicate` (None if it has none)."""
+    from octoroach_model.studies.design import build_tasks
+
+    return next((task for task in build_tasks(spec) if task.replicate == replicate
+                 and task.runs_cell == runs and task.arm.kind == 'null'), None)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -46,12 +59,11 @@ def main(argv: list[str] | None = None) -> int:
     from octoroach_model.diagnosis.diagnose import _baseline, _prepare, decimated
     from octoroach_model.diagnosis.modelfit import fit_geometry
     from octoroach_model.studies import replicate as study
-    from octoroach_model.studies.design import build_tasks, draw_robot
+    from octoroach_model.studies.design import draw_robot
     from octoroach_model.studies.spec import load_spec
 
     spec = load_spec(args.spec)
-    task = next((task for task in build_tasks(spec) if task.replicate == args.replicate
-                 and task.runs_cell == args.runs and task.arm.kind == 'null'), None)
+    task = null_task(spec, args.replicate, args.runs)
     if task is None:
         parser.error(f'{args.spec.name} has no null data set of {args.runs} runs in replicate '
                      f'{args.replicate}')

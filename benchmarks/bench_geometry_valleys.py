@@ -39,22 +39,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--diagnose', action='store_true')
     args = parser.parse_args(argv)
 
+    from bench_geometry_coverage import null_task
     from octoroach_model.diagnosis import diagnose
-    from octoroach_model.diagnosis.diagnose import _prepare, decimated, swapped_pairs
+    from octoroach_model.diagnosis.diagnose import _prepare, baseline_starts, decimated
     from octoroach_model.diagnosis.modelfit import (
-        fit_geometry, fit_spread, FittedModel, GAIT_COLUMNS, geometry_residuals,
-        RIVAL_BOOTSTRAP, Simulator)
-    from octoroach_model.fitting import fit_nominal, mean_start_pose, NominalFitSettings
+        fit_geometry, FittedModel, GAIT_COLUMNS, geometry_residuals, RIVAL_BOOTSTRAP)
     from octoroach_model.fitting.covariance import cost_gap_se, target_changes
-    from octoroach_model.fitting.target import average_target
-    from octoroach_model.model import ModelParameters
     from octoroach_model.studies import replicate as study
-    from octoroach_model.studies.design import build_tasks, draw_robot
+    from octoroach_model.studies.design import draw_robot
     from octoroach_model.studies.spec import load_spec
 
     spec = load_spec(args.spec)
-    task = next((task for task in build_tasks(spec) if task.replicate == args.replicate
-                 and task.runs_cell == args.runs and task.arm.kind == 'null'), None)
+    task = null_task(spec, args.replicate, args.runs)
     if task is None:
         parser.error(f'{args.spec.name} has no null data set of {args.runs} runs in replicate '
                      f'{args.replicate}')
@@ -69,19 +65,12 @@ def main(argv: list[str] | None = None) -> int:
     train = _prepare(decimated(measured)[0], settings).train
     fit = settings.fit()
 
-    # the baseline's starts, as diagnose._baseline makes them
-    start_pose = mean_start_pose(train.paths)
-    initial = replace(ModelParameters.nominal(), stride_frequency=train.stride_frequency)
-    aligned = average_target(train.paths, start_pose, train.stride_frequency, align_gait=True)
-    quick = fit_nominal(train.paths, initial, NominalFitSettings(
-        heading_weight_m=settings.heading_weight_m, align_gait=True, tolerance=1e-6),
-        start_pose=start_pose, target=aligned)
-    spread = fit_spread(Simulator(train, settings.seed),
-                        FittedModel(quick.parameters, start_pose, 1.0, {}), fit)
-    starts = [(f'start {number}', FittedModel(parameters, start_pose, spread, {}))
-              for number, parameters in enumerate(swapped_pairs(quick.parameters), 1)]
+    starts = [(f'start {number}', start)
+              for number, start in enumerate(baseline_starts(train, settings), 1)]
+    at_spread = starts[0][1]          # every start shares the start pose and spread scale
     starts.append(('the robot', FittedModel(replace(
-        robot.parameters(), sample_rate=train.paths.rate_hz), start_pose, spread, {})))
+        robot.parameters(), sample_rate=train.paths.rate_hz), at_spread.start_pose,
+        at_spread.sigma_scale, {})))
 
     print('| from | cost | fitted angles, deg | standard errors, deg '
           '| errors in standard errors |')

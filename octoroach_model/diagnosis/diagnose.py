@@ -431,23 +431,31 @@ def _baseline(halves: _Halves, settings: DiagnosisSettings,
     (`alternatives`): the adequacy check weighs them (`rival_geometries`).
     """
     train = halves.train
-    start_pose = mean_start_pose(train.paths)
-    initial = ModelParameters.nominal()
-    initial = replace(initial, stride_frequency=train.stride_frequency)
-    aligned = average_target(train.paths, start_pose, train.stride_frequency, align_gait=True)
-    quick = fit_nominal(train.paths, initial, NominalFitSettings(
-        heading_weight_m=settings.heading_weight_m, align_gait=True, tolerance=1e-6),
-        start_pose=start_pose, target=aligned)
     fit = settings.fit()
-    spread = fit_spread(Simulator(train, settings.seed),
-                        FittedModel(quick.parameters, start_pose, 1.0, {}), fit)
-    starts = [FittedModel(parameters, start_pose, spread, {})
-              for parameters in swapped_pairs(quick.parameters)]
-    fits = _geometry_fits(train, starts, fit, pool)
+    fits = _geometry_fits(train, baseline_starts(train, settings), fit, pool)
     best = min(fits, key=lambda found: found[2].cost)
     alternatives = distinct_geometries((best[0], best[2]),
                                        [found[0] for found in fits if found is not best])
     return replace(fit_causes(train, best[0], (), fit), alternatives=alternatives)
+
+
+def baseline_starts(train: RunData, settings: DiagnosisSettings) -> list[FittedModel]:
+    """
+    Return the geometries the baseline is fitted from (`_baseline`), at the runs' spread.
+
+    A quick deterministic fit (eq. 9) on the gait-aligned average, its spread scale, and its
+    angles as they are and with each stance pair's two swapped (`swapped_pairs`).
+    """
+    start_pose = mean_start_pose(train.paths)
+    initial = replace(ModelParameters.nominal(), stride_frequency=train.stride_frequency)
+    aligned = average_target(train.paths, start_pose, train.stride_frequency, align_gait=True)
+    quick = fit_nominal(train.paths, initial, NominalFitSettings(
+        heading_weight_m=settings.heading_weight_m, align_gait=True, tolerance=1e-6),
+        start_pose=start_pose, target=aligned)
+    spread = fit_spread(Simulator(train, settings.seed),
+                        FittedModel(quick.parameters, start_pose, 1.0, {}), settings.fit())
+    return [FittedModel(parameters, start_pose, spread, {})
+            for parameters in swapped_pairs(quick.parameters)]
 
 
 def _geometry_fits(train: RunData, starts: list[FittedModel], fit: FitSettings,

@@ -606,10 +606,9 @@ def geometry_residuals(data: RunData, model: FittedModel, path_causes: tuple[str
     """Return the geometry fit's residuals at `model` as it stands (no fitting)."""
     problem = geometry_problem(data, model, path_causes, settings)
     parameters = model.parameters
-    vector = np.array([parameters.leg_length, *parameters.touchdown_angles,
-                       parameters.stride_frequency]
-                      + [float(model.effects[item.cause][item.parameter])
-                         for item in problem.free])
+    vector = np.append(geometry_vector(parameters),
+                       [float(model.effects[item.cause][item.parameter])
+                        for item in problem.free])
     residuals: FloatArray = NominalProblem.of(parameters.with_paper_liftoff(), model.start_pose,
                                               data.target, problem).residuals(vector)
     return residuals
