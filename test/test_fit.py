@@ -191,3 +191,22 @@ def test_a_gait_target_without_its_standard_errors_is_refused_at_once():
     with pytest.raises(ValueError, match='matched in standard errors'):
         residual_vector(np.zeros((3, 2)), None, np.zeros(5), 0.13, None)
     assert residual_vector(np.zeros((3, 2)), np.zeros(3), None, 0.13, None).shape == (9,)
+
+
+def test_runs_with_every_sample_read_bit_for_bit_as_through_the_masked_path():
+    # whole runs skip the masks (gait.py's fast paths, the nominal fit's hot loop); a run
+    # that ends early beside them sends every run through the masked form, which must give
+    # the whole runs' features to the last bit
+    from octoroach_model.fitting.gait import detrended, gait_features, stride_samples
+    paths = om.simulate(12, seed=3, cycles=6)
+    t, poses = paths.t, paths.poses
+    short = poses[:1].copy()
+    short[:, len(t) // 2:] = np.nan
+    both = np.concatenate([poses, short])
+    cycle = stride_samples(om.ModelParameters.nominal().stride_frequency, float(t[1] - t[0]))
+    guess = om.ModelParameters.nominal().stride_frequency
+    whole = gait_features(t, poses[..., :2], poses[..., 2], guess, cycle)
+    masked = gait_features(t, both[..., :2], both[..., 2], guess, cycle)[:-1]
+    assert np.array_equal(whole, masked)
+    assert np.array_equal(detrended(poses[..., 2], t), detrended(both[..., 2], t)[:-1])
+    assert np.isfinite(masked).all()

@@ -45,8 +45,9 @@ class GaitTarget:
     def of_runs(self, runs: FloatArray, guess_hz: float) -> FloatArray:
         """Return the (runs, GAIT_FEATURES) of simulated runs on `t`, cut like the data's."""
         picks = self.lengths[np.arange(runs.shape[0]) % len(self.lengths)]
-        cut = np.arange(len(self.t))[None, :] >= picks[:, None]
-        runs = np.where(cut[..., None], np.nan, runs)
+        if picks.min() < len(self.t):          # some data runs end early: cut alike
+            cut = np.arange(len(self.t))[None, :] >= picks[:, None]
+            runs = np.where(cut[..., None], np.nan, runs)
         return gait_features(self.t, runs[..., :2], runs[..., 2], guess_hz, self.cycle)
 
 

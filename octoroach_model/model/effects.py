@@ -273,15 +273,8 @@ def turn_persistently(poses: FloatArray, t: FloatArray, yaw_rate: FloatArray) ->
     array, shape (n, T, 3)
 
     """
-    steps = np.diff(poses[..., :2], axis=1)
     mid_angle = yaw_rate[:, None] * 0.5 * (t[1:] + t[:-1])[None, :]
-    cos_a, sin_a = cos_sin(mid_angle)
-    turned = np.stack([cos_a * steps[..., 0] - sin_a * steps[..., 1],
-                       sin_a * steps[..., 0] + cos_a * steps[..., 1]], axis=-1)
-    out = poses.copy()
-    out[:, 1:, :2] = poses[:, :1, :2] + np.cumsum(turned, axis=1)
-    out[..., 2] = poses[..., 2] + yaw_rate[:, None] * t[None, :]
-    return out
+    return _turned_steps(poses, mid_angle, poses[..., 2] + yaw_rate[:, None] * t[None, :])
 
 
 def perturb_heading(poses: FloatArray, perturbation: FloatArray) -> FloatArray:
@@ -303,14 +296,28 @@ def perturb_heading(poses: FloatArray, perturbation: FloatArray) -> FloatArray:
     array, shape (n, T, 3)
 
     """
-    steps = np.diff(poses[..., :2], axis=1)
     mid_angle = 0.5 * (perturbation[:, 1:] + perturbation[:, :-1])
-    cos_a, sin_a = cos_sin(mid_angle)
-    turned = np.stack([cos_a * steps[..., 0] - sin_a * steps[..., 1],
-                       sin_a * steps[..., 0] + cos_a * steps[..., 1]], axis=-1)
-    out = poses.copy()
-    out[:, 1:, :2] = poses[:, :1, :2] + np.cumsum(turned, axis=1)
-    out[..., 2] = poses[..., 2] + perturbation
+    return _turned_steps(poses, mid_angle, poses[..., 2] + perturbation)
+
+
+def _turned_steps(poses: FloatArray, angle: FloatArray, heading: FloatArray) -> FloatArray:
+    """
+    Return the runs with each sample step turned by its `angle` (n, T - 1), and `heading`.
+
+    Each position is the first plus the sum of the turned steps before it; x and y are summed
+    apart (no (n, T, 2) stack of the steps), the same additions in the same order.
+    """
+    out = np.empty_like(poses)
+    out[..., 2] = heading
+    if poses.shape[1] == 0:
+        return out
+    x, y = poses[..., 0], poses[..., 1]
+    step_x, step_y = x[:, 1:] - x[:, :-1], y[:, 1:] - y[:, :-1]
+    cos_a, sin_a = cos_sin(angle)
+    out[:, 0, :2] = poses[:, 0, :2]
+    np.cumsum(cos_a * step_x - sin_a * step_y, axis=1, out=out[:, 1:, 0])
+    np.cumsum(sin_a * step_x + cos_a * step_y, axis=1, out=out[:, 1:, 1])
+    out[:, 1:, :2] += poses[:, :1, :2]
     return out
 
 
@@ -336,11 +343,11 @@ def slip_sideways(poses: FloatArray, t: FloatArray, velocity: float | FloatArray
     array, shape (n, T, 3)
 
     """
-    heading = poses[..., 2]
-    cos_h, sin_h = cos_sin(heading)
-    right = np.stack([sin_h, -cos_h], axis=-1)
-    dt = np.diff(t)[None, :, None]
-    drift = np.cumsum(0.5 * (right[:, 1:] + right[:, :-1]) * dt, axis=1) * velocity
+    cos_h, sin_h = cos_sin(poses[..., 2])
+    dt = np.diff(t)[None, :]
+    speed = velocity[..., 0] if isinstance(velocity, np.ndarray) else velocity
     out = poses.copy()
-    out[:, 1:, :2] += drift
+    # x and y apart; r's y is -cos, and every step of the sum is exact under a sign change
+    out[:, 1:, 0] += np.cumsum(0.5 * (sin_h[:, 1:] + sin_h[:, :-1]) * dt, axis=1) * speed
+    out[:, 1:, 1] -= np.cumsum(0.5 * (cos_h[:, 1:] + cos_h[:, :-1]) * dt, axis=1) * speed
     return out
