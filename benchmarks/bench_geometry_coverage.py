@@ -80,7 +80,8 @@ def main(argv: list[str] | None = None) -> int:
         header += ' cost from the fit | cost from the robot | angles from the robot, deg |'
     print(header)
     print('| --- ' * (header.count('|') - 1) + '|')
-    z_all, frequency_errors = [], []
+    z_rows: list[np.ndarray] = []
+    frequency_errors = []
     for k in range(args.data_sets):
         seed = robot.data_seed + 1000 * (k + 1)
         draw = replace(robot, data_seed=seed)
@@ -90,9 +91,10 @@ def main(argv: list[str] | None = None) -> int:
         fit = _baseline(halves, settings)
         parameters = fit.model.parameters
         fitted = np.degrees(parameters.touchdown_angles)
+        assert fit.geometry is not None, 'the baseline fits the geometry'
         se = np.degrees(np.sqrt(np.diag(fit.geometry.covariance)[ANGLES]))
         z = (fitted - truth) / se
-        z_all.append(z)
+        z_rows.append(z)
         frequency_errors.append(abs(parameters.stride_frequency / robot.stride_frequency_hz - 1))
         row = (f'| {seed} | {parameters.leg_length * 100:.2f} | '
                f'{parameters.stride_frequency:.2f} | {", ".join(f"{a:.1f}" for a in fitted)} | '
@@ -107,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
             row += (f' {at_fit.cost:.0f} | {at_robot.cost:.0f} | '
                     f'{", ".join(f"{a:.1f}" for a in angles)} |')
         print(row, flush=True)
-    z_all = np.array(z_all)
+    z_all = np.array(z_rows)
     rms = np.sqrt(np.mean(z_all ** 2, axis=0))
     print(f'\nroot mean square of the errors in standard errors, per angle: '
           f'{", ".join(f"{v:.2f}" for v in rms)} (1 where the errors are honest); '

@@ -338,6 +338,46 @@ def test_a_rival_geometry_counts_at_its_weight_and_only_from_another_valley():
     assert np.nanmax(np.abs(difference)) > 0       # the far rival differs in some statistic
 
 
+def test_the_final_model_is_the_fit_of_lowest_cost_on_all_runs_whichever_valley_it_is_in():
+    """
+    The final fit starts from the race's model and from it in every other valley found.
+
+    The calibration half chose a valley the runs may not tell from another; on all runs the
+    fit of lowest cost is the model a report states, the others that end elsewhere its
+    rivals, and with no other valley the race's model alone is refit, as before.
+    """
+    from octoroach_model.diagnosis.diagnose import final_starts, lowest_cost
+    from octoroach_model.diagnosis.modelfit import CausesFit, FittedModel, GeometryUncertainty
+
+    parameters = om.ModelParameters.nominal()
+    model = FittedModel(parameters, (0.0, 0.0, 0.0), 1.2, {'lateral_slip': {
+        'velocity_cm_s': 0.5}})
+    swapped = replace(parameters, sample_rate=200.0, touchdown_angles=tuple(   # 6 deg away
+        a + math.radians(6.0) * sign for a, sign in zip(parameters.touchdown_angles,
+                                                         (1, -1, 1, -1))))
+    starts = final_starts(model, [swapped])
+    assert starts[0] is model and len(starts) == 2
+    other = starts[1]
+    assert other.parameters.touchdown_angles == swapped.touchdown_angles
+    assert other.parameters.sample_rate == parameters.sample_rate      # the model's clock
+    assert other.effects == model.effects and other.sigma_scale == model.sigma_scale
+    assert final_starts(model, []) == [model]
+
+    covariance = np.diag(np.array([0.001] + [math.radians(1.0)] * 4 + [0.05]) ** 2)
+
+    def fitted(start: FittedModel, cost: float) -> CausesFit:
+        return CausesFit(start, {}, GeometryUncertainty((), covariance, cost))
+
+    race, far, same = fitted(model, 500.0), fitted(other, 400.0), fitted(model, 450.0)
+    chosen = lowest_cost([race, far])
+    assert chosen.model is other and chosen.alternatives == (model.parameters,)
+    kept = lowest_cost([far, race])                # the same, whatever the order
+    assert kept.model is other and kept.alternatives == (model.parameters,)
+    assert lowest_cost([race, fitted(other, 600.0)]).model is model
+    assert lowest_cost([race, same]).alternatives == ()   # one valley: no rival
+    assert lowest_cost([race]) is race
+
+
 def test_a_start_heading_spread_of_exactly_zero_still_gets_a_detection_limit():
     """
     Runs simulated without a start heading spread have a variance of 1e-32 rad^2.

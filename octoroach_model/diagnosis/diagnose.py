@@ -41,10 +41,11 @@ from octoroach_model.diagnosis.features import heading_amplitudes, INDEX
 from octoroach_model.diagnosis.limits import detection_limit, Limit, limit_base
 from octoroach_model.diagnosis.misfit import locate
 from octoroach_model.diagnosis.modelfit import (
-    at_size, CausesFit, CHANGE_POINT_BOOTSTRAP, change_point_step, distinct_geometries,
-    fit_causes, fit_geometry, fit_mixture, fit_moment, fit_spread, fit_trend,
-    FitSettings, FittedModel, GeometryUncertainty, MIXTURE_EVIDENCE_NATS, rival_geometries,
-    RivalGeometry, RunData, Simulator, SizeEstimate, spread_error, spread_statistic)
+    at_geometry, at_size, CausesFit, CHANGE_POINT_BOOTSTRAP, change_point_step,
+    distinct_geometries, fit_causes, fit_geometry, fit_mixture, fit_moment, fit_spread,
+    fit_trend, FitSettings, FittedModel, GeometryUncertainty, MIXTURE_EVIDENCE_NATS,
+    rival_geometries, RivalGeometry, RunData, Simulator, SizeEstimate, spread_error,
+    spread_statistic)
 from octoroach_model.diagnosis.records import (
     CandidateResult, DecisionRules, DiagnosisReport, LimitMethod, ModelSummary, NamedCause,
     NamedExtension, PaperValidation, Rival, RunLengths, ScoreSummary, StepResult)
@@ -179,9 +180,12 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
                                    rounds=settings.rounds - 1).model
             current_scores = _score(simulator, model, halves, settings)
             remaining.remove(chosen.cause)
-        say(0.75, 'refitting the extended model on all runs')
+        say(0.75, 'refitting the extended model on all runs' + (
+            f' (from {1 + len(baseline_fit.alternatives)} geometries)'
+            if baseline_fit.alternatives else ''))
         clock.enter('final_fit')
-        final_future = pool.submit(_final_fit, halves, model, settings)
+        final_futures = [pool.submit(_final_fit, halves, start, settings)
+                         for start in final_starts(model, baseline_fit.alternatives)]
         validations = {}
         if settings.validate_models:
             validations = {name: pool.submit(paper_validation, measured, fitted,
@@ -195,7 +199,8 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
                                             last_seen[cause], settings,
                                             None if cause in model.effects else shared)
                          for cause in last_seen} if settings.detection_limits else {}
-        final_fit, dropped = _pruned(final_future.result(), halves, settings)
+        final_fit = lowest_cost([future.result() for future in final_futures])
+        final_fit, dropped = _pruned(final_fit, halves, settings)
         final, final_estimates = final_fit.model, final_fit.estimates
         say(0.85, 'discrepancies and adequacy')
         clock.enter('adequacy')
@@ -204,7 +209,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         n_model = max(halves.every.n, settings.discrepancy_runs)
         baseline_rivals = rival_geometries(halves.train, baseline_fit,
                                            baseline_fit.alternatives, settings.fit())
-        final_rivals = rival_geometries(halves.every, final_fit, baseline_fit.alternatives,
+        final_rivals = rival_geometries(halves.every, final_fit, final_fit.alternatives,
                                         settings.fit(1))
         baseline_rows = discrepancies(
             halves.every.features, everything.features(baseline, n_model, DISCREPANCY_PURPOSE),
@@ -818,6 +823,34 @@ def _final_fit(halves: _Halves, model: FittedModel, settings: DiagnosisSettings
     return fit_causes(halves.every, model, model.causes, settings.fit(1))
 
 
+def final_starts(model: FittedModel, alternatives: Sequence[ModelParameters]
+                 ) -> list[FittedModel]:
+    """
+    Return where the final fit on all runs starts: the race's model, in each valley found.
+
+    The race's model itself, and the same in each other valley the baseline's starts found
+    (`_baseline`'s alternatives). The race ran on the calibration half in the valley that
+    half preferred; where the runs do not tell two valleys apart (a fast robot of few long
+    runs), all runs may prefer the other, and the model a report states is the better fit on
+    all of them (`lowest_cost`).
+    """
+    return [model] + [at_geometry(model, parameters) for parameters in alternatives]
+
+
+def lowest_cost(fits: Sequence[CausesFit]) -> CausesFit:
+    """
+    Return the fit of lowest geometry cost (the first of equal ones), the others as rivals.
+
+    The others that ended in other valleys are its `alternatives`, which the adequacy check
+    weighs (`rival_geometries`).
+    """
+    best = min(fits, key=lambda fit: fit.geometry.cost if fit.geometry else math.inf)
+    if best.geometry is None or len(fits) == 1:
+        return best
+    return replace(best, alternatives=distinct_geometries(
+        (best.model, best.geometry), [fit.model for fit in fits if fit is not best]))
+
+
 def _pruned(fit: CausesFit, halves: _Halves, settings: DiagnosisSettings
             ) -> tuple[CausesFit, tuple[str, ...]]:
     """
@@ -847,7 +880,8 @@ def _pruned(fit: CausesFit, halves: _Halves, settings: DiagnosisSettings
         start = replace(fit.model, effects={name: values for name, values
                                             in fit.model.effects.items()
                                             if name != weakest.cause})
-        fit = fit_causes(halves.every, start, start.causes, settings.fit(1))
+        fit = replace(fit_causes(halves.every, start, start.causes, settings.fit(1)),
+                      alternatives=fit.alternatives)
 
 
 def _named(steps: Sequence[StepResult], final: FittedModel,

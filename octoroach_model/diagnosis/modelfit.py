@@ -695,9 +695,7 @@ def rival_geometries(data: RunData, fit: CausesFit, alternatives: Sequence[Model
     simulator = Simulator(data, settings.seed)
     rivals = []
     for parameters in alternatives:
-        start = replace(model, parameters=replace(
-            parameters, sample_rate=model.parameters.sample_rate).with_paper_liftoff())
-        refit, _, _ = fit_geometry(data, start, path_causes, settings)
+        refit, _, _ = fit_geometry(data, at_geometry(model, parameters), path_causes, settings)
         if not distinct_geometries((model, fit.geometry), [refit]):
             continue
         rival_residuals = geometry_residuals(data, refit, path_causes, settings)
@@ -707,6 +705,12 @@ def rival_geometries(data: RunData, fit: CausesFit, alternatives: Sequence[Model
         rivals.append(RivalGeometry(refit, gap, cost_gap_se(residuals, rival_residuals,
                                                             changes)))
     return tuple(rivals)
+
+
+def at_geometry(model: FittedModel, parameters: ModelParameters) -> FittedModel:
+    """Return `model` (its effects, spread and start) with another fit's geometry."""
+    return replace(model, parameters=replace(
+        parameters, sample_rate=model.parameters.sample_rate).with_paper_liftoff())
 
 
 def free_parameters(cause: Cause, data: RunData) -> list[tuple[str, tuple[float, float]]]:
