@@ -352,9 +352,9 @@ def test_the_final_model_is_the_fit_of_lowest_cost_on_all_runs_whichever_valley_
     parameters = om.ModelParameters.nominal()
     model = FittedModel(parameters, (0.0, 0.0, 0.0), 1.2, {'lateral_slip': {
         'velocity_cm_s': 0.5}})
-    swapped = replace(parameters, sample_rate=200.0, touchdown_angles=tuple(   # 6 deg away
-        a + math.radians(6.0) * sign for a, sign in zip(parameters.touchdown_angles,
-                                                         (1, -1, 1, -1))))
+    away = tuple(angle + math.radians(6.0) * sign        # 6 deg from the model's angles
+                 for angle, sign in zip(parameters.touchdown_angles, (1, -1, 1, -1)))
+    swapped = replace(parameters, sample_rate=200.0, touchdown_angles=away)
     starts = final_starts(model, [swapped])
     assert starts[0] is model and len(starts) == 2
     other = starts[1]
