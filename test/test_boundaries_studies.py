@@ -31,7 +31,8 @@ from octoroach_model.workers import dask_client
 REPO = Path(__file__).resolve().parents[1]
 DASK = Path(sys.executable).with_name('dask')
 ONE_NULL = {'name': 'one', 'seed': 1, 'runs': [40], 'robot': {'cycles': 4},
-            'diagnosis': {'score_runs': 150, 'moment_runs': 80, 'bootstrap': 5}}
+            'diagnosis': {'score_runs': 120, 'moment_runs': 60, 'mean_path_runs': 50,
+                          'bootstrap': 5, 'detection_limits': False}}
 
 
 def listening_ports(process: psutil.Process) -> list[int]:
