@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from octoroach_model.studies.design import Task
+    from octoroach_model.studies.design import RobotDraw, Task
     from octoroach_model.studies.spec import StudySpec
 
 REPO = Path(__file__).resolve().parents[1]
@@ -44,6 +44,26 @@ def null_task(spec: StudySpec, replicate: int, runs: int) -> Task | None:
 
     return next((task for task in build_tasks(spec) if task.replicate == replicate
                  and task.runs_cell == runs and task.arm.kind == 'null'), None)
+
+
+def null_case(parser: argparse.ArgumentParser, spec_path: Path, replicate: int, runs: int
+              ) -> tuple[StudySpec, Task, RobotDraw, np.ndarray]:
+    """
+    Return a study's null data set of `runs` runs in `replicate`: spec, task, robot, angles.
+
+    The robot's touchdown angles in degrees; a spec without that data set ends the program
+    through `parser` with one line naming what is missing.
+    """
+    from octoroach_model.studies.design import draw_robot
+    from octoroach_model.studies.spec import load_spec
+
+    spec = load_spec(spec_path)
+    task = null_task(spec, replicate, runs)
+    if task is None:
+        parser.error(f'{spec_path.name} has no null data set of {runs} runs in replicate '
+                     f'{replicate}')
+    robot = draw_robot(spec, replicate)
+    return spec, task, robot, np.degrees(robot.parameters().touchdown_angles)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -59,16 +79,8 @@ def main(argv: list[str] | None = None) -> int:
     from octoroach_model.diagnosis.diagnose import _baseline, _prepare, decimated
     from octoroach_model.diagnosis.modelfit import fit_geometry
     from octoroach_model.studies import replicate as study
-    from octoroach_model.studies.design import draw_robot
-    from octoroach_model.studies.spec import load_spec
 
-    spec = load_spec(args.spec)
-    task = null_task(spec, args.replicate, args.runs)
-    if task is None:
-        parser.error(f'{args.spec.name} has no null data set of {args.runs} runs in replicate '
-                     f'{args.replicate}')
-    robot = draw_robot(spec, args.replicate)
-    truth = np.degrees(robot.parameters().touchdown_angles)
+    spec, task, robot, truth = null_case(parser, args.spec, args.replicate, args.runs)
     print(f'{spec.name} replicate {args.replicate}, {args.runs} runs: '
           f'{robot.stride_frequency_hz:.2f} Hz, {robot.cycles:.0f} cycles, '
           f'{robot.sample_rate_hz:.0f} Hz sampling, leg {robot.leg_length_cm:.2f} cm, spread x'

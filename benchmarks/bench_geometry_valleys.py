@@ -9,7 +9,9 @@ the robot's own geometry, and prints each fit's cost, angles and their errors in
 errors of the fit; then each pair's cost gap with its standard error over resamples of the
 runs (`covariance.cost_gap_se`): a gap within about two standard errors is a valley the runs
 do not rule out. With `--diagnose` the data set is diagnosed as its study would (one
-process) and the adequacy check's verdict, its largest |z| and the report's notes printed.
+process) and the adequacy check's verdict, its largest |z| and the report's notes printed,
+then those statistics on the data, the model and the robot itself (`print_robot_values`):
+whether an alarm is the data's chance or the fit's error.
 
 Minutes on one idle core: 2-4 for the fits of a fast robot of long runs, 5-8 more with
 --diagnose.
@@ -22,8 +24,15 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 import time
+from typing import Sequence, TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from octoroach_model.diagnosis import DiagnosisReport, DiagnosisSettings
+    from octoroach_model.diagnosis.discrepancies import Discrepancy
+    from octoroach_model.paths import Paths
+    from octoroach_model.studies.design import RobotDraw
 
 REPO = Path(__file__).resolve().parents[1]
 ANGLES = slice(1, 5)        # the touchdown angles in the fit's vector (leg first)
@@ -39,23 +48,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--diagnose', action='store_true')
     args = parser.parse_args(argv)
 
-    from bench_geometry_coverage import null_task
+    from bench_geometry_coverage import null_case
     from octoroach_model.diagnosis import diagnose
     from octoroach_model.diagnosis.diagnose import _prepare, baseline_starts, decimated
     from octoroach_model.diagnosis.modelfit import (
-        fit_geometry, FittedModel, GAIT_COLUMNS, geometry_residuals, RIVAL_BOOTSTRAP)
+        fit_geometry, FittedModel, GAIT_COLUMNS, geometry_residuals, RIVAL_BOOTSTRAP,
+        spread_statistic)
     from octoroach_model.fitting.covariance import cost_gap_se, target_changes
     from octoroach_model.studies import replicate as study
-    from octoroach_model.studies.design import draw_robot
-    from octoroach_model.studies.spec import load_spec
 
-    spec = load_spec(args.spec)
-    task = null_task(spec, args.replicate, args.runs)
-    if task is None:
-        parser.error(f'{args.spec.name} has no null data set of {args.runs} runs in replicate '
-                     f'{args.replicate}')
-    robot = draw_robot(spec, args.replicate)
-    truth = np.degrees(robot.parameters().touchdown_angles)
+    spec, task, robot, truth = null_case(parser, args.spec, args.replicate, args.runs)
     print(f'{spec.name} replicate {args.replicate}, {args.runs} runs: '
           f'{robot.stride_frequency_hz:.2f} Hz, {robot.cycles:.0f} cycles, '
           f'{robot.sample_rate_hz:.0f} Hz sampling, spread x{robot.spread_scale:.2f}; '
@@ -107,7 +109,53 @@ def main(argv: list[str] | None = None) -> int:
               + '; '.join(f'{row.statistic} {row.z:+.2f}' for row in worst))
         for note in report.notes:
             print(f'note: {note}')
+        spread_row = next(row for row in report.extended_discrepancies
+                          if row.statistic == SPREAD_STATISTICS[spread_statistic(
+                              report.extended_model)])
+        print_robot_values(measured, robot, settings, report,
+                           [*worst, *([spread_row] if spread_row not in worst else [])])
     return 0
+
+
+TRUTH_RUNS = 4000
+# the statistic over the feature the spread scale is read off (modelfit.spread_statistic)
+SPREAD_STATISTICS = {'increment_var': 'per-cycle heading change spread within runs',
+                     'stride_length_var': 'stride length change from cycle to cycle'}
+
+
+def print_robot_values(measured: Paths, robot: RobotDraw, settings: DiagnosisSettings,
+                       report: DiagnosisReport, rows: Sequence[Discrepancy]) -> None:
+    """
+    Print each statistic of `rows` on the data, the model and the robot itself.
+
+    `rows`: the largest |z| and the statistic the spread scale is read off. The robot's value
+    is that of TRUTH_RUNS runs of the robot, cut to the data's lengths and measured with the
+    diagnosis's ruler. The data's distance from it, in the data's standard errors, is the
+    data's chance; the model's, in the model's, is what the fit took from that chance (the
+    spread scale is read off one of the data's statistics) or got wrong. Then the spread
+    scale, fitted and true.
+    """
+    from octoroach_model.diagnosis.diagnose import _prepare, decimated
+    from octoroach_model.diagnosis.discrepancies import statistic_values, STATISTICS
+    from octoroach_model.model import simulate
+
+    sigma1, sigma2 = robot.sigmas()
+    runs = simulate(TRUTH_RUNS, seed=robot.data_seed + 1, cycles=robot.cycles,
+                    parameters=robot.parameters(), sigma1=sigma1, sigma2=sigma2)
+    runs = runs.cut_to(np.resize(measured.lengths, TRUTH_RUNS))
+    ruler = _prepare(decimated(measured)[0], settings).every
+    truth = dict(zip((s.name for s in STATISTICS), statistic_values(
+        ruler.features_of(decimated(runs)[0], None))))
+    print(f'\n| statistic | data | model | robot ({TRUTH_RUNS} runs) | data - robot, data se '
+          '| model - robot, model se |')
+    print('| --- | --- | --- | --- | --- | --- |')
+    for row in rows:
+        robot_value = truth[row.statistic]
+        print(f'| {row.statistic} | {row.data:.4g} | {row.model:.4g} | {robot_value:.4g} | '
+              f'{(row.data - robot_value) / row.data_se:+.2f} | '
+              f'{(row.model - robot_value) / row.model_se:+.2f} |')
+    print(f'spread scale: fitted {report.extended_model.sigma_scale:.4f}, true '
+          f'{robot.spread_scale:.4f}')
 
 
 if __name__ == '__main__':
