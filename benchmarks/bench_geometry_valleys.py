@@ -118,6 +118,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 TRUTH_RUNS = 4000
+TRUTH_BYTES = 500e6
 # the statistic over the feature the spread scale is read off (modelfit.spread_statistic)
 SPREAD_STATISTICS = {'increment_var': 'per-cycle heading change spread within runs',
                      'stride_length_var': 'stride length change from cycle to cycle'}
@@ -129,24 +130,28 @@ def print_robot_values(measured: Paths, robot: RobotDraw, settings: DiagnosisSet
     Print each statistic of `rows` on the data, the model and the robot itself.
 
     `rows`: the largest |z| and the statistic the spread scale is read off. The robot's value
-    is that of TRUTH_RUNS runs of the robot, cut to the data's lengths and measured with the
-    diagnosis's ruler. The data's distance from it, in the data's standard errors, is the
-    data's chance; the model's, in the model's, is what the fit took from that chance (the
-    spread scale is read off one of the data's statistics) or got wrong. Then the spread
-    scale, fitted and true.
+    is that of TRUTH_RUNS runs of the robot (fewer where their poses would pass TRUTH_BYTES),
+    cut to the data's lengths and measured with the diagnosis's ruler. The data's distance
+    from it, in the data's standard errors, is the data's chance; the model's, in the model's,
+    is what the fit took from that chance (the spread scale is read off one of the data's
+    statistics) or got wrong. Then the spread scale, fitted and true.
     """
     from octoroach_model.diagnosis.diagnose import _prepare, decimated
     from octoroach_model.diagnosis.discrepancies import statistic_values, STATISTICS
     from octoroach_model.model import simulate
 
     sigma1, sigma2 = robot.sigmas()
-    runs = simulate(TRUTH_RUNS, seed=robot.data_seed + 1, cycles=robot.cycles,
-                    parameters=robot.parameters(), sigma1=sigma1, sigma2=sigma2)
-    runs = runs.cut_to(np.resize(measured.lengths, TRUTH_RUNS))
+    parameters = robot.parameters()
+    # at most TRUTH_BYTES of poses (x, y, heading): fewer runs for a long, finely sampled run
+    samples = len(parameters.time_grid(robot.cycles))
+    count = max(200, min(TRUTH_RUNS, int(TRUTH_BYTES // (24 * samples))))
+    runs = simulate(count, seed=robot.data_seed + 1, cycles=robot.cycles,
+                    parameters=parameters, sigma1=sigma1, sigma2=sigma2)
+    runs = runs.cut_to(np.resize(measured.lengths, count))
     ruler = _prepare(decimated(measured)[0], settings).every
     truth = dict(zip((s.name for s in STATISTICS), statistic_values(
         ruler.features_of(decimated(runs)[0], None))))
-    print(f'\n| statistic | data | model | robot ({TRUTH_RUNS} runs) | data - robot, data se '
+    print(f'\n| statistic | data | model | robot ({count} runs) | data - robot, data se '
           '| model - robot, model se |')
     print('| --- | --- | --- | --- | --- | --- |')
     for row in rows:

@@ -11,10 +11,11 @@ bag reader fills them). `fit_nominal`, `validate`, `diagnose` (with or without t
 limits, drawn too) and `write_report` (with plots) must each return, or raise DataError; a plot
 that cannot be drawn must not cost the report.
 
-Profiles: the suite's (OCTOROACH_ROBOT_SPACE=quick, the default: few examples, small data) and
-the thorough one (OCTOROACH_ROBOT_SPACE=thorough, from benchmarks/bench_robot_space.py: many
-examples at full size). Draws are seeded by the suite seed (pytest's header), so a failure
-replays with the same OCTOROACH_TEST_SEED; Hypothesis also prints the failing example.
+Profiles: the suite's (OCTOROACH_ROBOT_SPACE=quick, the default: few examples, small data, few
+simulated runs in the diagnosis) and the thorough one (OCTOROACH_ROBOT_SPACE=thorough, from
+benchmarks/bench_robot_space.py: many examples at full size, twice the simulated runs).
+Draws are seeded by the suite seed (pytest's header), so a failure replays with the same
+OCTOROACH_TEST_SEED; Hypothesis also prints the failing example.
 """
 from __future__ import annotations
 
