@@ -29,8 +29,9 @@ from typing import Sequence, TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from octoroach_model.diagnosis import DiagnosisReport, DiagnosisSettings
+    from octoroach_model.diagnosis import DiagnosisReport
     from octoroach_model.diagnosis.discrepancies import Discrepancy
+    from octoroach_model.diagnosis.modelfit import RunData
     from octoroach_model.paths import Paths
     from octoroach_model.studies.design import RobotDraw
 
@@ -54,6 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     from octoroach_model.diagnosis.modelfit import (
         fit_geometry, FittedModel, GAIT_COLUMNS, geometry_residuals, RIVAL_BOOTSTRAP,
         spread_statistic)
+    from octoroach_model.diagnosis.discrepancies import STATISTICS
     from octoroach_model.fitting.covariance import cost_gap_se, target_changes
     from octoroach_model.studies import replicate as study
 
@@ -64,7 +66,8 @@ def main(argv: list[str] | None = None) -> int:
           f'touchdown angles {", ".join(f"{a:.1f}" for a in truth)} deg\n')
     measured = study.simulate_data(spec, robot, args.runs, {}).paths
     settings = replace(study.task_settings(task, spec, robot.data_seed), workers=1)
-    train = _prepare(decimated(measured)[0], settings).train
+    prepared = _prepare(decimated(measured)[0], settings)
+    train = prepared.train
     fit = settings.fit()
 
     starts = [(f'start {number}', start)
@@ -109,34 +112,32 @@ def main(argv: list[str] | None = None) -> int:
               + '; '.join(f'{row.statistic} {row.z:+.2f}' for row in worst))
         for note in report.notes:
             print(f'note: {note}')
+        spread_name = next(statistic.name for statistic in STATISTICS
+                           if statistic.feature == spread_statistic(report.extended_model))
         spread_row = next(row for row in report.extended_discrepancies
-                          if row.statistic == SPREAD_STATISTICS[spread_statistic(
-                              report.extended_model)])
-        print_robot_values(measured, robot, settings, report,
+                          if row.statistic == spread_name)
+        print_robot_values(measured, robot, prepared.every, report,
                            [*worst, *([spread_row] if spread_row not in worst else [])])
     return 0
 
 
 TRUTH_RUNS = 4000
 TRUTH_BYTES = 500e6
-# the statistic over the feature the spread scale is read off (modelfit.spread_statistic)
-SPREAD_STATISTICS = {'increment_var': 'per-cycle heading change spread within runs',
-                     'stride_length_var': 'stride length change from cycle to cycle'}
 
 
-def print_robot_values(measured: Paths, robot: RobotDraw, settings: DiagnosisSettings,
+def print_robot_values(measured: Paths, robot: RobotDraw, ruler: RunData,
                        report: DiagnosisReport, rows: Sequence[Discrepancy]) -> None:
     """
     Print each statistic of `rows` on the data, the model and the robot itself.
 
     `rows`: the largest |z| and the statistic the spread scale is read off. The robot's value
     is that of TRUTH_RUNS runs of the robot (fewer where their poses would pass TRUTH_BYTES),
-    cut to the data's lengths and measured with the diagnosis's ruler. The data's distance
+    cut to the data's lengths and measured with the diagnosis's `ruler`. The data's distance
     from it, in the data's standard errors, is the data's chance; the model's, in the model's,
     is what the fit took from that chance (the spread scale is read off one of the data's
     statistics) or got wrong. Then the spread scale, fitted and true.
     """
-    from octoroach_model.diagnosis.diagnose import _prepare, decimated
+    from octoroach_model.diagnosis.diagnose import decimated
     from octoroach_model.diagnosis.discrepancies import statistic_values, STATISTICS
     from octoroach_model.model import simulate
 
@@ -148,7 +149,6 @@ def print_robot_values(measured: Paths, robot: RobotDraw, settings: DiagnosisSet
     runs = simulate(count, seed=robot.data_seed + 1, cycles=robot.cycles,
                     parameters=parameters, sigma1=sigma1, sigma2=sigma2)
     runs = runs.cut_to(np.resize(measured.lengths, count))
-    ruler = _prepare(decimated(measured)[0], settings).every
     truth = dict(zip((s.name for s in STATISTICS), statistic_values(
         ruler.features_of(decimated(runs)[0], None))))
     print(f'\n| statistic | data | model | robot ({count} runs) | data - robot, data se '

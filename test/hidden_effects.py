@@ -1,6 +1,9 @@
 """
 What the tests that hide effects in data share: the suite seed and their diagnosis settings.
 
+`FEW_SIMULATED_RUNS` is for the tests of machinery (a study's table, a plan, a resumed study,
+a reproducible report): they need a diagnosis to run, not its precision.
+
 `SEED` is the suite's (pytest's header; `OCTOROACH_TEST_SEED=N make test` replays a run).
 `FAST` diagnoses with fewer simulated runs than the library's defaults, so that the suite
 stays within its minutes: a mean path of 120 simulated runs (300 by default) is a geometry
@@ -17,5 +20,7 @@ import random
 from octoroach_model.diagnosis import DiagnosisSettings
 
 SEED = int(os.environ.get('OCTOROACH_TEST_SEED', random.SystemRandom().randrange(10 ** 6)))
+FEW_SIMULATED_RUNS = {'score_runs': 120, 'moment_runs': 60, 'mean_path_runs': 50,
+                      'bootstrap': 10}
 FAST = DiagnosisSettings(validate_models=False, score_runs=800, moment_runs=300,
                          mean_path_runs=120, bootstrap=60, workers=1, detection_limits=False)

@@ -19,6 +19,7 @@ import subprocess
 import sys
 import time
 
+from hidden_effects import FEW_SIMULATED_RUNS
 import psutil
 import pytest
 import yaml
@@ -31,8 +32,7 @@ from octoroach_model.workers import dask_client
 REPO = Path(__file__).resolve().parents[1]
 DASK = Path(sys.executable).with_name('dask')
 ONE_NULL = {'name': 'one', 'seed': 1, 'runs': [40], 'robot': {'cycles': 4},
-            'diagnosis': {'score_runs': 120, 'moment_runs': 60, 'mean_path_runs': 50,
-                          'bootstrap': 5, 'detection_limits': False}}
+            'diagnosis': {**FEW_SIMULATED_RUNS, 'detection_limits': False}}
 
 
 def listening_ports(process: psutil.Process) -> list[int]:

@@ -21,7 +21,7 @@ import json
 import math
 import random
 
-from hidden_effects import FAST, SEED
+from hidden_effects import FAST, FEW_SIMULATED_RUNS, SEED
 from hypothesis import given, settings as hypothesis_settings, strategies as st
 import numpy as np
 import pytest
@@ -599,9 +599,7 @@ def test_too_few_runs_are_refused_with_a_reason():
 def test_the_diagnosis_is_reproducible_for_a_seed():
     measured = om.simulate(60, seed=4, cycles=6, effects={'persistent_turning':
                                                           {'yaw_rate_std_deg_s': 10.0}})
-    # reproducibility does not depend on the simulations' size: few simulated runs
-    quick = replace(FAST, seed=2, score_runs=120, moment_runs=60, mean_path_runs=40,
-                    bootstrap=10)
+    quick = replace(FAST, seed=2, **FEW_SIMULATED_RUNS)   # reproducible at any size
     first, second = diagnose(measured, quick), diagnose(measured, quick)
     first_json, second_json = first.to_json(), second.to_json()
     for volatile in ('elapsed_s', 'stages_s'):

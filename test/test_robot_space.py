@@ -35,16 +35,16 @@ from octoroach_model.validation import validate, ValidationSettings
 # The quick profile's diagnosis simulates half as many runs as the thorough one's: what the
 # property asks (a result or a one-line reason) does not depend on the simulations' noise.
 PROFILES = {
-    'quick': {'examples': 6, 'max_runs': 90, 'max_samples': 1200,
-              'simulated': {'score_runs': 100, 'moment_runs': 60, 'mean_path_runs': 40,
-                            'discrepancy_runs': 100, 'bootstrap': 10}},
-    'thorough': {'examples': 60, 'max_runs': 3000, 'max_samples': 20000,
-                 'simulated': {'score_runs': 200, 'moment_runs': 120, 'mean_path_runs': 80,
-                               'discrepancy_runs': 200, 'bootstrap': 20}},
+    'quick': {'examples': 6, 'max_runs': 90, 'max_samples': 1200, 'simulated_runs': {
+        'score_runs': 100, 'moment_runs': 60, 'mean_path_runs': 40, 'discrepancy_runs': 100,
+        'bootstrap': 10}},
+    'thorough': {'examples': 60, 'max_runs': 3000, 'max_samples': 20000, 'simulated_runs': {
+        'score_runs': 200, 'moment_runs': 120, 'mean_path_runs': 80, 'discrepancy_runs': 200,
+        'bootstrap': 20}},
 }
 PROFILE = PROFILES[os.environ.get('OCTOROACH_ROBOT_SPACE', 'quick')]
 SUITE_SEED = int(os.environ.get('OCTOROACH_TEST_SEED', '0'))
-TINY = DiagnosisSettings(validate_models=False, workers=1, **PROFILE['simulated'])
+TINY = DiagnosisSettings(validate_models=False, workers=1, **PROFILE['simulated_runs'])
 SMALL_VALIDATION = ValidationSettings(epsilon=0.4, delta=0.4, k=3, grid_points=3)
 
 

@@ -19,6 +19,7 @@ import subprocess
 import sys
 import time
 
+from hidden_effects import FEW_SIMULATED_RUNS
 import pytest
 import yaml
 
@@ -28,8 +29,6 @@ from octoroach_model.studies.table import TIMING_COLUMNS
 
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 300
-# The machinery's tests need a diagnosis, not its precision: few simulated runs each.
-SMALL_DIAGNOSIS = {'score_runs': 120, 'moment_runs': 60, 'mean_path_runs': 50, 'bootstrap': 10}
 
 
 def suite_seed() -> int:
@@ -47,7 +46,7 @@ def tiny_spec(replicates: int = 1) -> dict:
             'robot': {'cycles': 5, 'stride_frequency_hz': {'low': 1.8, 'high': 2.2}},
             'causes': ['none', {'cause': 'persistent_turning', 'sizes': [20]},
                        {'cause': 'lateral_slip', 'limit_multiples': [2], 'sign': 'both'}],
-            'diagnosis': SMALL_DIAGNOSIS}
+            'diagnosis': FEW_SIMULATED_RUNS}
 
 
 def table_rows(path: Path, with_timing: bool = False) -> list[dict]:
@@ -243,7 +242,7 @@ def test_plan_answers_with_a_power_curve_a_plot_and_json(tmp_path):
     progress = []
     result = om.plan_runs('persistent_turning', 20.0, robot={'cycles': 5}, replicates=2,
                           run_counts=[40, 80], max_runs=80, rounds=1,
-                          diagnosis=SMALL_DIAGNOSIS, method='simulate',
+                          diagnosis=FEW_SIMULATED_RUNS, method='simulate',
                           seed=SEED, workers=0, out=tmp_path / 'plan',
                           progress=lambda fraction, message: progress.append(message))
     assert result.status in ('found', 'at_min_runs', 'above_max_runs')
@@ -271,11 +270,11 @@ def test_plan_answers_with_a_power_curve_a_plot_and_json(tmp_path):
     # the two where the answers take minutes)
     simulated = om.plan_runs('measurement_noise', 0.2, robot={'cycles': 5}, replicates=2,
                              run_counts=[40], max_runs=80, rounds=0,
-                             diagnosis=SMALL_DIAGNOSIS, method='simulate', seed=SEED,
+                             diagnosis=FEW_SIMULATED_RUNS, method='simulate', seed=SEED,
                              workers=0)
     steps: list[str] = []
     model = om.plan_runs('measurement_noise', 0.2, robot={'cycles': 5}, max_runs=80,
-                         diagnosis=SMALL_DIAGNOSIS, seed=SEED, workers=0, budget_s=2.0,
+                         diagnosis=FEW_SIMULATED_RUNS, seed=SEED, workers=0, budget_s=2.0,
                          out=tmp_path / 'model',
                          progress=lambda fraction, message: steps.append(message))
     low, high = simulated.runs_needed_interval_95

@@ -53,7 +53,8 @@ class Statistic:
     a difference is material ('mean': a tenth of the feature's spread across runs, 'spread': a
     tenth of its value, 'absolute': `material` itself; and at least `relative_floor` times the
     data's value, where the runs' spread says nothing of what matters: runs that all stride
-    alike spread by their spectra's noise alone).
+    alike spread by their spectra's noise alone). `feature`: the feature behind it, where it
+    has one (a mean statistic's materiality reads that feature's spread).
     """
 
     name: str
@@ -149,7 +150,7 @@ STATISTICS: tuple[Statistic, ...] = (
               SPREAD),
     Statistic('per-cycle heading change spread within runs', 'deg',
               lambda f: float(np.sqrt(f[:, INDEX['increment_var']].mean()) * DEG), 0.01,
-              SPREAD),
+              SPREAD, feature='increment_var'),
     Statistic('lag-1 autocorrelation of heading changes', '', _mean('increment_autocorr'),
               1e-3, ABSOLUTE),
     Statistic('mean progress at the end', 'cm', _mean('end_progress', 100), 0.01, MEAN,
@@ -177,7 +178,7 @@ STATISTICS: tuple[Statistic, ...] = (
     Statistic('log speed ratio, 4th quarter / 3rd quarter', '', _mean('progress_late'), 1e-4,
               MEAN, feature='progress_late'),
     Statistic('stride length change from cycle to cycle', 'cm',
-              _root_mean('stride_length_var', 100), 1e-4, SPREAD),
+              _root_mean('stride_length_var', 100), 1e-4, SPREAD, feature='stride_length_var'),
     Statistic('heading wobble at the wobble frequency', 'deg', _rms('heading_wobble', DEG),
               0.01, SPREAD),
     Statistic('heading rate excess kurtosis across runs', '', _kurtosis('heading_rate'), 1e-3,
