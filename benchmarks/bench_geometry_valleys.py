@@ -4,7 +4,7 @@ Where the baseline's starts end, and whether the runs tell those valleys apart.
 Takes one null data set of a study spec (default: replicate 21 of
 studies/adequacy_few_runs.yaml at 40 runs, a data set the adequacy check once called off),
 fits the geometry on its calibration half from each of the baseline's starts (the quick fit's
-angles and their swapped pairs, at the runs' spread, as `diagnose._baseline` does) and from
+angles and their swapped pairs, at the runs' spread, as `diagnose.fit_baseline` does) and from
 the robot's own geometry, and prints each fit's cost, angles and their errors in standard
 errors of the fit; then each pair's cost gap with its standard error over resamples of the
 runs (`covariance.cost_gap_se`): a gap within about two standard errors is a valley the runs
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from bench_geometry_coverage import null_case
     from octoroach_model.diagnosis import diagnose
-    from octoroach_model.diagnosis.diagnose import _prepare, baseline_starts, decimated
+    from octoroach_model.diagnosis.diagnose import baseline_starts, decimated, prepare_halves
     from octoroach_model.diagnosis.modelfit import (
         fit_geometry, FittedModel, GAIT_COLUMNS, geometry_residuals, RIVAL_BOOTSTRAP,
         spread_statistic)
@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
           f'touchdown angles {", ".join(f"{a:.1f}" for a in truth)} deg\n')
     measured = study.simulate_data(spec, robot, args.runs, {}).paths
     settings = replace(study.task_settings(task, spec, robot.data_seed), workers=1)
-    prepared = _prepare(decimated(measured)[0], settings)
+    prepared = prepare_halves(decimated(measured)[0], settings)
     train = prepared.train
     fit = settings.fit()
 

@@ -88,7 +88,8 @@ def held_out_gain(replicate: int, rows: dict[str, Any], term: str) -> None:
 
     from octoroach_model.diagnosis.causes import BY_NAME
     from octoroach_model.diagnosis.diagnose import (
-        _baseline, _prepare, _score, _with_wobble, choose_wobble_hz, evaluate_candidate)
+        choose_wobble_hz, evaluate_candidate, fit_baseline, prepare_halves, score_held_out,
+        with_wobble)
     from octoroach_model.diagnosis.limits import (
         _features, limit_base, MODEL_PURPOSE, PSEUDO_PURPOSE, simulated_gains)
     from octoroach_model.diagnosis.modelfit import FittedModel, Simulator
@@ -109,12 +110,12 @@ def held_out_gain(replicate: int, rows: dict[str, Any], term: str) -> None:
     effects = study.task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
     measured = study.simulate_data(spec, draw, task.runs_cell, effects).paths
     settings = study.task_settings(task, spec, draw.data_seed)
-    halves = _prepare(measured, settings)
-    baseline = _baseline(halves, settings).model
-    halves = _with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
+    halves = prepare_halves(measured, settings)
+    baseline = fit_baseline(halves, settings).model
+    halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
     simulator = Simulator(halves.test, settings.seed)
-    evaluation = evaluate_candidate(halves, baseline, _score(simulator, baseline, halves,
-                                                             settings), term, settings)
+    scores = score_held_out(simulator, baseline, halves, settings)
+    evaluation = evaluate_candidate(halves, baseline, scores, term, settings)
     held_out = halves.test.n
     spread = evaluation.gain.standard_error * math.sqrt(held_out)
     parameter = BY_NAME[term].parameter
@@ -168,7 +169,7 @@ def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
 
     from octoroach_model.diagnosis.causes import BY_NAME
     from octoroach_model.diagnosis.diagnose import (
-        _baseline, _prepare, _with_wobble, CANDIDATES, choose_wobble_hz)
+        CANDIDATES, choose_wobble_hz, fit_baseline, prepare_halves, with_wobble)
     from octoroach_model.diagnosis.limits import (
         _features, limit_base, MODEL_PURPOSE, simulated_gains)
     from octoroach_model.diagnosis.modelfit import (
@@ -189,9 +190,9 @@ def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
     draw = draw_robot(spec, replicate)
     measured = study.simulate_data(spec, draw, task.runs_cell, {}).paths
     settings = study.task_settings(task, spec, draw.data_seed)
-    halves = _prepare(measured, settings)
-    baseline = _baseline(halves, settings).model
-    halves = _with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
+    halves = prepare_halves(measured, settings)
+    baseline = fit_baseline(halves, settings).model
+    halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
     simulator, data = Simulator(halves.test, settings.seed), halves.test
     held_out, fit = data.n, settings.fit()
     base = limit_base(simulator, baseline, halves.scales, settings.score_runs)

@@ -3,7 +3,7 @@ How often the baseline's starts end in more than one valley: a census over a stu
 
 For each null data set of a study spec (default: studies/adequacy_few_runs.yaml, every
 replicate and run count) it fits the baseline as the diagnosis does (calibration half; the
-quick fit's angles and their swapped pairs at the runs' spread, `diagnose._baseline`) and
+quick fit's angles and their swapped pairs at the runs' spread, `diagnose.fit_baseline`) and
 prints how many starts ended in another valley (`modelfit.distinct_geometries`), with the
 costs. Only those data sets carry rivals in the adequacy check (since 902e7ac) and a final fit
 from each valley (`diagnose.final_starts`): elsewhere the diagnosis is what it was before
@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
                         help='run counts (default: all of the spec)')
     args = parser.parse_args(argv)
 
-    from octoroach_model.diagnosis.diagnose import _baseline, _prepare, decimated
+    from octoroach_model.diagnosis.diagnose import decimated, fit_baseline, prepare_halves
     from octoroach_model.studies import replicate as study
     from octoroach_model.studies.design import build_tasks, draw_robot
     from octoroach_model.studies.spec import load_spec
@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
         robot = draw_robot(spec, task.replicate)
         measured = study.simulate_data(spec, robot, runs, {}).paths
         settings = replace(study.task_settings(task, spec, robot.data_seed), workers=1)
-        baseline = _baseline(_prepare(decimated(measured)[0], settings), settings)
+        baseline = fit_baseline(prepare_halves(decimated(measured)[0], settings), settings)
         others = len(baseline.alternatives)
         found += others > 0
         print(f'| {task.replicate} | {runs} | {robot.stride_frequency_hz:.2f} | '

@@ -301,13 +301,14 @@ def test_a_rival_geometry_counts_at_its_weight_and_only_from_another_valley():
     that weight. A fit from another start that ends within two standard errors of the model
     is the model's own valley, and of two rivals in one place only the first is kept.
     """
-    from octoroach_model.diagnosis.diagnose import _prepare, DISCREPANCY_PURPOSE, fit_errors
+    from octoroach_model.diagnosis.diagnose import (
+        DISCREPANCY_PURPOSE, fit_errors, prepare_halves)
     from octoroach_model.diagnosis.discrepancies import statistic_values
     from octoroach_model.diagnosis.modelfit import (
         distinct_geometries, FittedModel, GeometryUncertainty, RivalGeometry, Simulator)
 
     measured = om.simulate(40, seed=SEED % 1000, cycles=4)
-    data = _prepare(measured, FAST).every
+    data = prepare_halves(measured, FAST).every
     parameters = om.ModelParameters.nominal()
     model = FittedModel(parameters, (0.0, 0.0, 0.0), 1.0)
 
@@ -575,13 +576,13 @@ def test_a_speed_decay_enters_at_the_strides_the_runs_show():
     own model scores the same.)
     """
     from octoroach_model.diagnosis.diagnose import (
-        _baseline, _prepare, _score, evaluate_candidate, Simulator)
+        evaluate_candidate, fit_baseline, prepare_halves, score_held_out, Simulator)
 
     measured = om.simulate(N_RUNS, seed=271828, effects={'speed_decay': {'fraction': 0.3735}})
     fast = replace(FAST, seed=271828)
-    halves = _prepare(measured, fast)
-    baseline = _baseline(halves, fast).model
-    scores = _score(Simulator(halves.test, fast.seed), baseline, halves, fast)
+    halves = prepare_halves(measured, fast)
+    baseline = fit_baseline(halves, fast).model
+    scores = score_held_out(Simulator(halves.test, fast.seed), baseline, halves, fast)
     decay = evaluate_candidate(halves, baseline, scores, 'speed_decay', fast)
     robot = decay.model.parameters
     assert robot.stride_frequency == pytest.approx(2.0, rel=0.02)
@@ -674,14 +675,14 @@ def test_which_group_of_runs_turns_is_told_by_the_geometry(share):
     happen to turn (each run is drawn turning or not): at suite seed 61803 more of the
     calibration runs turned than 0.65 of them, and 0.80 was fitted (reported error 0.04).
     """
-    from octoroach_model.diagnosis.diagnose import _baseline, _prepare
+    from octoroach_model.diagnosis.diagnose import fit_baseline, prepare_halves
     from octoroach_model.diagnosis.modelfit import fit_causes
 
     chosen = settings(17)
     runs = om.simulate(240, seed=SEED + 17, extensions={'run_mixture': {
         'fraction': share, 'yaw_rate_deg_s': 9.0}})
-    halves = _prepare(runs, chosen)
-    baseline = _baseline(halves, chosen).model
+    halves = prepare_halves(runs, chosen)
+    baseline = fit_baseline(halves, chosen).model
     fitted = fit_causes(halves.train, baseline, ('run_mixture',), chosen.fit(), rounds=1)
     found = fitted.model.effects['run_mixture']
     error = math.hypot(fitted.estimates['run_mixture'].others['fraction'],
@@ -702,7 +703,7 @@ def test_the_baseline_compares_its_starting_geometries_at_the_runs_spread():
     fitted spread, cost 4624 against 3708 from the robot's own angles; at the CI's rate the
     turning share's fit then stayed far from the robot and lost the race). Now both 3708.
     """
-    from octoroach_model.diagnosis.diagnose import _baseline, _prepare
+    from octoroach_model.diagnosis.diagnose import fit_baseline, prepare_halves
     from octoroach_model.diagnosis.modelfit import fit_geometry
 
     robot = replace(om.ModelParameters.nominal(), leg_length=0.019984, stride_frequency=2.4901,
@@ -713,8 +714,8 @@ def test_the_baseline_compares_its_starting_geometries_at_the_runs_spread():
                        sigma2=0.7738 * sigma2, extensions={'run_mixture': {
                            'fraction': 0.398, 'yaw_rate_deg_s': 8.211}})
     chosen = replace(FAST, seed=183882)
-    halves = _prepare(runs, chosen)
-    baseline = _baseline(halves, chosen).model
+    halves = prepare_halves(runs, chosen)
+    baseline = fit_baseline(halves, chosen).model
     fitted, _, at_baseline = fit_geometry(halves.train, baseline, (), chosen.fit())
     _, _, from_robot = fit_geometry(halves.train, replace(baseline, parameters=robot), (),
                                     chosen.fit())
@@ -772,11 +773,11 @@ def test_the_baseline_keeps_the_stride_frequency_the_runs_show_under_a_slow_wobb
     spread 3.6 times the robot's; every candidate's refit stayed there, a 2 % speed change
     was named instead of the wobble. The fit now matches the runs' mean stride frequency too.
     """
-    from octoroach_model.diagnosis.diagnose import _baseline, _prepare
+    from octoroach_model.diagnosis.diagnose import fit_baseline, prepare_halves
 
     measured = wobble(om.simulate(N_RUNS, seed=523926), 7.555, 1.7035, 523917)
     fast = replace(FAST, seed=523926)
-    baseline = _baseline(_prepare(measured, fast), fast).model
+    baseline = fit_baseline(prepare_halves(measured, fast), fast).model
     assert baseline.parameters.stride_frequency == pytest.approx(2.0, rel=0.03)
 
 

@@ -112,8 +112,13 @@ class DiagnosisSettings:
 
 
 @dataclass
-class _Halves:
-    """The measured runs, their calibration and held-out halves, ready for scoring."""
+class Halves:
+    """
+    The measured runs, their calibration and held-out halves, ready for scoring.
+
+    What every stage of `diagnose` works on; benchmarks and tests that take one stage apart
+    start from `prepare_halves` too (after `decimated`, as `diagnose` does).
+    """
 
     every: RunData
     train: RunData
@@ -143,14 +148,14 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     with executor_for(executor, settings.workers) as pool, single_threaded():
         say(0.02, 'preparing the runs (features, gait clock)')
         clock.enter('prepare')
-        halves = _prepare(resolved, settings)
+        halves = prepare_halves(resolved, settings)
         say(0.08, 'fitting the baseline (geometry on the mean path, spread scale)')
         clock.enter('baseline')
-        baseline_fit = _baseline(halves, settings, pool)
+        baseline_fit = fit_baseline(halves, settings, pool)
         baseline = baseline_fit.model
-        halves = _with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
+        halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
         simulator = Simulator(halves.test, settings.seed)
-        current_scores = _score(simulator, baseline, halves, settings)
+        current_scores = score_held_out(simulator, baseline, halves, settings)
         baseline_scores = current_scores
         say(0.15, f'baseline: sigma1 = {baseline.sigmas[0]:.3f}, '
                   f'sigma2 = {baseline.sigmas[1]:.3f} rad')
@@ -178,7 +183,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             if settings.rounds > 1:
                 model = fit_causes(halves.train, model, model.causes, settings.fit(),
                                    rounds=settings.rounds - 1).model
-            current_scores = _score(simulator, model, halves, settings)
+            current_scores = score_held_out(simulator, model, halves, settings)
             remaining.remove(chosen.cause)
         say(0.75, 'refitting the extended model on all runs' + (
             f' (from {1 + len(baseline_fit.alternatives)} geometries)'
@@ -267,7 +272,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     return report
 
 
-def _places(halves: _Halves) -> FloatArray:
+def _places(halves: Halves) -> FloatArray:
     """Return every run's place in the recording (RunData always sets them)."""
     places = halves.every.positions
     assert places is not None, 'RunData sets its places'
@@ -322,7 +327,8 @@ def decimated(measured: Paths) -> tuple[Paths, str | None]:
                   f"paper's validation used all {measured.rate_hz:.0f} Hz")
 
 
-def _prepare(measured: Paths, settings: DiagnosisSettings) -> _Halves:
+def prepare_halves(measured: Paths, settings: DiagnosisSettings) -> Halves:
+    """Split the runs at random (from `settings.seed`) and measure their features."""
     frequency = stride_frequency_estimate(measured.poses[..., 2], measured.t)
     start = mean_start_pose(measured)
     order = np.random.default_rng(settings.seed).permutation(measured.n_paths)
@@ -338,17 +344,17 @@ def _prepare(measured: Paths, settings: DiagnosisSettings) -> _Halves:
 
 
 def _halves(everything: RunData, train: RunData, test: RunData, run_scale: RunScale
-            ) -> _Halves:
+            ) -> Halves:
     """Return the halves ready for scoring: feature scales, held-out points, the ideal."""
     scales = feature_scales(train.features)
     test_points = position_points_cm(test.paths.positions, test.lengths)
     train_points = position_points_cm(train.paths.positions, train.lengths)
     ideal = score_model(train.features, train_points, test.features, test_points, scales)
-    return _Halves(everything, train, test, scales, test_points, ideal, run_scale)
+    return Halves(everything, train, test, scales, test_points, ideal, run_scale)
 
 
-def _with_wobble(halves: _Halves, choice: tuple[float, tuple[float, float]] | None
-                 ) -> _Halves:
+def with_wobble(halves: Halves, choice: tuple[float, tuple[float, float]] | None
+                ) -> Halves:
     """Return the halves measured with the heading wobble chosen (features.py)."""
     hz, interval = choice if choice is not None else (None, None)
     return _halves(halves.every.with_wobble(hz, interval),
@@ -415,8 +421,8 @@ def _excess(data: FloatArray, model: FloatArray) -> FloatArray:
     return excess
 
 
-def _baseline(halves: _Halves, settings: DiagnosisSettings,
-              pool: Executor | None = None) -> CausesFit:
+def fit_baseline(halves: Halves, settings: DiagnosisSettings,
+                 pool: Executor | None = None) -> CausesFit:
     """
     Fit the paper's model on the calibration half.
 
@@ -446,7 +452,7 @@ def _baseline(halves: _Halves, settings: DiagnosisSettings,
 
 def baseline_starts(train: RunData, settings: DiagnosisSettings) -> list[FittedModel]:
     """
-    Return the geometries the baseline is fitted from (`_baseline`), at the runs' spread.
+    Return the geometries the baseline is fitted from (`fit_baseline`), at the runs' spread.
 
     A quick deterministic fit (eq. 9) on the gait-aligned average, its spread scale, and its
     angles as they are and with each stance pair's two swapped (`swapped_pairs`).
@@ -503,7 +509,7 @@ class Evaluation:
 SCREEN_ALLOWANCE = 2.0
 
 
-def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Scores,
+def evaluate_candidate(halves: Halves, current: FittedModel, current_scores: Scores,
                        cause: str, settings: DiagnosisSettings, z_decision: float = 0.0
                        ) -> Evaluation:
     """
@@ -539,7 +545,7 @@ def evaluate_candidate(halves: _Halves, current: FittedModel, current_scores: Sc
         # progress and sway, and went unnamed): refit the geometry for the new spread
         fitted = fit_causes(halves.train, fitted.model, causes, settings.fit(), rounds=1)
     model, estimates = fitted.model, fitted.estimates
-    scores = _score(Simulator(halves.test, settings.seed), model, halves, settings)
+    scores = score_held_out(Simulator(halves.test, settings.seed), model, halves, settings)
     return Evaluation(cause, model, estimates, scores,
                       PairedGain.of(scores.log - current_scores.log),
                       float(np.mean(current_scores.energy_cm - scores.energy_cm)))
@@ -582,8 +588,8 @@ def out_of_reach(estimate: SizeEstimate, floor: float, z: float) -> bool:
                 or abs(estimate.size - cause.null) - z * estimate.se <= floor)
 
 
-def _score(simulator: Simulator, model: FittedModel, halves: _Halves,
-           settings: DiagnosisSettings) -> Scores:
+def score_held_out(simulator: Simulator, model: FittedModel, halves: Halves,
+                   settings: DiagnosisSettings) -> Scores:
     """Score the held-out runs under `model` (its runs cut to the held-out lengths)."""
     paths, positions = simulator.runs(model, settings.score_runs, SCORE_PURPOSE)
     features = halves.every.features_of(paths, positions)
@@ -592,7 +598,7 @@ def _score(simulator: Simulator, model: FittedModel, halves: _Halves,
                        halves.scales, model.order_dependent)
 
 
-def _step_result(step: int, evaluated: list[Evaluation], halves: _Halves,
+def _step_result(step: int, evaluated: list[Evaluation], halves: Halves,
                  settings: DiagnosisSettings) -> tuple[StepResult, Evaluation | None]:
     m = len(evaluated)
     z = decision_z(settings.decision_alpha, m)
@@ -672,7 +678,7 @@ def _rival(chosen: Evaluation, eligible: list[Evaluation], alpha: float) -> Riva
     return Rival(other.cause, cause.label, values, other.gain.mean, p_two_sided)
 
 
-def _excess_share(evaluation: Evaluation, halves: _Halves) -> float:
+def _excess_share(evaluation: Evaluation, halves: Halves) -> float:
     """Share of the current model's gap to the ideal (data predicting data) closed."""
     before = float(np.mean(evaluation.scores.log)) - evaluation.gain.mean
     gap = float(np.mean(halves.ideal.log)) - before
@@ -741,7 +747,7 @@ def rival_note(model: FittedModel, rival: RivalGeometry) -> str:
             f'the adequacy check counts the difference of the two in every statistic')
 
 
-def independent_moves(simulator: Simulator, fit: CausesFit, halves: _Halves,
+def independent_moves(simulator: Simulator, fit: CausesFit, halves: Halves,
                       settings: FitSettings) -> list[FittedModel]:
     """
     Return the fitted model with each parameter outside the geometry's vector moved by one se.
@@ -772,7 +778,7 @@ def independent_moves(simulator: Simulator, fit: CausesFit, halves: _Halves,
     return moves
 
 
-def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
+def _limit(halves: Halves, model: FittedModel, evaluation: Evaluation,
            seen: CandidateResult, settings: DiagnosisSettings,
            base: FloatArray | None = None) -> Limit:
     """
@@ -796,7 +802,7 @@ def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
     if cause.name == 'periodic_heading':
         reference = periodic_limit_hz(halves.train.median_duration_s,
                                       halves.train.stride_frequency)
-        halves = _with_wobble(halves, (reference, (reference, reference)))
+        halves = with_wobble(halves, (reference, (reference, reference)))
         quick = quick_fit(halves.train, without, cause, settings)
         estimate = quick.estimates[cause.name]
         fitted = dict(quick.model.effects[cause.name])
@@ -811,7 +817,7 @@ def _limit(halves: _Halves, model: FittedModel, evaluation: Evaluation,
     return limit
 
 
-def _final_fit(halves: _Halves, model: FittedModel, settings: DiagnosisSettings
+def _final_fit(halves: Halves, model: FittedModel, settings: DiagnosisSettings
                ) -> CausesFit:
     """
     Refit the final model on all runs.
@@ -829,7 +835,7 @@ def final_starts(model: FittedModel, alternatives: Sequence[ModelParameters]
     Return where the final fit on all runs starts: the race's model, in each valley found.
 
     The race's model itself, and the same in each other valley the baseline's starts found
-    (`_baseline`'s alternatives). The race ran on the calibration half in the valley that
+    (`fit_baseline`'s alternatives). The race ran on the calibration half in the valley that
     half preferred; where the runs do not tell two valleys apart (a fast robot of few long
     runs), all runs may prefer the other, and the model a report states is the better fit on
     all of them (`lowest_cost`).
@@ -851,7 +857,7 @@ def lowest_cost(fits: Sequence[CausesFit]) -> CausesFit:
         (best.model, best.geometry), [fit.model for fit in fits if fit is not best]))
 
 
-def _pruned(fit: CausesFit, halves: _Halves, settings: DiagnosisSettings
+def _pruned(fit: CausesFit, halves: Halves, settings: DiagnosisSettings
             ) -> tuple[CausesFit, tuple[str, ...]]:
     """
     Drop the terms the refit on all runs no longer supports, weakest first, refitting each time.
@@ -885,7 +891,7 @@ def _pruned(fit: CausesFit, halves: _Halves, settings: DiagnosisSettings
 
 
 def _named(steps: Sequence[StepResult], final: FittedModel,
-           estimates: Mapping[str, SizeEstimate], halves: _Halves,
+           estimates: Mapping[str, SizeEstimate], halves: Halves,
            settings: DiagnosisSettings) -> tuple[list[NamedCause], list[NamedExtension]]:
     """Return the named causes of the table and the named extensions, refit on all runs."""
     causes, extensions = [], []
@@ -913,7 +919,7 @@ def _named(steps: Sequence[StepResult], final: FittedModel,
 
 
 def extension_intervals(cause: Cause, values: Mapping[str, float], estimate: SizeEstimate | None,
-                        verdict: SizeVerdict | None, entry: CandidateResult, halves: _Halves
+                        verdict: SizeVerdict | None, entry: CandidateResult, halves: Halves
                         ) -> tuple[dict[str, list[float]], dict[str, float]]:
     """
     Return the 95 % interval and standard error of each fitted parameter of an extension.
@@ -940,7 +946,7 @@ def extension_intervals(cause: Cause, values: Mapping[str, float], estimate: Siz
     return interval, errors
 
 
-def _gain_summary(baseline: Scores, extended: Scores, halves: _Halves) -> ScoreSummary:
+def _gain_summary(baseline: Scores, extended: Scores, halves: Halves) -> ScoreSummary:
     return ScoreSummary.of(baseline, extended, halves.ideal)
 
 

@@ -47,8 +47,8 @@ from octoroach_model.diagnosis.causes import (
     BY_NAME, CANDIDATES, EstimateKind, MIXTURE_FRACTION, periodic_limit_hz, RunScale)
 from octoroach_model.diagnosis.decide import judge
 from octoroach_model.diagnosis.diagnose import (
-    _baseline, _Halves, _score, _with_wobble, check_runs, choose_wobble_hz,
-    DiagnosisSettings, evaluate_candidate, Evaluation, quick_fit, SCORE_PURPOSE)
+    check_runs, choose_wobble_hz, DiagnosisSettings, evaluate_candidate, Evaluation,
+    fit_baseline, Halves, quick_fit, score_held_out, SCORE_PURPOSE, with_wobble)
 from octoroach_model.diagnosis.features import INDEX
 from octoroach_model.diagnosis.modelfit import FittedModel, RunData, SizeEstimate
 from octoroach_model.diagnosis.power import Calibration, gain_sample, PowerModel
@@ -193,7 +193,7 @@ def _splitmix64(values: npt.NDArray[np.uint64]) -> npt.NDArray[np.uint64]:
         return z ^ (z >> np.uint64(31))
 
 
-def live_halves(measured: Paths, held: Held | None, seed: int) -> _Halves:
+def live_halves(measured: Paths, held: Held | None, seed: int) -> Halves:
     """
     Return the runs in their nested halves, measured with the held ruler (if any).
 
@@ -226,10 +226,10 @@ def live_halves(measured: Paths, held: Held | None, seed: int) -> _Halves:
         path_length = float(np.nanmedian(np.abs(progress))) or 0.01
         run_scale = RunScale(duration, path_length, 2.0 * frequency * duration)
     nothing = np.empty(0)
-    return _Halves(half(np.arange(min(3, measured.n_paths))), train, test,
-                   feature_scales(train.features),
-                   position_points_cm(test.paths.positions, test.lengths),
-                   Scores(nothing, nothing), run_scale)
+    return Halves(half(np.arange(min(3, measured.n_paths))), train, test,
+                  feature_scales(train.features),
+                  position_points_cm(test.paths.positions, test.lengths),
+                  Scores(nothing, nothing), run_scale)
 
 
 def fit_held(measured: Paths, question: Question, settings: DiagnosisSettings,
@@ -251,19 +251,19 @@ def fit_held(measured: Paths, question: Question, settings: DiagnosisSettings,
     with single_threaded():
         halves = live_halves(measured, None, settings.seed)
         if start is None:
-            baseline = _baseline(halves, replace(settings, workers=1)).model
+            baseline = fit_baseline(halves, replace(settings, workers=1)).model
         else:
             begin = replace(start, start_pose=mean_start_pose(halves.train.paths), effects={})
             baseline = fit_causes(halves.train, begin, (), settings.fit()).model \
                 if fitted else begin
         wobble = choose_wobble_hz(halves.train, baseline, settings)
-        halves = _with_wobble(halves, wobble)
+        halves = with_wobble(halves, wobble)
         gains = question_gains(halves, baseline, question, settings) if with_power else None
     return Held(halves.every.stride_frequency, halves.every.reference_heading, wobble,
                 halves.run_scale, baseline, halves.train.n, gains)
 
 
-def question_gains(halves: _Halves, baseline: FittedModel, question: Question,
+def question_gains(halves: Halves, baseline: FittedModel, question: Question,
                    settings: DiagnosisSettings) -> FloatArray:
     """
     Return the held-out test's gains of runs simulated with the term at the question's size.
@@ -279,7 +279,7 @@ def question_gains(halves: _Halves, baseline: FittedModel, question: Question,
     if cause.name == 'periodic_heading':
         reference = periodic_limit_hz(halves.train.median_duration_s,
                                       halves.train.stride_frequency)
-        halves = _with_wobble(halves, (reference, (reference, reference)))
+        halves = with_wobble(halves, (reference, (reference, reference)))
         fitted = dict(quick_fit(halves.train, baseline, cause, settings).model.effects[
             cause.name])
     return gain_sample(halves.test, baseline, cause.name, question.internal_size,
@@ -336,9 +336,9 @@ def decide(measured: Paths, held: Held, question: Question, settings: DiagnosisS
         held.calibration_runs, model, evaluation.model)
 
 
-def baseline_scores(halves: _Halves, held: Held, settings: DiagnosisSettings) -> Scores:
+def baseline_scores(halves: Halves, held: Held, settings: DiagnosisSettings) -> Scores:
     """
-    Score the held-out runs under the held baseline (diagnose._score).
+    Score the held-out runs under the held baseline (diagnose.score_held_out).
 
     Its simulated runs are kept with it while every held-out run is whole: they are then the
     same runs at every look (the same random numbers, nothing cut, and no term of the
@@ -360,7 +360,7 @@ def baseline_scores(halves: _Halves, held: Held, settings: DiagnosisSettings) ->
                        halves.scales, held.model.order_dependent)
 
 
-def evaluate(halves: _Halves, baseline: FittedModel, base_scores: Scores, term: str,
+def evaluate(halves: Halves, baseline: FittedModel, base_scores: Scores, term: str,
              settings: DiagnosisSettings, z: float, warm: FittedModel | None = None
              ) -> Evaluation:
     """
@@ -386,7 +386,7 @@ def evaluate(halves: _Halves, baseline: FittedModel, base_scores: Scores, term: 
                     effects={**baseline.effects, term: dict(warm.effects[term])})
     fitted = fit_causes(halves.train, start, (*baseline.causes, term), settings.fit(),
                         geometry=True, rounds=1)
-    scores = _score(Simulator(halves.test, settings.seed), fitted.model, halves, settings)
+    scores = score_held_out(Simulator(halves.test, settings.seed), fitted.model, halves, settings)
     return Evaluation(term, fitted.model, fitted.estimates, scores,
                       PairedGain.of(scores.log - base_scores.log),
                       float(np.mean(base_scores.energy_cm - scores.energy_cm)))
@@ -409,7 +409,7 @@ def pilot_model(measured: Paths, question: Question, settings: DiagnosisSettings
         return look.model
     halves = live_halves(measured, held, settings.seed)
     reference = periodic_limit_hz(halves.train.median_duration_s, halves.train.stride_frequency)
-    halves = _with_wobble(halves, (reference, (reference, reference)))
+    halves = with_wobble(halves, (reference, (reference, reference)))
     quick = quick_fit(halves.train, held.model, BY_NAME[question.term], settings)
     return replace(look.model, estimate=quick.estimates[question.term])
 
