@@ -208,6 +208,14 @@ def test_the_report_has_the_documented_fields_a_summary_and_plots(tmp_path):
                                   'detectable_method', 'detectable_power'}
     summary = written['summary'].read_text()
     assert 'initial_pose_error' in summary and 'would go unseen' in summary
+    # the heading terms' limits are known to be optimistic, and both files say so
+    assert all(not candidate['detectable_caveat'] for candidate in loaded['candidates'])
+    for family in loaded['extension_candidates']:
+        limit = next(iter(family['detectable'].values()))
+        optimistic = family['cause'] in ('heading_random_walk', 'periodic_heading')
+        assert bool(family['detectable_caveat']) == (optimistic and limit is not None), family
+    assert summary.count('This limit is optimistic') == sum(
+        bool(family['detectable_caveat']) for family in loaded['extension_candidates'])
     for name in ('paths.png', 'violation_grid.png', 'deciding_statistic.png',
                  'discrepancies.png'):
         assert (tmp_path / name).stat().st_size > 10_000, name

@@ -89,11 +89,14 @@ class CandidateResult:
     statistic: str
     family: str = ''             # the extension family ('' for a cause of the table)
     screened: bool = False       # its bound could not reach the floor: neither refit nor scored
+    detectable_caveat: str = ''  # where studies found such a limit not to hold (Cause)
 
     def with_limit(self, limit: Limit) -> CandidateResult:
         """Return this result with the detection limit of the whole decision (limits.py)."""
-        return replace(self, detectable={BY_NAME[self.cause].parameter: limit.size},
+        cause = BY_NAME[self.cause]
+        return replace(self, detectable={cause.parameter: limit.size},
                        detectable_method=LimitMethod.WHOLE_DECISION,
+                       detectable_caveat=cause.limit_caveat if limit.size is not None else '',
                        detectable_power={'size_bound': limit.size_bound_power,
                                          'held_out_test': limit.test_power,
                                          **({} if limit.two_groups_power is None else

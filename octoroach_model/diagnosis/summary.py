@@ -196,5 +196,7 @@ def _unseen_line(candidate: CandidateResult, paths: int) -> str:
     article = 'an' if name[0] in 'aeiou' else 'a'
     estimate = candidate.parameters.get(parameter)
     shown = _number(estimate) if isinstance(estimate, (int, float)) else 'n/a'
+    caveat = f' This limit is {candidate.detectable_caveat}.' if candidate.detectable_caveat \
+        else ''
     return (f'- {article} {name} ({parameter}) {text} would go unseen in {paths} runs like '
-            f'these (80 % power; estimate here {shown}).')
+            f'these (80 % power; estimate here {shown}).{caveat}')
