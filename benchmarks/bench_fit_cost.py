@@ -59,7 +59,8 @@ def main(argv: list[str] | None = None) -> int:
                        'residual_seconds': calls['seconds']})
         return result
 
-    nominal.optimize.least_squares = counted   # the fits' own reference to scipy's
+    # scipy's own: only the nominal and geometry fits (fitting/nominal.py) call it
+    nominal.optimize.least_squares = counted
     try:
         started = time.perf_counter()
         report = diagnose(measured, DiagnosisSettings(seed=arguments.seed, workers=1,
