@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     from octoroach_model.diagnosis.modelfit import (
         fit_geometry, FittedModel, GAIT_COLUMNS, geometry_residuals, RIVAL_BOOTSTRAP,
         spread_statistic)
-    from octoroach_model.diagnosis.discrepancies import STATISTICS
+    from octoroach_model.diagnosis.discrepancies import SPREAD, STATISTICS
     from octoroach_model.fitting.covariance import cost_gap_se, target_changes
     from octoroach_model.studies import replicate as study
 
@@ -112,8 +112,11 @@ def main(argv: list[str] | None = None) -> int:
               + '; '.join(f'{row.statistic} {row.z:+.2f}' for row in worst))
         for note in report.notes:
             print(f'note: {note}')
+        # the spread statistic over the feature the spread scale is read off (a mean
+        # statistic may name the same feature: its materiality reads that feature's spread)
         spread_name = next(statistic.name for statistic in STATISTICS
-                           if statistic.feature == spread_statistic(report.extended_model))
+                           if statistic.kind == SPREAD
+                           and statistic.feature == spread_statistic(report.extended_model))
         spread_row = next(row for row in report.extended_discrepancies
                           if row.statistic == spread_name)
         print_robot_values(measured, robot, prepared.every, report,
