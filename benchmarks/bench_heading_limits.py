@@ -18,9 +18,16 @@ models fitted as the race fits them (the baseline, then the model with the term)
 calibration halves simulated with the term, each pair scored on the same simulated held-out
 runs: how much the fits' own differences move the test.
 
+With `--spread-part`: on the null data set, heading_random_walk at 1x its table limit, the
+test's t for pairs that differ in one part each (the geometry of the model without the term
+refit, both models fitted, the extended model's spread scale alone moved), and the spread
+scale `fit_spread` reads with the term: the part that lowers the test is that scale, which
+the limit now averages over (`limits.spread_averaged_t`).
+
 Minutes on two idle cores (a diagnosis of 500 runs with its limits, two race steps; about 4 s
 more per fitted pair).
 Run: .venv/bin/python benchmarks/bench_heading_limits.py [--replicate 3] [--fitted-pairs 3]
+     [--spread-part]
 """
 from __future__ import annotations
 
@@ -234,12 +241,106 @@ def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
     print()
 
 
+def spread_part(replicate: int, rows: dict[str, Any]) -> None:
+    """
+    Print which part of the fitted pair lowers the test: the spread scale fitted with the term.
+
+    On the null data set, heading_random_walk at 1x its table limit: t of the pair the limit
+    simulated before (the term at the true scale, against the spread refit without it), with
+    the model without the term refit with its geometry too, with both models fitted as the
+    race fits them to 1000 runs, and with only the extended model's scale moved to what that
+    fit found; then t at the true scale moved by its standard error (`spread_error` on 250
+    runs), and the scale fit_spread reads off runs with the term at 400 and 1600 simulated runs.
+    """
+    import numpy as np
+
+    from octoroach_model.diagnosis.causes import BY_NAME
+    from octoroach_model.diagnosis.diagnose import (
+        choose_wobble_hz, fit_baseline, prepare_halves, with_wobble)
+    from octoroach_model.diagnosis.limits import limit_base, simulated_pair, t_statistic
+    from octoroach_model.diagnosis.modelfit import (
+        fit_causes, fit_spread, RunData, Simulator, spread_error, spread_statistic)
+    from octoroach_model.studies import replicate as study
+    from octoroach_model.studies.design import build_tasks, draw_robot
+    from octoroach_model.studies.spec import load_spec
+
+    term = 'heading_random_walk'
+    null_row = rows.get('none')
+    if table_limit(null_row, term) == 'not run':
+        print('(--spread-part needs the limit of the study table)')
+        return
+    spec = load_spec(SPEC)
+    task = next(task for task in build_tasks(spec)
+                if task.replicate == replicate and task.arm.kind == 'null')
+    draw = draw_robot(spec, replicate)
+    measured = study.simulate_data(spec, draw, task.runs_cell, {}).paths
+    settings = study.task_settings(task, spec, draw.data_seed)
+    halves = prepare_halves(measured, settings)
+    baseline = fit_baseline(halves, settings).model
+    halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
+    simulator, data = Simulator(halves.test, settings.seed), halves.test
+    held_out, fit, scales = data.n, settings.fit(), halves.scales
+    base = limit_base(simulator, baseline, scales, settings.score_runs)
+    size = null_row.terms[term].limit
+    pair = simulated_pair(simulator, baseline, base, BY_NAME[term], size, scales,
+                          settings.score_runs, None, fit)
+
+    def t_of(extended: Any, without: Any) -> str:
+        gains = pair.gains(simulator, scales, settings.score_runs, extended) \
+            if without is None else (
+                replace(pair, without=without,
+                        without_features=limit_base(simulator, without, scales,
+                                                    settings.score_runs))
+                .gains(simulator, scales, settings.score_runs, extended))
+        return (f'{t_statistic(gains, held_out):.2f} | {gains.mean():.3f} | '
+                f'{np.std(gains, ddof=1):.2f}')
+
+    paths, positions = simulator.runs(pair.extended, 1000, 90)
+    many = RunData(paths, data.stride_frequency, data.reference_heading, positions,
+                   data.wobble_hz, data.wobble_interval)
+    refit_without = fit_causes(many, baseline, baseline.causes, fit, rounds=1).model
+    causes = (*refit_without.causes, term)
+    fitted = fit_causes(many, refit_without, causes, fit, geometry=False, rounds=1).model
+    if spread_statistic(fitted) != spread_statistic(refit_without):
+        fitted = fit_causes(many, fitted, causes, fit, rounds=1).model
+    scale = pair.extended.sigma_scale
+    print(f'{term} at 1x its table limit ({size:.3g} deg) on the null of replicate {replicate}, '
+          f'{held_out} held-out runs; true spread scale {scale:.3f}\n')
+    print('| pair scored | t | mean gain, nats/run | spread, nats/run |')
+    print('| --- | --- | --- | --- |')
+    print(f'| the term at the true scale, against the spread refit without it | '
+          f'{t_of(pair.extended, None)} |')
+    print(f'| the same, the model without it refit with its geometry (1000 runs) | '
+          f'{t_of(pair.extended, refit_without)} |')
+    print(f'| both fitted as the race fits them (1000 runs; scale with the term '
+          f'{fitted.sigma_scale:.3f}) | {t_of(fitted, refit_without)} |')
+    print(f'| the true model at that fitted scale, against the same refit | '
+          f'{t_of(replace(pair.extended, sigma_scale=fitted.sigma_scale), refit_without)} |')
+    se = spread_error(simulator, pair.extended, fit, pair.runs, held_out)
+    for node in (-2.0, -1.0, 1.0, 2.0):
+        moved = replace(pair.extended, sigma_scale=scale + node * se)
+        print(f'| the term at the true scale {node:+g} se ({scale + node * se:.3f}), against '
+              f'the spread refit without it | {t_of(moved, None)} |')
+    print(f'\nThe standard error of the scale on {held_out} runs: {se:.4f} '
+          f'({100 * se / scale:.1f} %).')
+    for runs in (fit.moment_runs, 4 * fit.moment_runs):
+        read = [fit_spread(simulator, pair.extended, replace(fit, moment_runs=runs),
+                           simulator.features(pair.extended, 1000, 700 + seed))
+                for seed in range(3)]
+        print(f'fit_spread on three sets of 1000 runs with the term, matched with {runs} '
+              f'simulated runs: {", ".join(f"{value:.4f}" for value in read)} '
+              f'(true {scale:.4f})')
+    print()
+
+
 def main() -> None:
     """Print the tables for one replicate."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--replicate', type=int, default=3)
     parser.add_argument('--fitted-pairs', type=int, default=0, metavar='K',
                         help='also fit K pairs of models as the race does (about 4 s each)')
+    parser.add_argument('--spread-part', action='store_true',
+                        help='also show that the spread fitted with the term lowers the test')
     args = parser.parse_args()
     rows = study_rows(args.replicate)
     null_limits(args.replicate, rows)
@@ -247,6 +348,8 @@ def main() -> None:
         held_out_gain(args.replicate, rows, term)
     if args.fitted_pairs > 0:
         fitted_pairs(args.replicate, rows, args.fitted_pairs)
+    if args.spread_part:
+        spread_part(args.replicate, rows)
 
 
 if __name__ == '__main__':

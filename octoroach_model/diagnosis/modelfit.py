@@ -870,24 +870,28 @@ def fit_spread(simulator: Simulator, model: FittedModel, settings: FitSettings,
     return min(math.sqrt(max(read_line(points, target), 0.0)), 4.0)
 
 
-def spread_error(simulator: Simulator, model: FittedModel, settings: FitSettings) -> float:
+def spread_error(simulator: Simulator, model: FittedModel, settings: FitSettings,
+                 features: FloatArray | None = None, runs: int | None = None) -> float:
     """
     Return the standard error of `model`'s spread scale as `fit_spread` fits it on these runs.
 
     The statistic's error on the data (its runs' spread over the square root of their count)
     and on the simulated runs it is matched with (as many as `settings.moment_runs`), carried
     through the line's slope at the fitted scale: u = scale^2, se(scale) = se(u) / (2 scale).
+    `features` (runs x features, SI) and `runs` stand for data simulated elsewhere, of which
+    `runs` would be fitted (a detection limit's: limits.py).
     """
     column = INDEX[spread_statistic(model)]
     scale = model.sigma_scale
-    data = simulator.data.features[:, column]
+    data = (simulator.data.features if features is None else features)[:, column]
+    count = len(data) if runs is None else runs
     fitted = simulator.features(model, settings.moment_runs, SPREAD)[:, column]
     still = simulator.features(replace(model, sigma_scale=0.0), settings.moment_runs,
                                SPREAD)[:, column]
     slope = (float(fitted.mean()) - float(still.mean())) / max(scale ** 2, 1e-12)
     if not (slope > 0 and scale > 0):
         return 0.0
-    se_u = math.hypot(float(np.std(data, ddof=1)) / math.sqrt(len(data)),
+    se_u = math.hypot(float(np.std(data, ddof=1)) / math.sqrt(count),
                       float(np.std(fitted, ddof=1)) / math.sqrt(len(fitted))) / slope
     return se_u / (2.0 * scale)
 
