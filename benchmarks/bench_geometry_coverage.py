@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--basins', action='store_true')
     args = parser.parse_args(argv)
 
-    from octoroach_model.diagnosis.diagnose import decimated, fit_baseline, prepare_halves
+    from octoroach_model.diagnosis.diagnose import fit_baseline, halves_as_diagnosed
     from octoroach_model.diagnosis.modelfit import fit_geometry
     from octoroach_model.studies import replicate as study
 
@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
         draw = replace(robot, data_seed=seed)
         measured = study.simulate_data(spec, draw, args.runs, {}).paths
         settings = study.task_settings(task, spec, seed)
-        halves = prepare_halves(decimated(measured)[0], settings)
+        halves = halves_as_diagnosed(measured, settings)
         fit = fit_baseline(halves, settings)
         parameters = fit.model.parameters
         fitted = np.degrees(parameters.touchdown_angles)

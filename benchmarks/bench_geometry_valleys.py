@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from bench_geometry_coverage import null_case
     from octoroach_model.diagnosis import diagnose
-    from octoroach_model.diagnosis.diagnose import baseline_starts, decimated, prepare_halves
+    from octoroach_model.diagnosis.diagnose import baseline_starts, halves_as_diagnosed
     from octoroach_model.diagnosis.modelfit import (
         fit_geometry, FittedModel, GAIT_COLUMNS, geometry_residuals, RIVAL_BOOTSTRAP,
         spread_statistic)
@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
           f'touchdown angles {", ".join(f"{a:.1f}" for a in truth)} deg\n')
     measured = study.simulate_data(spec, robot, args.runs, {}).paths
     settings = replace(study.task_settings(task, spec, robot.data_seed), workers=1)
-    prepared = prepare_halves(decimated(measured)[0], settings)
+    prepared = halves_as_diagnosed(measured, settings)
     train = prepared.train
     fit = settings.fit()
 

@@ -95,7 +95,7 @@ def held_out_gain(replicate: int, rows: dict[str, Any], term: str) -> None:
 
     from octoroach_model.diagnosis.causes import BY_NAME
     from octoroach_model.diagnosis.diagnose import (
-        choose_wobble_hz, evaluate_candidate, fit_baseline, prepare_halves, score_held_out,
+        choose_wobble_hz, evaluate_candidate, fit_baseline, halves_as_diagnosed, score_held_out,
         with_wobble)
     from octoroach_model.diagnosis.limits import (
         _features, limit_base, MODEL_PURPOSE, PSEUDO_PURPOSE, simulated_gains)
@@ -117,7 +117,7 @@ def held_out_gain(replicate: int, rows: dict[str, Any], term: str) -> None:
     effects = study.task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
     measured = study.simulate_data(spec, draw, task.runs_cell, effects).paths
     settings = study.task_settings(task, spec, draw.data_seed)
-    halves = prepare_halves(measured, settings)
+    halves = halves_as_diagnosed(measured, settings)
     baseline = fit_baseline(halves, settings).model
     halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
     simulator = Simulator(halves.test, settings.seed)
@@ -176,7 +176,7 @@ def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
 
     from octoroach_model.diagnosis.causes import BY_NAME
     from octoroach_model.diagnosis.diagnose import (
-        CANDIDATES, choose_wobble_hz, fit_baseline, prepare_halves, with_wobble)
+        CANDIDATES, choose_wobble_hz, fit_baseline, halves_as_diagnosed, with_wobble)
     from octoroach_model.diagnosis.limits import (
         _features, limit_base, MODEL_PURPOSE, simulated_gains)
     from octoroach_model.diagnosis.modelfit import (
@@ -197,7 +197,7 @@ def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
     draw = draw_robot(spec, replicate)
     measured = study.simulate_data(spec, draw, task.runs_cell, {}).paths
     settings = study.task_settings(task, spec, draw.data_seed)
-    halves = prepare_halves(measured, settings)
+    halves = halves_as_diagnosed(measured, settings)
     baseline = fit_baseline(halves, settings).model
     halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
     simulator, data = Simulator(halves.test, settings.seed), halves.test
@@ -256,7 +256,7 @@ def spread_part(replicate: int, rows: dict[str, Any]) -> None:
 
     from octoroach_model.diagnosis.causes import BY_NAME
     from octoroach_model.diagnosis.diagnose import (
-        choose_wobble_hz, fit_baseline, prepare_halves, with_wobble)
+        choose_wobble_hz, fit_baseline, halves_as_diagnosed, with_wobble)
     from octoroach_model.diagnosis.limits import limit_base, simulated_pair, t_statistic
     from octoroach_model.diagnosis.modelfit import (
         fit_causes, fit_spread, RunData, Simulator, spread_error, spread_statistic)
@@ -275,7 +275,7 @@ def spread_part(replicate: int, rows: dict[str, Any]) -> None:
     draw = draw_robot(spec, replicate)
     measured = study.simulate_data(spec, draw, task.runs_cell, {}).paths
     settings = study.task_settings(task, spec, draw.data_seed)
-    halves = prepare_halves(measured, settings)
+    halves = halves_as_diagnosed(measured, settings)
     baseline = fit_baseline(halves, settings).model
     halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
     simulator, data = Simulator(halves.test, settings.seed), halves.test

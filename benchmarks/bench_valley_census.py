@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
                         help='run counts (default: all of the spec)')
     args = parser.parse_args(argv)
 
-    from octoroach_model.diagnosis.diagnose import decimated, fit_baseline, prepare_halves
+    from octoroach_model.diagnosis.diagnose import fit_baseline, halves_as_diagnosed
     from octoroach_model.studies import replicate as study
     from octoroach_model.studies.design import build_tasks, draw_robot
     from octoroach_model.studies.spec import load_spec
@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
         robot = draw_robot(spec, task.replicate)
         measured = study.simulate_data(spec, robot, runs, {}).paths
         settings = replace(study.task_settings(task, spec, robot.data_seed), workers=1)
-        baseline = fit_baseline(prepare_halves(decimated(measured)[0], settings), settings)
+        baseline = fit_baseline(halves_as_diagnosed(measured, settings), settings)
         others = len(baseline.alternatives)
         found += others > 0
         print(f'| {task.replicate} | {runs} | {robot.stride_frequency_hz:.2f} | '

@@ -117,7 +117,8 @@ class Halves:
     The measured runs, their calibration and held-out halves, ready for scoring.
 
     What every stage of `diagnose` works on; benchmarks and tests that take one stage apart
-    start from `prepare_halves` too (after `decimated`, as `diagnose` does).
+    start from `halves_as_diagnosed` (or `prepare_halves` on runs known not to need
+    decimating).
     """
 
     every: RunData
@@ -325,6 +326,11 @@ def decimated(measured: Paths) -> tuple[Paths, str | None]:
     return kept, (f'the diagnosis used every {step}th sample ({measured.rate_hz / step:.0f} Hz, '
                   f'{measured.rate_hz / step / frequency:.0f} samples per stride cycle); the '
                   f"paper's validation used all {measured.rate_hz:.0f} Hz")
+
+
+def halves_as_diagnosed(measured: Paths, settings: DiagnosisSettings) -> Halves:
+    """Return the halves `diagnose` works on: `measured` decimated as it decimates, then split."""
+    return prepare_halves(decimated(measured)[0], settings)
 
 
 def prepare_halves(measured: Paths, settings: DiagnosisSettings) -> Halves:
