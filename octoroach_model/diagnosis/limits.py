@@ -164,8 +164,9 @@ def spread_averaged_t(simulator: Simulator, pair: SimulatedPair, t_at_fit: float
     With a heading term in it, a model's spread scale is read off the variance of the
     stride length (modelfit.spread_statistic), which is noisier than the heading's and
     carries the simulation error of the runs it is matched with; and the test's t is steep
-    in that scale: on open_world's replicate 3, heading_random_walk at its limit, t was 4.0
-    at the true scale, 2.4 and 5.0 at 1.4 standard errors (2.2 %) below and above it. The
+    in that scale: on open_world's replicate 3, heading_random_walk at its limit, t was 4.01
+    at the true scale, 2.83 and 1.62 at one and two standard errors (2.1 % each) below it
+    and 4.90 at one above (`benchmarks/bench_heading_limits.py --spread-part`). The
     race's extended model is fitted on a calibration half, so its scale is off by a draw
     of that error; the power is averaged over it (three-point Gauss-Hermite, the error from
     `modelfit.spread_error` on runs as many as a half) and returned as the t with that power
@@ -211,7 +212,7 @@ class SimulatedPair:
     def gains(self, simulator: Simulator, scales: FloatArray, score_runs: int,
               extended: FittedModel | None = None) -> FloatArray:
         """Return the per-run gains of `extended` (default: the pair's) over `without`."""
-        model = extended or self.extended
+        model = self.extended if extended is None else extended
         pseudo = self.runs / scales
         gain: FloatArray = (
             feature_log_score(_features(simulator, model, score_runs, MODEL_PURPOSE, scales),
