@@ -35,7 +35,7 @@ import argparse
 from dataclasses import replace
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 REPO = Path(__file__).resolve().parents[1]
 SPEC = REPO / 'studies' / 'open_world.yaml'
@@ -169,28 +169,26 @@ def held_out_gain(replicate: int, rows: dict[str, Any], term: str) -> None:
     print()
 
 
-def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
-    """Print the limit's expected t beside that of pairs fitted as the race fits them."""
-    import numpy as np
-    from scipy import stats
+class NullAsLimited(NamedTuple):
+    """A replicate's null data set prepared as the race prepares it, its baseline fitted."""
 
-    from octoroach_model.diagnosis.causes import BY_NAME
+    settings: Any
+    halves: Any
+    baseline: Any
+    simulator: Any
+    base: Any        # the scored runs of the baseline (limits.limit_base)
+
+
+def null_as_limited(replicate: int) -> NullAsLimited:
+    """Return the replicate's null data set as its detection limits see it."""
     from octoroach_model.diagnosis.diagnose import (
-        CANDIDATES, choose_wobble_hz, fit_baseline, halves_as_diagnosed, with_wobble)
-    from octoroach_model.diagnosis.limits import (
-        _features, limit_base, MODEL_PURPOSE, simulated_gains)
-    from octoroach_model.diagnosis.modelfit import (
-        at_size, fit_causes, RunData, Simulator, spread_statistic)
-    from octoroach_model.diagnosis.scoring import feature_log_score
+        choose_wobble_hz, fit_baseline, halves_as_diagnosed, with_wobble)
+    from octoroach_model.diagnosis.limits import limit_base
+    from octoroach_model.diagnosis.modelfit import Simulator
     from octoroach_model.studies import replicate as study
     from octoroach_model.studies.design import build_tasks, draw_robot
     from octoroach_model.studies.spec import load_spec
 
-    term = 'heading_random_walk'
-    null_row = rows.get('none')
-    if table_limit(null_row, term) == 'not run':
-        print('(--fitted-pairs needs the limit of the study table)')
-        return
     spec = load_spec(SPEC)
     task = next(task for task in build_tasks(spec)
                 if task.replicate == replicate and task.arm.kind == 'null')
@@ -200,9 +198,30 @@ def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
     halves = halves_as_diagnosed(measured, settings)
     baseline = fit_baseline(halves, settings).model
     halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
-    simulator, data = Simulator(halves.test, settings.seed), halves.test
+    simulator = Simulator(halves.test, settings.seed)
+    return NullAsLimited(settings, halves, baseline, simulator,
+                         limit_base(simulator, baseline, halves.scales, settings.score_runs))
+
+
+def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
+    """Print the limit's expected t beside that of pairs fitted as the race fits them."""
+    import numpy as np
+    from scipy import stats
+
+    from octoroach_model.diagnosis.causes import BY_NAME
+    from octoroach_model.diagnosis.diagnose import CANDIDATES
+    from octoroach_model.diagnosis.limits import _features, MODEL_PURPOSE, simulated_gains
+    from octoroach_model.diagnosis.modelfit import at_size, fit_causes, RunData, spread_statistic
+    from octoroach_model.diagnosis.scoring import feature_log_score
+
+    term = 'heading_random_walk'
+    null_row = rows.get('none')
+    if table_limit(null_row, term) == 'not run':
+        print('(--fitted-pairs needs the limit of the study table)')
+        return
+    settings, halves, baseline, simulator, base = null_as_limited(replicate)
+    data = halves.test
     held_out, fit = data.n, settings.fit()
-    base = limit_base(simulator, baseline, halves.scales, settings.score_runs)
 
     def scored(model: Any) -> Any:
         return _features(simulator, model, settings.score_runs, MODEL_PURPOSE, halves.scales)
@@ -255,43 +274,28 @@ def spread_part(replicate: int, rows: dict[str, Any]) -> None:
     import numpy as np
 
     from octoroach_model.diagnosis.causes import BY_NAME
-    from octoroach_model.diagnosis.diagnose import (
-        choose_wobble_hz, fit_baseline, halves_as_diagnosed, with_wobble)
     from octoroach_model.diagnosis.limits import limit_base, simulated_pair, t_statistic
     from octoroach_model.diagnosis.modelfit import (
-        fit_causes, fit_spread, RunData, Simulator, spread_error, spread_statistic)
-    from octoroach_model.studies import replicate as study
-    from octoroach_model.studies.design import build_tasks, draw_robot
-    from octoroach_model.studies.spec import load_spec
+        fit_causes, fit_spread, RunData, spread_error, spread_statistic)
 
     term = 'heading_random_walk'
     null_row = rows.get('none')
     if table_limit(null_row, term) == 'not run':
         print('(--spread-part needs the limit of the study table)')
         return
-    spec = load_spec(SPEC)
-    task = next(task for task in build_tasks(spec)
-                if task.replicate == replicate and task.arm.kind == 'null')
-    draw = draw_robot(spec, replicate)
-    measured = study.simulate_data(spec, draw, task.runs_cell, {}).paths
-    settings = study.task_settings(task, spec, draw.data_seed)
-    halves = halves_as_diagnosed(measured, settings)
-    baseline = fit_baseline(halves, settings).model
-    halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
-    simulator, data = Simulator(halves.test, settings.seed), halves.test
+    settings, halves, baseline, simulator, base = null_as_limited(replicate)
+    data = halves.test
     held_out, fit, scales = data.n, settings.fit(), halves.scales
-    base = limit_base(simulator, baseline, scales, settings.score_runs)
     size = null_row.terms[term].limit
     pair = simulated_pair(simulator, baseline, base, BY_NAME[term], size, scales,
                           settings.score_runs, None, fit)
 
-    def t_of(extended: Any, without: Any) -> str:
-        gains = pair.gains(simulator, scales, settings.score_runs, extended) \
-            if without is None else (
-                replace(pair, without=without,
-                        without_features=limit_base(simulator, without, scales,
-                                                    settings.score_runs))
-                .gains(simulator, scales, settings.score_runs, extended))
+    def t_of(extended: Any, without: Any = None) -> str:
+        """t, mean and spread of `extended`'s gains over `without` (default: the pair's)."""
+        weighed = pair if without is None else replace(
+            pair, without=without,
+            without_features=limit_base(simulator, without, scales, settings.score_runs))
+        gains = weighed.gains(simulator, scales, settings.score_runs, extended)
         return (f'{t_statistic(gains, held_out):.2f} | {gains.mean():.3f} | '
                 f'{np.std(gains, ddof=1):.2f}')
 
@@ -309,7 +313,7 @@ def spread_part(replicate: int, rows: dict[str, Any]) -> None:
     print('| pair scored | t | mean gain, nats/run | spread, nats/run |')
     print('| --- | --- | --- | --- |')
     print(f'| the term at the true scale, against the spread refit without it | '
-          f'{t_of(pair.extended, None)} |')
+          f'{t_of(pair.extended)} |')
     print(f'| the same, the model without it refit with its geometry (1000 runs) | '
           f'{t_of(pair.extended, refit_without)} |')
     print(f'| both fitted as the race fits them (1000 runs; scale with the term '
@@ -320,7 +324,7 @@ def spread_part(replicate: int, rows: dict[str, Any]) -> None:
     for node in (-2.0, -1.0, 1.0, 2.0):
         moved = replace(pair.extended, sigma_scale=scale + node * se)
         print(f'| the term at the true scale {node:+g} se ({scale + node * se:.3f}), against '
-              f'the spread refit without it | {t_of(moved, None)} |')
+              f'the spread refit without it | {t_of(moved)} |')
     print(f'\nThe standard error of the scale on {held_out} runs: {se:.4f} '
           f'({100 * se / scale:.1f} %).')
     for runs in (fit.moment_runs, 4 * fit.moment_runs):
