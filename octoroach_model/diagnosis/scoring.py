@@ -70,13 +70,13 @@ def feature_scales(calibration_features: FloatArray) -> FloatArray:
     return scales
 
 
-def feature_log_score(sample: FloatArray, observed: FloatArray, by_position: bool = False
-                      ) -> FloatArray:
+def feature_log_densities(sample: FloatArray, observed: FloatArray, by_position: bool = False
+                          ) -> FloatArray:
     """
-    Return the summed normal log density of each observed row under the sample.
+    Return the normal log density of each observed row's outcome columns under the sample.
 
-    Summed over the outcome columns, each at the sample's column mean and spread (the spread
-    never below FLOOR, the distance never beyond CAP spreads); columns in data spreads.
+    Each column at the sample's column mean and spread (the spread never below FLOOR, the
+    distance never beyond CAP spreads); columns in data spreads.
     `by_position`: the mean and spread are those of the sample's least-squares line against
     the position column, taken at each observed row's position (module docstring).
 
@@ -91,8 +91,8 @@ def feature_log_score(sample: FloatArray, observed: FloatArray, by_position: boo
 
     Returns
     -------
-    array, shape (n,)
-        Log score of each observed run, nats.
+    array, shape (n, outcome columns)
+        Log density of each observed run's outcomes (features.OUTCOMES), nats.
 
     """
     outcomes, observed_outcomes = sample[:, OUTCOMES], observed[:, OUTCOMES]
@@ -109,7 +109,19 @@ def feature_log_score(sample: FloatArray, observed: FloatArray, by_position: boo
         mean = outcomes.mean(axis=0)
         spread = np.maximum(outcomes.std(axis=0, ddof=1), FLOOR)
     z = np.clip((observed_outcomes - mean) / spread, -CAP, CAP)
-    log_score: FloatArray = (stats.norm.logpdf(z) - np.log(spread)).sum(axis=1)
+    densities: FloatArray = stats.norm.logpdf(z) - np.log(spread)
+    return densities
+
+
+def feature_log_score(sample: FloatArray, observed: FloatArray, by_position: bool = False
+                      ) -> FloatArray:
+    """
+    Return the summed normal log density of each observed row under the sample.
+
+    Summed over the outcome columns (`feature_log_densities`, where the parameters are
+    described): the score the held-out test compares.
+    """
+    log_score: FloatArray = feature_log_densities(sample, observed, by_position).sum(axis=1)
     return log_score
 
 
