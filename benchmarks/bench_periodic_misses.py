@@ -10,11 +10,14 @@ the held-out gain's mean and spread over the held-out runs and its t against the
 variance features (increment_var, stride_length_var) are scored as logarithms, an option
 measured and dropped (docs/diagnosis.md, section 8). With `--parts R`, replicate R's gain
 feature by feature, beside the pair the limit simulates (the term at its size against the
-model without it, spread refit), and the held-out runs that cost the term most.
+model without it, spread refit), and the held-out runs that cost the term most. With
+`--simulation-seeds K`, only the t on each data set for K seeds of the race's simulations (the
+runs and their halves kept): how much of the decision the simulations' draws move. With
+`--moment-runs N`, the table with N simulated runs for every statistic matched.
 
 About 25 s per data set on two idle cores.
 Run: .venv/bin/python benchmarks/bench_periodic_misses.py [--replicates 0-11] [--log-variance]
-     [--parts 3]
+     [--parts 3] [--moment-runs 1600] | --replicates 3,0 --simulation-seeds 4
 """
 from __future__ import annotations
 
@@ -41,8 +44,17 @@ class RaceStep(NamedTuple):
     simulator: Any
 
 
-def race_step(replicate: int, null_row: Any) -> RaceStep:
-    """Rebuild the replicate's data set with the term at 1x and weigh the term on it."""
+def race_step(replicate: int, null_row: Any, simulation_shift: int = 0,
+              moment_runs: int | None = None) -> RaceStep:
+    """
+    Rebuild the replicate's data set with the term at 1x and weigh the term on it.
+
+    `simulation_shift` moves the seed of every simulation (fits, wobble choice, scores) and
+    keeps the split of the runs into halves, which the study's seed makes; `moment_runs`
+    replaces the study's simulated runs for every statistic matched (the spread scale's too).
+    """
+    from dataclasses import replace
+
     from octoroach_model.diagnosis.diagnose import (
         choose_wobble_hz, evaluate_candidate, fit_baseline, halves_as_diagnosed, score_held_out,
         with_wobble)
@@ -59,6 +71,8 @@ def race_step(replicate: int, null_row: Any) -> RaceStep:
     measured = study.simulate_data(spec, draw, task.runs_cell, effects).paths
     settings = study.task_settings(task, spec, draw.data_seed)
     halves = halves_as_diagnosed(measured, settings)
+    settings = replace(settings, seed=settings.seed + simulation_shift,
+                       moment_runs=moment_runs or settings.moment_runs)
     baseline = fit_baseline(halves, settings).model
     halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
     simulator = Simulator(halves.test, settings.seed)
@@ -97,7 +111,8 @@ def t_of(gains: Any, held_out: int) -> float:
     return float(gains.mean() / np.std(gains, ddof=1) * math.sqrt(held_out))
 
 
-def outcomes(replicates: list[int], rows: dict[int, dict[str, Any]], log_variance: bool) -> None:
+def outcomes(replicates: list[int], rows: dict[int, dict[str, Any]], log_variance: bool,
+             moment_runs: int | None) -> None:
     """Print the two halves of the decision on each replicate's data set with the term."""
     from scipy import stats
 
@@ -112,7 +127,7 @@ def outcomes(replicates: list[int], rows: dict[int, dict[str, Any]], log_varianc
           f'gain spread | t (critical z) | named in the study{extra} |')
     print('| --- | --- | --- | --- | --- | --- | ---' + (' | ---' if log_variance else '') + ' |')
     for replicate in replicates:
-        step = race_step(replicate, rows[replicate]['none'])
+        step = race_step(replicate, rows[replicate]['none'], moment_runs=moment_runs)
         settings, evaluation = step.settings, step.evaluation
         everyone = len(CANDIDATES)
         verdict = judge(evaluation.estimates[TERM], cause.floor(step.halves.run_scale),
@@ -186,6 +201,27 @@ def parts(replicate: int, rows: dict[int, dict[str, Any]]) -> None:
     print()
 
 
+def simulation_seeds(replicates: list[int], rows: dict[int, dict[str, Any]], seeds: int) -> None:
+    """Print the race's t on the same data and halves for `seeds` seeds of its simulations."""
+    import numpy as np
+
+    print(f'{TERM} at 1x: the held-out t on the same runs and halves, the simulations drawn '
+          f'with {seeds} seeds (the study used the first)\n')
+    print('| replicate | spread scale without / with the term | t | spread of t |')
+    print('| --- | --- | --- | --- |')
+    for replicate in replicates:
+        scales, ts = [], []
+        for shift in range(seeds):
+            step = race_step(replicate, rows[replicate]['none'], shift)
+            gain = step.evaluation.gain
+            ts.append(gain.mean / gain.standard_error)
+            scales.append(f'{step.baseline.sigma_scale:.3f} / '
+                          f'{step.evaluation.model.sigma_scale:.3f}')
+        print(f'| {replicate} | {", ".join(scales)} | {", ".join(f"{t:.2f}" for t in ts)} | '
+              f'{np.std(ts, ddof=1):.2f} |', flush=True)
+    print()
+
+
 def replicate_list(text: str) -> list[int]:
     """Parse '0-11' or '2,3,5'."""
     if '-' in text:
@@ -204,6 +240,10 @@ def main() -> int:
                         help='also the t with the variance features scored as logarithms')
     parser.add_argument('--parts', type=int, default=None, metavar='R',
                         help="replicate R's gain feature by feature")
+    parser.add_argument('--moment-runs', type=int, default=None, metavar='N',
+                        help="simulated runs for every statistic matched (the study's: 400)")
+    parser.add_argument('--simulation-seeds', type=int, default=0, metavar='K',
+                        help='only the t on each replicate for K seeds of the simulations')
     args = parser.parse_args()
     if not TABLE.is_file():
         print(f'needs the study table: run studies/heading_terms.yaml into {TABLE.parent}')
@@ -211,7 +251,11 @@ def main() -> int:
     rows: dict[int, dict[str, Any]] = {}
     for row in read_table(TABLE)[0]:
         rows.setdefault(row.replicate, {})[row.arm] = row
-    outcomes([r for r in args.replicates if r in rows], rows, args.log_variance)
+    replicates = [replicate for replicate in args.replicates if replicate in rows]
+    if args.simulation_seeds > 1:
+        simulation_seeds(replicates, rows, args.simulation_seeds)
+        return 0
+    outcomes(replicates, rows, args.log_variance, args.moment_runs)
     if args.parts is not None:
         parts(args.parts, rows)
     return 0

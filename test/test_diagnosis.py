@@ -208,17 +208,37 @@ def test_the_report_has_the_documented_fields_a_summary_and_plots(tmp_path):
                                   'detectable_method', 'detectable_power'}
     summary = written['summary'].read_text()
     assert 'initial_pose_error' in summary and 'would go unseen' in summary
-    # periodic_heading's limit may be optimistic (studies/heading_terms.yaml): both files say so
-    assert all(not candidate['detectable_caveat'] for candidate in loaded['candidates'])
-    for family in loaded['extension_candidates']:
-        limit = next(iter(family['detectable'].values()))
-        optimistic = family['cause'] == 'periodic_heading'
-        assert bool(family['detectable_caveat']) == (optimistic and limit is not None), family
-    assert summary.count('This limit is possibly optimistic') == sum(
-        bool(family['detectable_caveat']) for family in loaded['extension_candidates'])
+    # no limit carries a caveat now: studies found every computed limit to hold
+    assert all(not candidate['detectable_caveat']
+               for candidate in loaded['candidates'] + loaded['extension_candidates'])
+    assert 'This limit is' not in summary
     for name in ('paths.png', 'violation_grid.png', 'deciding_statistic.png',
                  'discrepancies.png'):
         assert (tmp_path / name).stat().st_size > 10_000, name
+
+
+def test_a_declared_limit_caveat_reaches_the_candidate_and_its_line_in_the_summary(monkeypatch):
+    # where studies find a term's limit not to hold, its declaration says so (Cause.limit_caveat)
+    # and the report carries it beside the limit, in report.json and in summary.md
+    from octoroach_model.diagnosis import records, summary
+    from octoroach_model.diagnosis.limits import Limit
+
+    cause = records.BY_NAME['periodic_heading']
+    monkeypatch.setitem(records.BY_NAME, cause.name,
+                        replace(cause, limit_caveat='possibly optimistic: a study says so'))
+    candidate = records.CandidateResult(
+        cause.name, {'amplitude_deg': 0.3, 'frequency_hz': 0.7}, 0.01, 0.02, 0.3, 0.0, 0.0,
+        {'amplitude_deg': [0.1, 0.5]}, 0.1, 0.15, 0.5, {'amplitude_deg': 1.2},
+        records.LimitMethod.SIZE_BOUND, {}, False, False, False, 1, cause.statistic_name,
+        family=cause.family)
+    with_limit = candidate.with_limit(Limit(cause.name, 1.4, 0.95, 0.84))
+    assert with_limit.detectable_caveat == 'possibly optimistic: a study says so'
+    assert with_limit.detectable == {'amplitude_deg': 1.4}
+    line = summary._unseen_line(with_limit, 500)
+    assert line.endswith('This limit is possibly optimistic: a study says so.'), line
+    none_found = candidate.with_limit(Limit(cause.name, None, 0.0, 0.0))
+    assert none_found.detectable_caveat == ''          # no limit, nothing to qualify
+    assert 'This limit is' not in summary._unseen_line(none_found, 500)
 
 
 def test_statistics_that_are_numerical_noise_are_no_discrepancy():

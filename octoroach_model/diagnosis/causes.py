@@ -111,7 +111,9 @@ class Cause:
     table; `null` is the main parameter's value that means no effect (change_point's speed
     factor 1); `order_dependent` terms are predicted run by run at the run's place;
     `limit_caveat` says in words where studies found the term's detection limit not to hold
-    as computed (the report carries it beside the limit).
+    as computed (the report carries it beside the limit); none does now (periodic_heading's,
+    named in 7 of 12 data sets at 1x in studies/heading_terms.yaml, was named in 18 of 24
+    with studies/periodic_limits.yaml's twelve).
     """
 
     name: str
@@ -218,13 +220,6 @@ def _duration_floor(scale: RunScale) -> float:
     return 1.0 / max(scale.duration_s, 1e-3)
 
 
-# periodic_heading's limit, with the test averaged over the fitted spread's error, still
-# leans low in studies/heading_terms.yaml (README, "Beyond the table"; heading_random_walk's
-# holds there: 9 of 12)
-PERIODIC_LIMIT_CAVEAT = ('possibly optimistic: studies named a periodic heading at this size '
-                         'in 7 of 12 data sets (58 %, 32-81 %; a heading random walk in one '
-                         'more), and every one at twice it')
-
 FAMILIES: tuple[Cause, ...] = (
     Cause(drift_term('stride_frequency'), '', EstimateKind.TREND,
           'stride frequency against run order', _trend_of('stride_frequency'), 0.1,
@@ -241,7 +236,7 @@ FAMILIES: tuple[Cause, ...] = (
           family='heading_random_walk'),
     Cause('periodic_heading', 'deg', EstimateKind.MOMENTS,
           'heading power at the wobble frequency', _mean_exp_of('heading_wobble'), 5.0,
-          lambda scale: 0.5, family='periodic_heading', limit_caveat=PERIODIC_LIMIT_CAVEAT),
+          lambda scale: 0.5, family='periodic_heading'),
     Cause('change_point', '', EstimateKind.PATH, 'average path (joint fit with the geometry)',
           None, 0.7, lambda scale: 0.01, signed=True, bounds=(0.2, 3.0), family='change_point',
           main='speed_factor', null=1.0),
