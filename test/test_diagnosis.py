@@ -515,6 +515,30 @@ def test_a_limit_set_by_the_test_is_solved_where_t_was_computed_not_on_a_chord()
     assert refined.size_bound_power == 1.0
 
 
+def test_a_mixture_whose_two_groups_show_only_further_up_still_gets_a_limit(monkeypatch):
+    """
+    P3 (two groups seen) is held at its last value beyond the sizes simulated.
+
+    Where it was still low at 3 times the first size, no size reached 80 % and a null of
+    studies/mixture_limits.yaml reported run_mixture unseen at any size; the limit now
+    simulates further up (9 and 27 times) before saying so.
+    """
+    from octoroach_model.diagnosis import limits
+    from octoroach_model.diagnosis.modelfit import SizeEstimate
+
+    def shown(size: float) -> limits.TestPoint:      # the test is sure; the groups show late
+        return limits.TestPoint(50.0, min(1.0, (size / 20.0) ** 2))
+
+    sure = SizeEstimate('run_mixture', size=0.0, se=1e-6, u=0.0, se_u=0.0, intercept=0.0,
+                        slope=1.0, data_statistic=0.0)
+    found = limits.limit_from(shown, 1.0, sure, 0.1, 2.9, 2.935)
+    assert found.size is not None and 9.0 < found.size < 27.0, found
+    assert found.two_groups_power == pytest.approx(0.8, abs=0.01)
+    assert found.size_bound_power == 1.0 and found.test_power == 1.0
+    monkeypatch.setattr(limits, 'FURTHER_UP', 0)     # as it was: two sizes only
+    assert limits.limit_from(shown, 1.0, sure, 0.1, 2.9, 2.935).size is None
+
+
 @pytest.mark.parametrize('cause, size', [('persistent_turning', 6.0),
                                          ('gait_frequency_variation', 0.04)])
 def test_a_moments_size_counts_the_error_of_its_simulated_slope(cause, size):

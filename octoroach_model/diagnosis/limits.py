@@ -60,6 +60,7 @@ from octoroach_model.diagnosis.scoring import feature_log_score
 
 PSEUDO_RUNS = 1000
 REFINEMENTS = 2            # at most this many extra sizes at which T is computed
+FURTHER_UP = 2             # sizes 9 and 27 times the first, where none reached POWER below
 TEST_DECIDES = 0.999       # below this test power at the limit, the test decides the limit
 CLOSE = 0.02               # a limit within 2 % (in size) of a computed size needs no more
 T_CAP = 1e6                # an expected t beyond this is certain detection (a spread of 0)
@@ -331,6 +332,9 @@ def limit_from(t_computed: Callable[[float], TestPoint | float], first: float,
     """
     Solve for the limit with T computed at `first`, 3 `first` and, if needed, the limit.
 
+    Where no size reaches POWER through those two, T (and P3) is computed at 9 and 27 `first`
+    before the limit is said to be none.
+
     The limit found is where T is computed next while the simulated part (the test, and P3)
     decides it (module docstring). `t_computed` gives a TestPoint, or T alone.
     """
@@ -340,6 +344,16 @@ def limit_from(t_computed: Callable[[float], TestPoint | float], first: float,
 
     points = {size: computed(size) for size in (first, 3 * first)}
     limit = _solve(points, estimate, floor, z_bound, z_test)
+    for _ in range(FURTHER_UP):
+        # no size reaches POWER through these points: P3 is held at its last value beyond
+        # them, so a mixture whose two groups the runs at 3 `first` do not yet show never
+        # reached it, and the report said "unseen at any size" (a null of
+        # studies/mixture_limits.yaml); simulate further up before saying so
+        if limit is not None:
+            break
+        top = 3 * max(points)
+        points[top] = computed(top)
+        limit = _solve(points, estimate, floor, z_bound, z_test)
     for _ in range(REFINEMENTS):
         if limit is None or limit.size is None or limit.test_power * (
                 limit.two_groups_power or 1.0) >= TEST_DECIDES:
