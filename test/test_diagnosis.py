@@ -535,6 +535,16 @@ def test_a_mixture_whose_two_groups_show_only_further_up_still_gets_a_limit(monk
     assert found.size is not None and 9.0 < found.size < 27.0, found
     assert found.two_groups_power == pytest.approx(0.8, abs=0.01)
     assert found.size_bound_power == 1.0 and found.test_power == 1.0
+    sizes: list[float] = []                           # a bound that never clears: no more runs
+
+    def counted(size: float) -> limits.TestPoint:
+        sizes.append(size)
+        return shown(size)
+
+    flat = SizeEstimate('persistent_turning', size=0.0, se=0.1, u=0.0, se_u=0.1, intercept=0.0,
+                        slope=0.0, data_statistic=0.0)
+    assert limits.limit_from(counted, 1.0, flat, 0.1, 2.9, 2.935).size is None
+    assert sizes == [1.0, 3.0]
     monkeypatch.setattr(limits, 'FURTHER_UP', 0)     # as it was: two sizes only
     assert limits.limit_from(shown, 1.0, sure, 0.1, 2.9, 2.935).size is None
 

@@ -349,8 +349,8 @@ def limit_from(t_computed: Callable[[float], TestPoint | float], first: float,
         # them, so a mixture whose two groups the runs at 3 `first` do not yet show never
         # reached it, and the report said "unseen at any size" (a null of
         # studies/mixture_limits.yaml); simulate further up before saying so
-        if limit is not None:
-            break
+        if limit is not None or bound_power(estimate, 1e6 * max(points), floor, z_bound) == 0:
+            break       # found, or a size bound that never clears: no simulation helps
         top = 3 * max(points)
         points[top] = computed(top)
         limit = _solve(points, estimate, floor, z_bound, z_test)
