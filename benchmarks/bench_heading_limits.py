@@ -94,35 +94,20 @@ def held_out_gain(replicate: int, rows: dict[str, Any], term: str) -> None:
     import numpy as np
 
     from octoroach_model.diagnosis.causes import BY_NAME
-    from octoroach_model.diagnosis.diagnose import (
-        choose_wobble_hz, evaluate_candidate, fit_baseline, halves_as_diagnosed, score_held_out,
-        with_wobble)
+    from study_replay import race_step
+
     from octoroach_model.diagnosis.limits import (
         _features, limit_base, MODEL_PURPOSE, PSEUDO_PURPOSE, simulated_gains)
-    from octoroach_model.diagnosis.modelfit import FittedModel, Simulator
+    from octoroach_model.diagnosis.modelfit import FittedModel
     from octoroach_model.diagnosis.scoring import feature_log_score
-    from octoroach_model.studies import replicate as study
-    from octoroach_model.studies.design import build_tasks, draw_robot
-    from octoroach_model.studies.spec import load_spec
 
     null_row = rows.get('none')
     if table_limit(null_row, term) == 'not run':
         print('(the held-out gain needs the limit of the study table: run studies/open_world.yaml '
               'into out/studies/open_world first)')
         return
-    spec = load_spec(SPEC)
-    task = next(task for task in build_tasks(spec)
-                if task.replicate == replicate and task.key.startswith(f'{term}@1x'))
-    draw = draw_robot(spec, replicate)
-    effects = study.task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
-    measured = study.simulate_data(spec, draw, task.runs_cell, effects).paths
-    settings = study.task_settings(task, spec, draw.data_seed)
-    halves = halves_as_diagnosed(measured, settings)
-    baseline = fit_baseline(halves, settings).model
-    halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
-    simulator = Simulator(halves.test, settings.seed)
-    scores = score_held_out(simulator, baseline, halves, settings)
-    evaluation = evaluate_candidate(halves, baseline, scores, term, settings)
+    draw, effects, settings, halves, baseline, evaluation, simulator = race_step(
+        SPEC, replicate, term, null_row)
     held_out = halves.test.n
     spread = evaluation.gain.standard_error * math.sqrt(held_out)
     parameter = BY_NAME[term].parameter
@@ -179,6 +164,14 @@ class NullAsLimited(NamedTuple):
     base: Any        # the scored runs of the baseline (limits.limit_base)
 
 
+def has_limit(null_row: Any, term: str, option: str) -> bool:
+    """Return whether the study table has the term's limit; if not, say what `option` needs."""
+    if table_limit(null_row, term) == 'not run':
+        print(f'({option} needs the limit of the study table)')
+        return False
+    return True
+
+
 def null_as_limited(replicate: int) -> NullAsLimited:
     """Return the replicate's null data set as its detection limits see it."""
     from octoroach_model.diagnosis.diagnose import (
@@ -216,8 +209,7 @@ def fitted_pairs(replicate: int, rows: dict[str, Any], pairs: int) -> None:
 
     term = 'heading_random_walk'
     null_row = rows.get('none')
-    if table_limit(null_row, term) == 'not run':
-        print('(--fitted-pairs needs the limit of the study table)')
+    if not has_limit(null_row, term, '--fitted-pairs'):
         return
     settings, halves, baseline, simulator, base = null_as_limited(replicate)
     data = halves.test
@@ -280,8 +272,7 @@ def spread_part(replicate: int, rows: dict[str, Any]) -> None:
 
     term = 'heading_random_walk'
     null_row = rows.get('none')
-    if table_limit(null_row, term) == 'not run':
-        print('(--spread-part needs the limit of the study table)')
+    if not has_limit(null_row, term, '--spread-part'):
         return
     settings, halves, baseline, simulator, base = null_as_limited(replicate)
     data = halves.test

@@ -24,7 +24,7 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 SPEC = REPO / 'studies' / 'heading_terms.yaml'
@@ -33,52 +33,12 @@ TERM = 'periodic_heading'
 VARIANCE_FEATURES = ('increment_var', 'stride_length_var')
 
 
-class RaceStep(NamedTuple):
-    """One data set as the race's first step weighs the term on it."""
-
-    effects: dict[str, dict[str, float]]
-    settings: Any
-    halves: Any
-    baseline: Any
-    evaluation: Any
-    simulator: Any
-
-
 def race_step(replicate: int, null_row: Any, simulation_shift: int = 0,
-              moment_runs: int | None = None) -> RaceStep:
-    """
-    Rebuild the replicate's data set with the term at 1x and weigh the term on it.
+              moment_runs: int | None = None) -> Any:
+    """Return the replicate's data set with the term at 1x, weighed (study_replay.race_step)."""
+    from study_replay import race_step as weighed
 
-    `simulation_shift` moves the seed of every simulation (fits, wobble choice, scores) and
-    keeps the split of the runs into halves, which the study's seed makes; `moment_runs`
-    replaces the study's simulated runs for every statistic matched (the spread scale's too).
-    """
-    from dataclasses import replace
-
-    from octoroach_model.diagnosis.diagnose import (
-        choose_wobble_hz, evaluate_candidate, fit_baseline, halves_as_diagnosed, score_held_out,
-        with_wobble)
-    from octoroach_model.diagnosis.modelfit import Simulator
-    from octoroach_model.studies import replicate as study
-    from octoroach_model.studies.design import build_tasks, draw_robot
-    from octoroach_model.studies.spec import load_spec
-
-    spec = load_spec(SPEC)
-    task = next(task for task in build_tasks(spec)
-                if task.replicate == replicate and task.key.startswith(f'{TERM}@1x'))
-    draw = draw_robot(spec, replicate)
-    effects = study.task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
-    measured = study.simulate_data(spec, draw, task.runs_cell, effects).paths
-    settings = study.task_settings(task, spec, draw.data_seed)
-    halves = halves_as_diagnosed(measured, settings)
-    settings = replace(settings, seed=settings.seed + simulation_shift,
-                       moment_runs=moment_runs or settings.moment_runs)
-    baseline = fit_baseline(halves, settings).model
-    halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
-    simulator = Simulator(halves.test, settings.seed)
-    scores = score_held_out(simulator, baseline, halves, settings)
-    evaluation = evaluate_candidate(halves, baseline, scores, TERM, settings)
-    return RaceStep(effects, settings, halves, baseline, evaluation, simulator)
+    return weighed(SPEC, replicate, TERM, null_row, simulation_shift, moment_runs)
 
 
 def feature_scores(sample: Any, observed: Any, logged: bool) -> Any:
@@ -96,7 +56,7 @@ def feature_scores(sample: Any, observed: Any, logged: bool) -> Any:
     return feature_log_densities(sample, observed)
 
 
-def scored_runs(step: RaceStep, model: Any) -> Any:
+def scored_runs(step: Any, model: Any) -> Any:
     """Return the model's runs as the held-out test scores them (features in data spreads)."""
     from octoroach_model.diagnosis.diagnose import SCORE_PURPOSE
 

@@ -226,11 +226,14 @@ def test_a_declared_limit_caveat_reaches_the_candidate_and_its_line_in_the_summa
     cause = records.BY_NAME['periodic_heading']
     monkeypatch.setitem(records.BY_NAME, cause.name,
                         replace(cause, limit_caveat='possibly optimistic: a study says so'))
-    candidate = records.CandidateResult(
-        cause.name, {'amplitude_deg': 0.3, 'frequency_hz': 0.7}, 0.01, 0.02, 0.3, 0.0, 0.0,
-        {'amplitude_deg': [0.1, 0.5]}, 0.1, 0.15, 0.5, {'amplitude_deg': 1.2},
-        records.LimitMethod.SIZE_BOUND, {}, False, False, False, 1, cause.statistic_name,
-        family=cause.family)
+    candidate = records.CandidateResult(   # a periodic heading below its floor, unnamed
+        cause=cause.name, parameters={'amplitude_deg': 0.3, 'frequency_hz': 0.7}, gain=0.01,
+        gain_se=0.02, p_value=0.3, relative=0.0, gain_cm=0.0,
+        interval={'amplitude_deg': [0.1, 0.5]}, standard_error=0.1, lower_bound=0.15,
+        floor=0.5, detectable={'amplitude_deg': 1.2},
+        detectable_method=records.LimitMethod.SIZE_BOUND, detectable_power={},
+        clears_floor=False, significant=False, named_here=False, step=1,
+        statistic=cause.statistic_name, family=cause.family)
     with_limit = candidate.with_limit(Limit(cause.name, 1.4, 0.95, 0.84))
     assert with_limit.detectable_caveat == 'possibly optimistic: a study says so'
     assert with_limit.detectable == {'amplitude_deg': 1.4}

@@ -1,0 +1,60 @@
+"""
+A study's data set rebuilt as the study built it, and one term weighed as the race weighs it.
+
+For the benchmarks that look inside one row of a study's table (bench_heading_limits,
+bench_periodic_misses): the robot and seed of a replicate, the term at the size the study put
+in (read off the null row's limit), the halves the diagnosis splits, the baseline fitted to the
+calibration half, the heading wobble chosen, and the term's first race step.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, NamedTuple
+
+
+class RaceStep(NamedTuple):
+    """One data set as the race's first step weighs one term on it."""
+
+    draw: Any            # the replicate's robot (studies.design.RobotDraw)
+    effects: dict[str, dict[str, float]]
+    settings: Any
+    halves: Any
+    baseline: Any
+    evaluation: Any
+    simulator: Any
+
+
+def race_step(spec_path: Path, replicate: int, term: str, null_row: Any,
+              simulation_shift: int = 0, moment_runs: int | None = None) -> RaceStep:
+    """
+    Rebuild the replicate's data set with `term` at 1x its limit and weigh the term on it.
+
+    `simulation_shift` moves the seed of every simulation (fits, wobble choice, scores) and
+    keeps the split of the runs into halves, which the study's seed makes; `moment_runs`
+    replaces the study's simulated runs for every statistic matched (the spread scale's too).
+    """
+    from octoroach_model.diagnosis.diagnose import (
+        choose_wobble_hz, evaluate_candidate, fit_baseline, halves_as_diagnosed, score_held_out,
+        with_wobble)
+    from octoroach_model.diagnosis.modelfit import Simulator
+    from octoroach_model.studies import replicate as study
+    from octoroach_model.studies.design import build_tasks, draw_robot
+    from octoroach_model.studies.spec import load_spec
+
+    spec = load_spec(spec_path)
+    task = next(task for task in build_tasks(spec)
+                if task.replicate == replicate and task.key.startswith(f'{term}@1x'))
+    draw = draw_robot(spec, replicate)
+    effects = study.task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
+    measured = study.simulate_data(spec, draw, task.runs_cell, effects).paths
+    settings = study.task_settings(task, spec, draw.data_seed)
+    halves = halves_as_diagnosed(measured, settings)
+    settings = replace(settings, seed=settings.seed + simulation_shift,
+                       moment_runs=moment_runs or settings.moment_runs)
+    baseline = fit_baseline(halves, settings).model
+    halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
+    simulator = Simulator(halves.test, settings.seed)
+    scores = score_held_out(simulator, baseline, halves, settings)
+    evaluation = evaluate_candidate(halves, baseline, scores, term, settings)
+    return RaceStep(draw, effects, settings, halves, baseline, evaluation, simulator)
