@@ -2,9 +2,10 @@
 A study's data set rebuilt as the study built it, and one term weighed as the race weighs it.
 
 For the benchmarks that look inside one row of a study's table (bench_heading_limits,
-bench_periodic_misses): the robot and seed of a replicate, the term at the size the study put
-in (read off the null row's limit), the halves the diagnosis splits, the baseline fitted to the
-calibration half, the heading wobble chosen, and the term's first race step.
+bench_periodic_misses, bench_seed_agreement): the robot and seed of a replicate, the term at
+the size the study put in (read off the null row's limit), the halves the diagnosis splits,
+the baseline fitted to the calibration half, the heading wobble chosen, and the term's first
+race step.
 """
 from __future__ import annotations
 
@@ -25,6 +26,27 @@ class RaceStep(NamedTuple):
     simulator: Any
 
 
+class DataSet(NamedTuple):
+    """One row's data set as its study built it, and the settings it was diagnosed with."""
+
+    draw: Any            # the replicate's robot (studies.design.RobotDraw)
+    effects: dict[str, dict[str, float]]
+    measured: Any        # Paths
+    settings: Any        # DiagnosisSettings
+
+
+def rebuilt(spec: Any, task: Any, null_row: Any) -> DataSet:
+    """Return `task`'s data set of `spec` (the null row gives a limit multiple's size)."""
+    from octoroach_model.studies import replicate as study
+    from octoroach_model.studies.design import draw_robot
+
+    draw = draw_robot(spec, task.replicate)
+    effects = study.task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
+    runs = task.runs_cell if task.runs_cell is not None else draw.runs
+    measured = study.simulate_data(spec, draw, runs, effects).paths
+    return DataSet(draw, effects, measured, study.task_settings(task, spec, draw.data_seed))
+
+
 def race_step(spec_path: Path, replicate: int, term: str, null_row: Any,
               simulation_shift: int = 0, moment_runs: int | None = None) -> RaceStep:
     """
@@ -38,17 +60,13 @@ def race_step(spec_path: Path, replicate: int, term: str, null_row: Any,
         choose_wobble_hz, evaluate_candidate, fit_baseline, halves_as_diagnosed, score_held_out,
         with_wobble)
     from octoroach_model.diagnosis.modelfit import Simulator
-    from octoroach_model.studies import replicate as study
-    from octoroach_model.studies.design import build_tasks, draw_robot
+    from octoroach_model.studies.design import build_tasks
     from octoroach_model.studies.spec import load_spec
 
     spec = load_spec(spec_path)
     task = next(task for task in build_tasks(spec)
                 if task.replicate == replicate and task.key.startswith(f'{term}@1x'))
-    draw = draw_robot(spec, replicate)
-    effects = study.task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
-    measured = study.simulate_data(spec, draw, task.runs_cell, effects).paths
-    settings = study.task_settings(task, spec, draw.data_seed)
+    draw, effects, measured, settings = rebuilt(spec, task, null_row)
     halves = halves_as_diagnosed(measured, settings)
     settings = replace(settings, seed=settings.seed + simulation_shift,
                        moment_runs=moment_runs or settings.moment_runs)

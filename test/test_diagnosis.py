@@ -673,6 +673,20 @@ def test_the_diagnosis_is_reproducible_for_a_seed():
     assert first_json == second_json
 
 
+def test_the_split_seed_keeps_the_halves_while_the_seed_draws_the_simulations_again():
+    """With split_seed the halves stay where the seed moves (bench_seed_agreement.py)."""
+    from octoroach_model.diagnosis.diagnose import halves_as_diagnosed
+
+    measured = om.simulate(40, seed=SEED, cycles=3)
+
+    def held_out(**seeds: int) -> np.ndarray:
+        return halves_as_diagnosed(measured, DiagnosisSettings(**seeds)).test.paths.poses
+
+    assert np.array_equal(held_out(seed=5, split_seed=7), held_out(seed=7))
+    assert np.array_equal(held_out(seed=7, split_seed=None), held_out(seed=7))
+    assert not np.array_equal(held_out(seed=5), held_out(seed=7))
+
+
 @pytest.mark.parametrize('effects', [
     {'speed_decay': {'fraction': 0.2}},
     {'persistent_turning': {'yaw_rate_std_deg_s': 8.0}},

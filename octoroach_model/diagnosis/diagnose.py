@@ -86,7 +86,9 @@ class DiagnosisSettings:
     they are more); workers: processes
     (1: in this process), ignored when an executor is passed to `diagnose`; detection_limits:
     compute every candidate's limit of the whole decision (limits.py; without it `detectable`
-    is the size bound's own limit, and the method says so).
+    is the size bound's own limit, and the method says so); split_seed: the seed of the split
+    into halves alone (None: `seed`), so that the simulations can be drawn again on the same
+    halves (benchmarks/bench_seed_agreement.py).
     """
 
     seed: int = setting(0, 'seed of the split, the simulations and the bootstrap', low=0)
@@ -105,6 +107,7 @@ class DiagnosisSettings:
     validate_models: bool = True
     detection_limits: bool = True
     workers: int = 2
+    split_seed: int | None = None
 
     def fit(self, seed_offset: int = 0) -> FitSettings:
         return FitSettings(self.moment_runs, self.mean_path_runs, self.heading_weight_m,
@@ -334,10 +337,11 @@ def halves_as_diagnosed(measured: Paths, settings: DiagnosisSettings) -> Halves:
 
 
 def prepare_halves(measured: Paths, settings: DiagnosisSettings) -> Halves:
-    """Split the runs at random (from `settings.seed`) and measure their features."""
+    """Split the runs at random (from the split seed) and measure their features."""
     frequency = stride_frequency_estimate(measured.poses[..., 2], measured.t)
     start = mean_start_pose(measured)
-    order = np.random.default_rng(settings.seed).permutation(measured.n_paths)
+    split_seed = settings.seed if settings.split_seed is None else settings.split_seed
+    order = np.random.default_rng(split_seed).permutation(measured.n_paths)
     half = measured.n_paths // 2
     positions, _ = measured.recording_positions()
     everything = RunData(measured, frequency, start[2], positions)
