@@ -30,6 +30,7 @@ from octoroach_model.paths import Paths
 from octoroach_model.recordings import DEFAULT_GAP_S
 from octoroach_model.recordings.options import (
     FORWARD_AXIS, GAP_S, ReadOptions, TOPIC, UP_AXIS)
+from octoroach_model.redraw_setting import SIMULATION_DRAWS
 from octoroach_model.run_settings import ANGLE_DRAWS
 from octoroach_model.settings import check_fields, setting, settings_of
 from octoroach_model.validation import ValidationSettings
@@ -102,6 +103,7 @@ class Job:
                             unit='rad', low=-1.0, high=SIGMA_LIMIT, open_high=True)
     sigma2: float = setting(-1.0, 'evaluate at this liftoff spread; negative: search',
                             unit='rad', low=-1.0, high=SIGMA_LIMIT, open_high=True)
+    simulation_draws: int = setting(1, SIMULATION_DRAWS)    # ~/diagnose only
     report_dir: str = setting('', '~/diagnose also writes each report (report.json, '
                               'summary.md, plots) into a new folder here; empty: no files',
                               read_only=True)
@@ -122,6 +124,7 @@ class Job:
                    min_duration_s=float(values['min_duration_s']),
                    nominal=values['nominal'], draws=values['draws'],
                    sigma1=float(values['sigma1']), sigma2=float(values['sigma2']),
+                   simulation_draws=int(values['simulation_draws']),
                    report_dir=values['report_dir'], settings=settings)
 
     def sigmas(self) -> tuple[float, float] | None:
@@ -243,12 +246,14 @@ def diagnosis_settings(job: Job) -> Any:
     """
     Return the diagnosis settings of a call: the library's, with the node's own settings.
 
-    The seed, and the validation settings (rho, epsilon, delta, k, gamma, the search grid)
-    the diagnosis's validations of the baseline and the extended model use.
+    The seed, the validation settings (rho, epsilon, delta, k, gamma, the search grid) the
+    diagnosis's validations of the baseline and the extended model use, and the draws of the
+    simulations the decision is made on (redraws.py).
     """
     from octoroach_model.diagnosis import DiagnosisSettings
 
-    return DiagnosisSettings(seed=job.settings.seed, validation=job.settings)
+    return DiagnosisSettings(seed=job.settings.seed, validation=job.settings,
+                             simulation_draws=job.simulation_draws)
 
 
 def new_report_folder(report_dir: str) -> Path:

@@ -17,7 +17,7 @@ from octoroach_model.workers import default_workers, process_pool
 
 
 def parser() -> argparse.ArgumentParser:
-    """Build the `diagnose` command line (--seed: the field of DiagnosisSettings)."""
+    """Build the `diagnose` command line (--seed, --simulation-draws: DiagnosisSettings fields)."""
     from octoroach_model.diagnosis import DiagnosisSettings
 
     result = OneLineParser(
@@ -29,6 +29,7 @@ def parser() -> argparse.ArgumentParser:
     result.add_argument('--out', type=Path, required=True,
                         help='directory for the report (new, or an existing empty one)')
     add_setting(result, DiagnosisSettings, 'seed')
+    add_setting(result, DiagnosisSettings, 'simulation_draws')
     result.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
     add_workers_argument(result, 'the side-by-side work of the diagnosis')
     return result
@@ -54,12 +55,13 @@ def run(args: argparse.Namespace) -> int:
     from octoroach_model.recordings import load_measured
 
     new_output(args.out, '--out', directory_ok=True)
+    settings = DiagnosisSettings(seed=args.seed, simulation_draws=args.simulation_draws,
+                                 workers=1)
     reading = time.monotonic()
     measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s,
                              progress=reading_progress('diagnose'))
     say_repeated_runs(measured)
     workers = default_workers() if args.workers is None else args.workers
-    settings = DiagnosisSettings(seed=args.seed, workers=1)
     diagnosing = time.monotonic()
     with worker_pool(workers) as pool:
         report = diagnose(measured, settings, progress=progress_printer('diagnose'),

@@ -49,6 +49,7 @@ from octoroach_model.diagnosis.modelfit import (
 from octoroach_model.diagnosis.records import (
     CandidateResult, DecisionRules, DiagnosisReport, LimitMethod, ModelSummary, NamedCause,
     NamedExtension, PaperValidation, Rival, RunLengths, ScoreSummary, StepResult)
+from octoroach_model.diagnosis.redraws import DrawAgreement
 from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, position_points_cm, score_model, Scores)
 from octoroach_model.diagnosis.stages import StageClock
@@ -59,7 +60,8 @@ from octoroach_model.fitting.target import average_target
 from octoroach_model.model import ModelParameters
 from octoroach_model.model.extensions import family_form
 from octoroach_model.paths import Paths
-from octoroach_model.settings import setting
+from octoroach_model.redraw_setting import SIMULATION_DRAWS
+from octoroach_model.settings import check_fields, setting
 from octoroach_model.validation import chernoff_sample_size, ValidationSettings
 from octoroach_model.workers import executor_for, single_threaded
 
@@ -88,7 +90,9 @@ class DiagnosisSettings:
     compute every candidate's limit of the whole decision (limits.py; without it `detectable`
     is the size bound's own limit, and the method says so); split_seed: the seed of the split
     into halves alone (None: `seed`), so that the simulations can be drawn again on the same
-    halves (benchmarks/bench_seed_agreement.py).
+    halves (benchmarks/bench_seed_agreement.py); simulation_draws: the decision made this many
+    times on the same halves with the simulations drawn again, the report saying how many
+    agree (redraws.py).
     """
 
     seed: int = setting(0, 'seed of the split, the simulations and the bootstrap', low=0)
@@ -108,6 +112,10 @@ class DiagnosisSettings:
     detection_limits: bool = True
     workers: int = 2
     split_seed: int | None = None
+    simulation_draws: int = setting(1, SIMULATION_DRAWS)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
     def fit(self, seed_offset: int = 0) -> FitSettings:
         return FitSettings(self.moment_runs, self.mean_path_runs, self.heading_weight_m,
@@ -208,6 +216,9 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
                                             last_seen[cause], settings,
                                             None if cause in model.effects else shared)
                          for cause in last_seen} if settings.detection_limits else {}
+        # the same halves with the simulations drawn again (redraws.py), beside the rest
+        redraws = [pool.submit(redrawn_terms, measured, redraw_settings(settings, draw))
+                   for draw in range(1, settings.simulation_draws)]
         final_fit = lowest_cost([future.result() for future in final_futures])
         final_fit, dropped = _pruned(final_fit, halves, settings)
         final, final_estimates = final_fit.model, final_fit.estimates
@@ -240,9 +251,25 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
                         final_paths, final_features, halves.scales, final.order_dependent,
                         rng) if unexplained else None
         clock.enter('limits_and_validations')
+        if limit_futures or validations:
+            say(0.88, 'waiting for the detection limits' + (
+                " and the paper's validations" if validations else ''))
         validation_results = {name: future.result() for name, future in validations.items()}
         limits = {cause: future.result() for cause, future in limit_futures.items()}
-    named, named_extensions = _named(steps, final, final_estimates, halves, settings)
+        named, named_extensions = _named(steps, final, final_estimates, halves, settings)
+        agreement = None
+        if redraws:
+            clock.enter('redraws')
+            drawn = [named_terms(named, named_extensions)]
+            for future in redraws:
+                drawn.append(future.result())
+                say(0.9 + 0.1 * (len(drawn) - 1) / settings.simulation_draws,
+                    f'draw {len(drawn)} of {settings.simulation_draws} of the simulations on '
+                    f'the same halves: {", ".join(drawn[-1]) or "no term"} named')
+            agreement = DrawAgreement(
+                tuple(range(settings.seed, settings.seed + settings.simulation_draws)),
+                settings.seed if settings.split_seed is None else settings.split_seed,
+                tuple(drawn))
     report = DiagnosisReport(
         paths=measured.n_paths, duration_s=float(measured.t[-1]), seed=settings.seed,
         split={'calibration': halves.train.n, 'held_out': halves.test.n},
@@ -268,12 +295,40 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             (resolution_note,) if resolution_note else ()) + dropped + tuple(
             rival_note(final, rival) for rival in final_rivals
             if rival.weight >= RIVAL_NOTE_WEIGHT),
-        stages_s=clock.stop(), elapsed_s=round(time.monotonic() - started, 2))
+        simulation_draws=agreement, stages_s=clock.stop(),
+        elapsed_s=round(time.monotonic() - started, 2))
     say(1.0, 'causes: ' + (', '.join(c.cause for c in named) or 'none')
         + '; extensions: ' + (', '.join(e.family for e in named_extensions) or 'none')
         + ('' if report.adequate else '; the extended model still misses '
            + ', '.join(row.statistic for row in unexplained)))
     return report
+
+
+def named_terms(causes: Sequence[NamedCause], extensions: Sequence[NamedExtension]
+                ) -> tuple[str, ...]:
+    """Return the names of named causes and extension terms, causes first."""
+    return (tuple(named.cause for named in causes)
+            + tuple(extension.term for extension in extensions))
+
+
+def redraw_settings(settings: DiagnosisSettings, draw: int) -> DiagnosisSettings:
+    """
+    Return the settings of draw `draw` (1, 2, ...): the halves kept, the simulations moved.
+
+    The simulations from seed + draw, the split from the report's seed (redraws.py); in one
+    process (a draw is one task of the caller's pool), with neither detection limits nor
+    validations (they decide nothing), and no further draws.
+    """
+    split_seed = settings.seed if settings.split_seed is None else settings.split_seed
+    return replace(settings, seed=settings.seed + draw, split_seed=split_seed,
+                   simulation_draws=1, workers=1, detection_limits=False,
+                   validate_models=False)
+
+
+def redrawn_terms(measured: Paths, settings: DiagnosisSettings) -> tuple[str, ...]:
+    """Diagnose `measured` with `settings` and return the terms named (a pool's task)."""
+    report = diagnose(measured, settings)
+    return named_terms(report.causes, report.extensions)
 
 
 def _places(halves: Halves) -> FloatArray:

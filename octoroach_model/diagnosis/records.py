@@ -19,13 +19,14 @@ import numpy as np
 from octoroach_model.diagnosis.causes import BY_NAME
 from octoroach_model.diagnosis.discrepancies import Discrepancy
 from octoroach_model.diagnosis.limits import Limit, METHOD as LIMIT_METHOD
-from octoroach_model.jsonio import fields_jsonable, jsonable
+from octoroach_model.jsonio import fields_jsonable, jsonable, OMIT_NONE
 from octoroach_model.paths import Paths
 
 if TYPE_CHECKING:
     from octoroach_model.diagnosis.decide import SizeVerdict
     from octoroach_model.diagnosis.misfit import Misfit
     from octoroach_model.diagnosis.modelfit import FittedModel, ModelTable
+    from octoroach_model.diagnosis.redraws import DrawAgreement
     from octoroach_model.diagnosis.scoring import Scores
     from octoroach_model.validation.validate import SearchGrid
 
@@ -351,6 +352,8 @@ class DiagnosisReport:
     extended_model: FittedModel = field(metadata={'json': False})
     misfit: Misfit | None = None    # where the extended model misses (None when adequate)
     notes: tuple[str, ...] = ()
+    # the terms named by other draws of the simulations on the same halves (None: one draw)
+    simulation_draws: DrawAgreement | None = field(default=None, metadata=OMIT_NONE)
     stages_s: dict[str, float] = field(default_factory=dict)  # wall time per stage (stages.py)
     elapsed_s: float = 0.0
     sources: tuple[str, ...] = ()

@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 import time
 
 # The stages in their order (README and docs/report.md name them)
-STAGES = ('read', 'prepare', 'baseline', 'race', 'final_fit', 'adequacy', 'limits_and_validations')
+STAGES = ('read', 'prepare', 'baseline', 'race', 'final_fit', 'adequacy', 'limits_and_validations',
+          'redraws')
 
 
 @dataclass

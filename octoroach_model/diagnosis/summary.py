@@ -125,6 +125,8 @@ def summary_text(report: DiagnosisReport) -> str:
                   f"{_number(gain.energy_score_cm['baseline'])} -> "
                   f"{_number(gain.energy_score_cm['extended'])} cm (energy score, lower is "
                   f'better): {_closer(closer)} per run.']
+    if report.simulation_draws is not None:
+        lines += ['', report.simulation_draws.sentence()]
     lines += ['', '## What the extended model still misses', '']
     if report.adequate:
         lines.append('Nothing material: every statistic of the data agrees with the extended '

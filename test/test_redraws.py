@@ -1,0 +1,110 @@
+"""
+The decision made again with the simulations drawn anew on the same halves (redraws.py).
+
+A diagnosis with `simulation_draws` K reports which terms each of K draws named; the first is
+the report's own decision, the others keep its halves and move only the simulations' seed.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+import json
+from pathlib import Path
+import subprocess
+import sys
+
+from hidden_effects import FAST, FEW_SIMULATED_RUNS, SEED
+from hypothesis import given, strategies as st
+import numpy as np
+import pytest
+
+import octoroach_model as om
+from octoroach_model import validation_jobs
+from octoroach_model.diagnosis import diagnose, DiagnosisSettings, summary_text
+from octoroach_model.diagnosis.diagnose import halves_as_diagnosed, redraw_settings
+from octoroach_model.diagnosis.redraws import DrawAgreement
+from octoroach_model.errors import ParameterError
+from octoroach_model.jsonio import dumps
+from octoroach_model.nodes import validator
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_other_draws_of_the_simulations_are_reported_beside_the_decision():
+    # a start pose spread far above its limit: every draw of the simulations names it
+    measured = om.simulate(80, seed=SEED % 1000, cycles=6, effects={
+        'initial_pose_error': {'heading_std_deg': 5.0, 'position_std_cm': 0.3}})
+    settings = replace(FAST, seed=SEED, simulation_draws=2, **FEW_SIMULATED_RUNS)
+    report = diagnose(measured, settings)
+    draws = report.simulation_draws
+    assert draws is not None
+    assert draws.seeds == (SEED, SEED + 1) and draws.split_seed == SEED
+    assert draws.named == (('initial_pose_error',), ('initial_pose_error',))
+    assert report.cause == 'initial_pose_error'
+    plain = json.loads(dumps(report))
+    assert plain['simulation_draws'] == {
+        'count': 2, 'seeds': [SEED, SEED + 1], 'split_seed': SEED,
+        'named': [['initial_pose_error'], ['initial_pose_error']], 'same_as_reported': 2,
+        'by_term': {'initial_pose_error': 2}}
+    assert 'redraws' in report.stages_s
+    assert 'named the same terms every time (2 of 2)' in summary_text(report)
+    # one draw (the default) writes no such entry
+    assert 'simulation_draws' not in replace(report, simulation_draws=None).to_json()
+
+
+def test_a_draw_keeps_the_halves_and_moves_only_the_simulations():
+    settings = replace(FAST, seed=SEED, simulation_draws=3)
+    second = redraw_settings(settings, 2)
+    assert (second.seed, second.split_seed, second.simulation_draws) == (SEED + 2, SEED, 1)
+    assert not second.detection_limits and not second.validate_models
+    assert redraw_settings(replace(settings, split_seed=7), 1).split_seed == 7
+    measured = om.simulate(60, seed=1, cycles=6)
+    first = halves_as_diagnosed(measured, settings)
+    again = halves_as_diagnosed(measured, second)
+    np.testing.assert_array_equal(first.test.paths.poses, again.test.paths.poses)
+
+
+names = st.sampled_from(['initial_pose_error', 'lateral_slip', 'heading_random_walk',
+                         'run_mixture'])
+
+
+@given(st.lists(st.lists(names, unique=True, max_size=3).map(tuple), min_size=1, max_size=6))
+def test_the_agreement_counts_the_draws_that_name_the_reported_terms(named):
+    agreement = DrawAgreement(tuple(range(len(named))), 0, tuple(named))
+    reported = set(named[0])
+    assert agreement.same_as_reported == sum(set(terms) == reported for terms in named)
+    assert 1 <= agreement.same_as_reported <= len(named)
+    for term, count in agreement.by_term.items():
+        assert count == sum(term in terms for terms in named)
+    sentence = agreement.sentence()
+    if all(set(terms) == reported for terms in named):
+        assert 'every time' in sentence
+    else:
+        assert 'rests partly' in sentence
+        wavering = {term for term, count in agreement.by_term.items() if count < len(named)}
+        assert wavering and all(f'{term} in' in sentence for term in wavering)
+
+
+def test_a_number_of_draws_outside_its_range_is_refused_before_any_work(tmp_path):
+    with pytest.raises(ParameterError, match='simulation_draws must lie in'):
+        DiagnosisSettings(simulation_draws=0)
+    with pytest.raises(ParameterError, match='simulation_draws must lie in'):
+        DiagnosisSettings(simulation_draws=21)
+    # the command checks it before it reads any input (this one does not exist)
+    result = subprocess.run(
+        [sys.executable, '-m', 'octoroach_model', 'diagnose', str(REPO / 'no-such-bag'),
+         '--out', str(tmp_path / 'report'), '--simulation-draws', '21'],
+        cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1 and 'Traceback' not in result.stderr
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert lines == ['error: diagnose: simulation_draws must lie in [1, 20], got 21'], \
+        result.stderr
+    assert not (tmp_path / 'report').exists()
+
+
+def test_the_validator_diagnoses_with_its_simulation_draws():
+    values = {spec.name: spec.default for spec in validator.validator_specs()}
+    assert values['simulation_draws'] == 1
+    job = validation_jobs.Job.from_values({**values, 'simulation_draws': 3})
+    assert validation_jobs.diagnosis_settings(job).simulation_draws == 3
+    with pytest.raises(ParameterError, match='simulation_draws'):
+        validation_jobs.Job.from_values({**values, 'simulation_draws': 0})
