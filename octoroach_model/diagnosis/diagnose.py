@@ -117,6 +117,11 @@ class DiagnosisSettings:
     def __post_init__(self) -> None:
         check_fields(self)
 
+    @property
+    def halves_seed(self) -> int:
+        """Return the seed of the split into halves: `split_seed`, else `seed`."""
+        return self.seed if self.split_seed is None else self.split_seed
+
     def fit(self, seed_offset: int = 0) -> FitSettings:
         return FitSettings(self.moment_runs, self.mean_path_runs, self.heading_weight_m,
                            self.rounds, self.seed + seed_offset)
@@ -217,8 +222,9 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
                                             None if cause in model.effects else shared)
                          for cause in last_seen} if settings.detection_limits else {}
         # the same halves with the simulations drawn again (redraws.py), beside the rest
-        redraws = [pool.submit(redrawn_terms, measured, redraw_settings(settings, draw))
-                   for draw in range(1, settings.simulation_draws)]
+        drawn_settings = [redraw_settings(settings, draw)
+                          for draw in range(1, settings.simulation_draws)]
+        redraws = [pool.submit(redrawn_terms, measured, drawn) for drawn in drawn_settings]
         final_fit = lowest_cost([future.result() for future in final_futures])
         final_fit, dropped = _pruned(final_fit, halves, settings)
         final, final_estimates = final_fit.model, final_fit.estimates
@@ -267,9 +273,8 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
                     f'draw {len(drawn)} of {settings.simulation_draws} of the simulations on '
                     f'the same halves: {", ".join(drawn[-1]) or "no term"} named')
             agreement = DrawAgreement(
-                tuple(range(settings.seed, settings.seed + settings.simulation_draws)),
-                settings.seed if settings.split_seed is None else settings.split_seed,
-                tuple(drawn))
+                (settings.seed, *(other.seed for other in drawn_settings)),
+                settings.halves_seed, tuple(drawn))
     report = DiagnosisReport(
         paths=measured.n_paths, duration_s=float(measured.t[-1]), seed=settings.seed,
         split={'calibration': halves.train.n, 'held_out': halves.test.n},
@@ -319,8 +324,7 @@ def redraw_settings(settings: DiagnosisSettings, draw: int) -> DiagnosisSettings
     process (a draw is one task of the caller's pool), with neither detection limits nor
     validations (they decide nothing), and no further draws.
     """
-    split_seed = settings.seed if settings.split_seed is None else settings.split_seed
-    return replace(settings, seed=settings.seed + draw, split_seed=split_seed,
+    return replace(settings, seed=settings.seed + draw, split_seed=settings.halves_seed,
                    simulation_draws=1, workers=1, detection_limits=False,
                    validate_models=False)
 
@@ -395,8 +399,7 @@ def prepare_halves(measured: Paths, settings: DiagnosisSettings) -> Halves:
     """Split the runs at random (from the split seed) and measure their features."""
     frequency = stride_frequency_estimate(measured.poses[..., 2], measured.t)
     start = mean_start_pose(measured)
-    split_seed = settings.seed if settings.split_seed is None else settings.split_seed
-    order = np.random.default_rng(split_seed).permutation(measured.n_paths)
+    order = np.random.default_rng(settings.halves_seed).permutation(measured.n_paths)
     half = measured.n_paths // 2
     positions, _ = measured.recording_positions()
     everything = RunData(measured, frequency, start[2], positions)
