@@ -66,7 +66,6 @@ def diagnosed(job: Job, null_row: Any, commit: str) -> Diagnosed:
 
     from octoroach_model.diagnosis import diagnose
     from octoroach_model.studies.design import build_tasks
-    from octoroach_model.studies.replicate import named_terms
     from octoroach_model.studies.spec import load_spec
 
     started = time.process_time()
@@ -77,7 +76,7 @@ def diagnosed(job: Job, null_row: Any, commit: str) -> Diagnosed:
     settings = replace(data.settings, seed=study_seed + job.shift, workers=1,
                        split_seed=study_seed if job.keep_split else None)
     report = diagnose(data.measured, settings)
-    return Diagnosed(job, tuple(named_terms(report)), round(time.process_time() - started, 1),
+    return Diagnosed(job, tuple(report.named_terms), round(time.process_time() - started, 1),
                      commit)
 
 

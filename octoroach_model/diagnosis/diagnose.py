@@ -47,8 +47,8 @@ from octoroach_model.diagnosis.modelfit import (
     rival_geometries, RivalGeometry, RunData, Simulator, SizeEstimate, spread_error,
     spread_statistic)
 from octoroach_model.diagnosis.records import (
-    CandidateResult, DecisionRules, DiagnosisReport, LimitMethod, ModelSummary, NamedCause,
-    NamedExtension, PaperValidation, Rival, RunLengths, ScoreSummary, StepResult)
+    CandidateResult, DecisionRules, DiagnosisReport, LimitMethod, ModelSummary, named_by_term,
+    NamedCause, NamedExtension, PaperValidation, Rival, RunLengths, ScoreSummary, StepResult)
 from octoroach_model.diagnosis.redraws import DrawAgreement
 from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, position_points_cm, score_model, Scores)
@@ -266,7 +266,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         agreement = None
         if redraws:
             clock.enter('redraws')
-            drawn = [named_terms(named, named_extensions)]
+            drawn = [tuple(named_by_term(named, named_extensions))]
             for future in redraws:
                 drawn.append(future.result())
                 say(0.9 + 0.1 * (len(drawn) - 1) / settings.simulation_draws,
@@ -309,13 +309,6 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     return report
 
 
-def named_terms(causes: Sequence[NamedCause], extensions: Sequence[NamedExtension]
-                ) -> tuple[str, ...]:
-    """Return the names of named causes and extension terms, causes first."""
-    return (tuple(named.cause for named in causes)
-            + tuple(extension.term for extension in extensions))
-
-
 def redraw_settings(settings: DiagnosisSettings, draw: int) -> DiagnosisSettings:
     """
     Return the settings of draw `draw` (1, 2, ...): the halves kept, the simulations moved.
@@ -331,8 +324,7 @@ def redraw_settings(settings: DiagnosisSettings, draw: int) -> DiagnosisSettings
 
 def redrawn_terms(measured: Paths, settings: DiagnosisSettings) -> tuple[str, ...]:
     """Diagnose `measured` with `settings` and return the terms named (a pool's task)."""
-    report = diagnose(measured, settings)
-    return named_terms(report.causes, report.extensions)
+    return tuple(diagnose(measured, settings).named_terms)
 
 
 def _places(halves: Halves) -> FloatArray:

@@ -9,7 +9,7 @@ file edge only (`jsonio`, report_files.py); summary.py says the report in words.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from enum import Enum
 from typing import Any, TYPE_CHECKING, TypedDict
@@ -178,6 +178,14 @@ class NamedExtension:
     step: int
     description: str
     rival: Rival | None = None
+
+
+def named_by_term(causes: Sequence[NamedCause], extensions: Sequence[NamedExtension]
+                  ) -> dict[str, NamedCause | NamedExtension]:
+    """Return what a diagnosis names, by term: its causes of the table, then extension terms."""
+    named: dict[str, NamedCause | NamedExtension] = {entry.cause: entry for entry in causes}
+    named.update({entry.term: entry for entry in extensions})
+    return named
 
 
 class EnergyScores(TypedDict):
@@ -367,6 +375,11 @@ class DiagnosisReport:
     def parameters(self) -> dict[str, float | str]:
         """Return the parameters of the leading cause, empty when there is none."""
         return dict(self.causes[0].parameters) if self.causes else {}
+
+    @property
+    def named_terms(self) -> dict[str, NamedCause | NamedExtension]:
+        """Return what the report names, by term (`named_by_term`)."""
+        return named_by_term(self.causes, self.extensions)
 
     def to_json(self) -> dict[str, Any]:
         plain = fields_jsonable(self)

@@ -150,7 +150,7 @@ def summary_text(report: DiagnosisReport) -> str:
                          f'{_number(checked.violation)}'
                          + ('' if checked.accepted else ' (no spread admissible)') + '.')
     lines += ['', '## What could have been seen', '']
-    named_terms = {c.cause for c in report.causes} | {e.term for e in report.extensions}
+    named_terms = set(report.named_terms)
     for candidate in (*report.candidates, *report.extension_candidates):
         if candidate.cause in named_terms:
             continue

@@ -28,7 +28,6 @@ from octoroach_model.studies.terms import main_parameter, null_value, term_value
 
 if TYPE_CHECKING:
     from octoroach_model.diagnosis import DiagnosisReport
-    from octoroach_model.diagnosis.records import NamedCause, NamedExtension
 
 
 class Skip(Exception):
@@ -162,7 +161,9 @@ def read_report(report: DiagnosisReport, effects: Mapping[str, Mapping[str, floa
     Causes of the table and extension terms alike (`named` lists both, by term); a size's
     relative error is that of its distance from the value of no effect.
     """
-    named = named_terms(report)
+    from octoroach_model.diagnosis.records import named_by_term
+
+    named = named_by_term(report.causes, report.extensions)
     true = list(effects)
     outcome = Outcome(
         named=tuple(named), false_causes=tuple(term for term in named if term not in true),
@@ -192,14 +193,6 @@ def read_report(report: DiagnosisReport, effects: Mapping[str, Mapping[str, floa
             limit=_number(main_value(candidate.detectable, main))
             if candidate is not None else math.nan)
     return outcome, terms
-
-
-def named_terms(report: DiagnosisReport) -> dict[str, NamedCause | NamedExtension]:
-    """Return what the report names, by term: its causes of the table, then extension terms."""
-    named: dict[str, NamedCause | NamedExtension] = {entry.cause: entry
-                                                     for entry in report.causes}
-    named.update({entry.term: entry for entry in report.extensions})
-    return named
 
 
 def main_value(values: Mapping[str, Any], main: str) -> Any:
