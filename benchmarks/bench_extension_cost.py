@@ -7,9 +7,12 @@ families joined the race, in one run.
 The earlier release is checked out from this repository's history into a temporary folder
 (`git worktree add --detach`, removed at the end) and run with the same environment; the two
 programs alternate, REPEATS times each, so that a busy machine slows both alike. Prints the
-median wall time of each and their ratio (issue 23 asks for at most 1.5).
+median wall time of each and their ratio (issue 23 asks for at most 1.5). `--candidate REV`
+times another commit in place of this checkout (checked out the same way), so that a figure
+about two past commits can be measured again (README, "Speed": c5602ef against 878b61e).
 
-Run: .venv/bin/python benchmarks/bench_extension_cost.py [--baseline REV] [--repeats N]
+Run: .venv/bin/python benchmarks/bench_extension_cost.py [--baseline REV] [--candidate REV]
+     [--repeats N]
 """
 from __future__ import annotations
 
@@ -43,28 +46,39 @@ def timed_diagnosis(source: Path, out: Path) -> float:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--baseline', default=BASELINE, help='the earlier release (a git rev)')
+    parser.add_argument('--candidate', help='time this commit instead of this checkout')
     parser.add_argument('--repeats', type=int, default=3, help='runs of each program')
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as scratch:
-        earlier = Path(scratch) / 'baseline'
-        subprocess.run(['git', '-C', str(REPO), 'worktree', 'add', '--detach', str(earlier),
-                        args.baseline], check=True, capture_output=True)
+        sources = {'baseline': Path(scratch) / 'baseline', 'current': REPO}
+        if args.candidate:
+            sources['current'] = Path(scratch) / 'candidate'
+        added = []
         try:
+            for name, rev in (('baseline', args.baseline), ('current', args.candidate)):
+                if rev:
+                    subprocess.run(['git', '-C', str(REPO), 'worktree', 'add', '--detach',
+                                    str(sources[name]), rev], check=True, capture_output=True)
+                    added.append(sources[name])
             times: dict[str, list[float]] = {'baseline': [], 'current': []}
             for repeat in range(args.repeats):
-                for name, source in (('baseline', earlier), ('current', REPO)):
+                for name, source in sources.items():
                     seconds = timed_diagnosis(source, Path(scratch) / f'{name}_{repeat}')
                     times[name].append(seconds)
                     print(f'{name} run {repeat + 1}: {seconds:.1f} s', file=sys.stderr)
         finally:
-            subprocess.run(['git', '-C', str(REPO), 'worktree', 'remove', '--force',
-                            str(earlier)], check=False, capture_output=True)
+            for folder in added:
+                subprocess.run(['git', '-C', str(REPO), 'worktree', 'remove', '--force',
+                                str(folder)], check=False, capture_output=True)
     before, after = (statistics.median(times[name]) for name in ('baseline', 'current'))
+    ratios = sorted(late / early for early, late in zip(times['baseline'], times['current']))
     print('| diagnose bags/ (500 runs, 2 workers, report and plots) | median wall time |')
     print('| --- | --- |')
-    print(f'| release {args.baseline} (six causes in the race) | {before:.1f} s |')
-    print(f'| this checkout (six causes and seven family terms) | {after:.1f} s |')
-    print(f'| ratio | {after / before:.2f} |')
+    print(f'| commit {args.baseline} | {before:.1f} s |')
+    print(f'| {"commit " + args.candidate if args.candidate else "this checkout"} | '
+          f'{after:.1f} s |')
+    print(f'| ratio (of the medians; of each pair of runs: {ratios[0]:.2f}-{ratios[-1]:.2f}) '
+          f'| {after / before:.2f} |')
     return 0
 
 
