@@ -67,8 +67,8 @@ class DrawAgreement:
                     'that the decision rests on them.')
         wavering = [f'{term} in {count}' for term, count in sorted(self.by_term.items())
                     if count < draws]
-        return (f"**The decision rests partly on the simulations' draws**: drawn {draws} "
-                'times on the same halves, they named the same terms as this report '
-                f'{self.same_as_reported} times; named in only some of the {draws} draws: '
+        return (f"**The decision rests partly on the simulations' draws**: of {draws} draws "
+                f"on the same halves, {self.same_as_reported} (this report's included) named "
+                f'the same terms as this report; named in only some of the {draws}: '
                 f'{", ".join(wavering)}. Such a term sits near its threshold: more measured '
                 'runs would settle it.')
