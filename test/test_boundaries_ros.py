@@ -11,6 +11,7 @@ never answered.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import json
 import os
 from pathlib import Path
@@ -203,3 +204,22 @@ def test_the_launch_file_runs_each_node_in_its_sros2_enclave(tmp_path):
     # the node asked for its own enclave, which the keystore lacks: no node joins unkeyed
     assert os.path.join('enclaves', 'lab', 'validator') in node.log, node.log
     assert 'Traceback' not in node.log
+
+
+def test_diagnose_draws_the_simulations_as_often_as_the_parameter_says(
+        spun, client, tmp_path, monkeypatch):
+    node_settings = validation_jobs.diagnosis_settings
+    monkeypatch.setattr(validation_jobs, 'diagnosis_settings', lambda job: replace(
+        node_settings(job), moment_runs=80, mean_path_runs=60, score_runs=150, bootstrap=10,
+        workers=1, validate_models=False, detection_limits=False))
+    data = save_dataset(tmp_path / 'runs.npz', om.simulate(60, seed=3, cycles=6))
+    spun(bags=[str(data)], simulation_draws=2)
+
+    result, _ = client.set_parameter('validator', 'simulation_draws', 21)
+    assert not result.successful and 'out of range' in result.reason   # its descriptor's
+    ok, answer, _ = client.trigger('/validator/diagnose', timeout=300)
+    assert ok, answer
+    draws = answer['simulation_draws']
+    assert draws['count'] == 2 and draws['seeds'] == [0, 1] and draws['split_seed'] == 0
+    assert draws['named'][0] == [c['cause'] for c in answer['causes']] + [
+        e['term'] for e in answer['extensions']]
