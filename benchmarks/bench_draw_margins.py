@@ -62,15 +62,14 @@ def diagnosed(family: str, size: float, fraction: float, runs: int, data_seed: i
 
     import octoroach_model as om
     from octoroach_model.diagnosis import diagnose, DiagnosisSettings
+    from octoroach_model.diagnosis.diagnose import redraw_settings
 
     values: dict[str, Any] = {PARAMETERS[family]: size}
     if family == 'run_mixture':
         values['fraction'] = fraction
     measured = om.simulate(runs, seed=data_seed, extensions={family: values})
     started = time.process_time()
-    report = diagnose(measured, DiagnosisSettings(
-        seed=seed + draw, split_seed=seed, workers=1, detection_limits=False,
-        validate_models=False))
+    report = diagnose(measured, redraw_settings(DiagnosisSettings(seed=seed), draw))
     first = report.steps[0]
     entry = next(c for c in first.candidates if c.cause == family)
     held_out = report.split['held_out']
@@ -78,10 +77,9 @@ def diagnosed(family: str, size: float, fraction: float, runs: int, data_seed: i
     t_critical = float(stats.t.isf(first.test_level, held_out - 1))
     margin = ((entry.lower_bound - entry.floor) / entry.standard_error
               if entry.standard_error > 0 else math.nan)
-    named = (tuple(c.cause for c in report.causes)
-             + tuple(e.term for e in report.extensions))
     size = entry.parameters[PARAMETERS[family]]
-    return Criteria(data_seed, draw, named, t, t_critical, margin, first.decision_z,
+    return Criteria(data_seed, draw, tuple(report.named_terms), t, t_critical, margin,
+                    first.decision_z,
                     float(size) if isinstance(size, (int, float)) else math.nan,
                     entry.standard_error, entry.screened, time.process_time() - started)
 

@@ -65,6 +65,7 @@ def diagnosed(job: Job, null_row: Any, commit: str) -> Diagnosed:
     from study_replay import rebuilt
 
     from octoroach_model.diagnosis import diagnose
+    from octoroach_model.diagnosis.diagnose import redraw_settings
     from octoroach_model.studies.design import build_tasks
     from octoroach_model.studies.spec import load_spec
 
@@ -72,9 +73,10 @@ def diagnosed(job: Job, null_row: Any, commit: str) -> Diagnosed:
     spec = load_spec(REPO / 'studies' / f'{job.study}.yaml')
     task = next(task for task in build_tasks(spec) if task.key == job.key)
     data = rebuilt(spec, task, null_row)
-    study_seed = data.settings.seed
-    settings = replace(data.settings, seed=study_seed + job.shift, workers=1,
-                       split_seed=study_seed if job.keep_split else None)
+    # halves kept: a draw as `diagnose --simulation-draws` makes it (the study's arms have
+    # neither limits nor validations either); else the split moves with the seed
+    settings = (redraw_settings(data.settings, job.shift) if job.keep_split
+                else replace(data.settings, seed=data.settings.seed + job.shift, workers=1))
     report = diagnose(data.measured, settings)
     return Diagnosed(job, tuple(report.named_terms), round(time.process_time() - started, 1),
                      commit)
