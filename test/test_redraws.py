@@ -31,7 +31,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 def test_other_draws_of_the_simulations_are_reported_beside_the_decision():
     # few simulated runs: what each draw names may differ (that is what is reported); each
-    # draw must be the diagnosis at its own settings, and the report must say so
+    # draw must be the diagnosis at its own settings, and the report must say so (a draw
+    # runs the decision alone, `redrawn_terms`: it must name what the whole diagnosis names)
     measured = om.simulate(80, seed=SEED % 1000, cycles=6, effects={
         'initial_pose_error': {'heading_std_deg': 5.0, 'position_std_cm': 0.3}})
     settings = replace(FAST, seed=SEED, simulation_draws=2, **FEW_SIMULATED_RUNS)

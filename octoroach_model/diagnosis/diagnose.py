@@ -21,7 +21,7 @@ Method (docs/diagnosis.md has it in full):
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import Executor
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass, field, replace
 import math
 import time
@@ -166,48 +166,15 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         say(0.02, 'preparing the runs (features, gait clock)')
         clock.enter('prepare')
         halves = prepare_halves(resolved, settings)
-        say(0.08, 'fitting the baseline (geometry on the mean path, spread scale)')
-        clock.enter('baseline')
-        baseline_fit = fit_baseline(halves, settings, pool)
-        baseline = baseline_fit.model
-        halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
-        simulator = Simulator(halves.test, settings.seed)
-        current_scores = score_held_out(simulator, baseline, halves, settings)
-        baseline_scores = current_scores
-        say(0.15, f'baseline: sigma1 = {baseline.sigmas[0]:.3f}, '
-                  f'sigma2 = {baseline.sigmas[1]:.3f} rad')
-        clock.enter('race')
-        model = baseline
-        steps: list[StepResult] = []
-        last_seen: dict[str, CandidateResult] = {}
-        last_evaluated: dict[str, Evaluation] = {}
-        remaining = [cause.name for cause in CANDIDATES]
-        while remaining:
-            step = len(steps) + 1
-            z_step = decision_z(settings.decision_alpha, len(remaining))
-            futures = [pool.submit(evaluate_candidate, halves, model, current_scores, cause,
-                                   settings, z_step) for cause in remaining]
-            evaluated = [future.result() for future in futures]
-            last_evaluated.update({evaluation.cause: evaluation for evaluation in evaluated})
-            result, chosen = _step_result(step, evaluated, halves, settings)
-            for candidate in result.candidates:
-                last_seen[candidate.cause] = candidate
-            steps.append(result)
-            say(min(0.15 + 0.13 * step, 0.7), _step_message(result))
-            if chosen is None:
-                break
-            model = chosen.model
-            if settings.rounds > 1:
-                model = fit_causes(halves.train, model, model.causes, settings.fit(),
-                                   rounds=settings.rounds - 1).model
-            current_scores = score_held_out(simulator, model, halves, settings)
-            remaining.remove(chosen.cause)
+        race = run_race(halves, settings, pool, say, clock)
+        halves, baseline_fit, baseline, model = (race.halves, race.baseline_fit,
+                                                 race.baseline_fit.model, race.model)
+        steps, last_seen = race.steps, race.last_seen
         say(0.75, 'refitting the extended model on all runs' + (
             f' (from {1 + len(baseline_fit.alternatives)} geometries)'
             if baseline_fit.alternatives else ''))
         clock.enter('final_fit')
-        final_futures = [pool.submit(_final_fit, halves, start, settings)
-                         for start in final_starts(model, baseline_fit.alternatives)]
+        final_futures = submit_final_fits(race, settings, pool)
         validations = {}
         if settings.validate_models:
             validations = {name: pool.submit(paper_validation, measured, fitted,
@@ -217,7 +184,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         # runs are simulated once for all of them
         shared = limit_base(Simulator(halves.test, settings.seed), model, halves.scales,
                             settings.score_runs) if settings.detection_limits else None
-        limit_futures = {cause: pool.submit(_limit, halves, model, last_evaluated[cause],
+        limit_futures = {cause: pool.submit(_limit, halves, model, race.last_evaluated[cause],
                                             last_seen[cause], settings,
                                             None if cause in model.effects else shared)
                          for cause in last_seen} if settings.detection_limits else {}
@@ -225,8 +192,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
         drawn_settings = [redraw_settings(settings, draw)
                           for draw in range(1, settings.simulation_draws)]
         redraws = [pool.submit(redrawn_terms, measured, drawn) for drawn in drawn_settings]
-        final_fit = lowest_cost([future.result() for future in final_futures])
-        final_fit, dropped = _pruned(final_fit, halves, settings)
+        final_fit, dropped = final_decision(race, final_futures, settings)
         final, final_estimates = final_fit.model, final_fit.estimates
         say(0.85, 'discrepancies and adequacy')
         clock.enter('adequacy')
@@ -290,7 +256,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
             _with_limit(last_seen[cause.name], limits) for cause in FAMILIES
             if cause.name in last_seen),
         steps=tuple(steps),
-        gain=_gain_summary(baseline_scores, current_scores, halves),
+        gain=_gain_summary(race.baseline_scores, race.current_scores, halves),
         extended_discrepancies=tuple(final_rows), adequate=not unexplained,
         unexplained=tuple(unexplained), misfit=misfit,
         adequacy_bound_z=bound, decision=DecisionRules(
@@ -323,8 +289,100 @@ def redraw_settings(settings: DiagnosisSettings, draw: int) -> DiagnosisSettings
 
 
 def redrawn_terms(measured: Paths, settings: DiagnosisSettings) -> tuple[str, ...]:
-    """Diagnose `measured` with `settings` and return the terms named (a pool's task)."""
-    return tuple(diagnose(measured, settings).named_terms)
+    """
+    Return the terms a diagnosis of `measured` with `settings` names (a pool's task).
+
+    The decision alone: the race, the final fit and its pruning, as `diagnose` runs them,
+    without the adequacy check, limits and validations, which name nothing.
+    """
+    check_runs(measured)
+    resolved, _ = decimated(measured)
+    with executor_for(None, settings.workers) as pool, single_threaded():
+        race = run_race(prepare_halves(resolved, settings), settings, pool)
+        final_fit, _ = final_decision(race, submit_final_fits(race, settings, pool), settings)
+    named, extensions = _named(race.steps, final_fit.model, final_fit.estimates, race.halves,
+                               settings)
+    return tuple(named_by_term(named, extensions))
+
+
+@dataclass
+class Race:
+    """
+    What forward selection leaves: the baseline, the steps, the model they built.
+
+    `halves` carry the heading wobble chosen after the baseline; `last_seen` and
+    `last_evaluated` are each candidate at the last step it was weighed (what its limit and
+    its line in the report are taken from); the scores are on the held-out half.
+    """
+
+    halves: Halves
+    baseline_fit: CausesFit
+    baseline_scores: Scores
+    current_scores: Scores
+    model: FittedModel
+    steps: list[StepResult]
+    last_seen: dict[str, CandidateResult]
+    last_evaluated: dict[str, Evaluation]
+
+
+def run_race(halves: Halves, settings: DiagnosisSettings, pool: Executor,
+             say: Progress | None = None, clock: StageClock | None = None) -> Race:
+    """Fit the baseline on the calibration half, then add terms while one qualifies."""
+    say = say or (lambda fraction, message: None)
+    clock = clock or StageClock()
+    say(0.08, 'fitting the baseline (geometry on the mean path, spread scale)')
+    clock.enter('baseline')
+    baseline_fit = fit_baseline(halves, settings, pool)
+    baseline = baseline_fit.model
+    halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
+    simulator = Simulator(halves.test, settings.seed)
+    current_scores = score_held_out(simulator, baseline, halves, settings)
+    baseline_scores = current_scores
+    say(0.15, f'baseline: sigma1 = {baseline.sigmas[0]:.3f}, '
+              f'sigma2 = {baseline.sigmas[1]:.3f} rad')
+    clock.enter('race')
+    model = baseline
+    steps: list[StepResult] = []
+    last_seen: dict[str, CandidateResult] = {}
+    last_evaluated: dict[str, Evaluation] = {}
+    remaining = [cause.name for cause in CANDIDATES]
+    while remaining:
+        step = len(steps) + 1
+        z_step = decision_z(settings.decision_alpha, len(remaining))
+        futures = [pool.submit(evaluate_candidate, halves, model, current_scores, cause,
+                               settings, z_step) for cause in remaining]
+        evaluated = [future.result() for future in futures]
+        last_evaluated.update({evaluation.cause: evaluation for evaluation in evaluated})
+        result, chosen = _step_result(step, evaluated, halves, settings)
+        for candidate in result.candidates:
+            last_seen[candidate.cause] = candidate
+        steps.append(result)
+        say(min(0.15 + 0.13 * step, 0.7), _step_message(result))
+        if chosen is None:
+            break
+        model = chosen.model
+        if settings.rounds > 1:
+            model = fit_causes(halves.train, model, model.causes, settings.fit(),
+                               rounds=settings.rounds - 1).model
+        current_scores = score_held_out(simulator, model, halves, settings)
+        remaining.remove(chosen.cause)
+    return Race(halves, baseline_fit, baseline_scores, current_scores, model, steps, last_seen,
+                last_evaluated)
+
+
+def submit_final_fits(race: Race, settings: DiagnosisSettings, pool: Executor
+                      ) -> list[Future[CausesFit]]:
+    """Start the refit of the race's model on all runs, from each valley the baseline found."""
+    return [pool.submit(_final_fit, race.halves, start, settings)
+            for start in final_starts(race.model, race.baseline_fit.alternatives)]
+
+
+def final_decision(race: Race, final_futures: Sequence[Future[CausesFit]],
+                   settings: DiagnosisSettings
+                   ) -> tuple[CausesFit, tuple[str, ...]]:
+    """Return the final fit of lowest cost, pruned (`_pruned`), and a note per term dropped."""
+    return _pruned(lowest_cost([future.result() for future in final_futures]), race.halves,
+                   settings)
 
 
 def _places(halves: Halves) -> FloatArray:

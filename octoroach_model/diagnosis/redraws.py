@@ -10,10 +10,11 @@ runs, another seed"). A decision that changes with the draw rests partly on it.
 
 With `DiagnosisSettings.simulation_draws` K > 1, the diagnosis is made K - 1 more times on
 the same halves (`split_seed` held at the report's), the simulations drawn from seed + 1, ...,
-seed + K - 1, without detection limits or validations (they decide nothing), and the report
-says which terms each draw named (`DrawAgreement`; diagnose.py's `redraw_settings` says how a
-draw is set). The reported decision stays the first draw's: the others say how firmly it
-stands, they do not vote.
+seed + K - 1, each the decision alone (diagnose.py's `redrawn_terms`: no adequacy check,
+detection limits or validations, which name nothing), and the report says which terms each
+draw named (`DrawAgreement`; diagnose.py's `redraw_settings` says how a draw is set). The
+reported decision stays the first draw's: the others say how firmly it stands, they do not
+vote.
 """
 from __future__ import annotations
 
