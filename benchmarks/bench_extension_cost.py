@@ -43,19 +43,31 @@ def timed_diagnosis(source: Path, out: Path) -> float:
     return time.perf_counter() - started
 
 
+def commit_of(revision: str) -> str:
+    """Return the commit a revision names; anything else (an option, say) stops the bench."""
+    found = subprocess.run(['git', '-C', str(REPO), 'rev-parse', '--verify', '--quiet',
+                            '--end-of-options', f'{revision}^{{commit}}'],
+                           capture_output=True, text=True, check=False)
+    if revision.startswith('-') or found.returncode != 0:
+        raise SystemExit(f'error: {revision!r} names no commit of this repository')
+    return found.stdout.strip()
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--baseline', default=BASELINE, help='the earlier release (a git rev)')
     parser.add_argument('--candidate', help='time this commit instead of this checkout')
     parser.add_argument('--repeats', type=int, default=3, help='runs of each program')
     args = parser.parse_args(argv)
+    revisions = {'baseline': commit_of(args.baseline),
+                 'current': commit_of(args.candidate) if args.candidate else None}
     with tempfile.TemporaryDirectory() as scratch:
         sources = {'baseline': Path(scratch) / 'baseline', 'current': REPO}
         if args.candidate:
             sources['current'] = Path(scratch) / 'candidate'
         added = []
         try:
-            for name, rev in (('baseline', args.baseline), ('current', args.candidate)):
+            for name, rev in revisions.items():
                 if rev:
                     subprocess.run(['git', '-C', str(REPO), 'worktree', 'add', '--detach',
                                     str(sources[name]), rev], check=True, capture_output=True)

@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import replace
 import json
 import math
+from pathlib import Path
 import random
 
 from hidden_effects import FAST, FEW_SIMULATED_RUNS, SEED
@@ -28,8 +29,10 @@ import pytest
 
 import octoroach_model as om
 from octoroach_model.diagnosis import diagnose, DiagnosisSettings, write_report
+from octoroach_model.diagnosis.stages import STAGES
 from octoroach_model.validation import ValidationSettings
 
+REPO = Path(__file__).resolve().parents[1]
 N_RUNS = 300
 # cause -> (low, high, signed, fixed other parameters) of the main parameter
 HIDDEN_RANGE = {
@@ -215,6 +218,13 @@ def test_the_report_has_the_documented_fields_a_summary_and_plots(tmp_path):
     for name in ('paths.png', 'violation_grid.png', 'deciding_statistic.png',
                  'discrepancies.png'):
         assert (tmp_path / name).stat().st_size > 10_000, name
+    # each stage timed once, in the documented order (docs/report.md names them all)
+    stages = list(loaded['stages_s'])
+    assert stages == [stage for stage in STAGES if stage in stages], stages
+    assert set(stages) >= {'prepare', 'baseline', 'race', 'final_fit', 'adequacy'}
+    assert all(seconds >= 0 for seconds in loaded['stages_s'].values())
+    documented = (REPO / 'docs' / 'report.md').read_text()
+    assert all(f'`{stage}`' in documented for stage in STAGES)
 
 
 def test_a_declared_limit_caveat_reaches_the_candidate_and_its_line_in_the_summary(monkeypatch):

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import time
 
-# The stages in their order (README and docs/report.md name them)
+# The stages in their order (docs/report.md names them; the report test checks both)
 STAGES = ('read', 'prepare', 'baseline', 'race', 'final_fit', 'adequacy', 'limits_and_validations',
           'redraws')
 
