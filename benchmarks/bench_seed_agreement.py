@@ -120,6 +120,20 @@ def append_result(path: Path, result: Diagnosed) -> None:
         stream.flush()
 
 
+def named_by_seed(study: str, key: str, results: dict[Job, Diagnosed], seeds: int,
+                  keep_split: bool) -> list[tuple[str, ...]] | None:
+    """
+    Return what one data set's diagnoses named at the study's seed and at each moved one.
+
+    The study's seed first (its own split), then seed + 1..`seeds` with the split moved too or,
+    with `keep_split`, kept; None while one of them is missing from `results`.
+    """
+    jobs = [Job(study, key, shift, keep_split and shift > 0) for shift in range(seeds + 1)]
+    if not all(job in results for job in jobs):
+        return None
+    return [results[job].named for job in jobs]
+
+
 def agreement_rows(tables: dict[str, list[tuple[Any, Any]]], results: dict[Job, Diagnosed],
                    seeds: int) -> list[str]:
     """Return the table's lines: per study arm, the data sets named alike at every seed."""
@@ -136,19 +150,18 @@ def agreement_rows(tables: dict[str, list[tuple[Any, Any]]], results: dict[Job, 
         for arm in dict.fromkeys(row.arm for row, _ in pairs):
             rows = [row for row, _ in pairs if row.arm == arm]
             term = arm.split('@')[0].split('=')[0]
-            moved = [[results[Job(study, row.key, shift, False)].named
-                      for shift in range(seeds + 1)] for row in rows]
-            kept = [[moved[index][0]] + [results[Job(study, row.key, shift, True)].named
-                                         for shift in range(1, seeds + 1)]
-                    for index, row in enumerate(rows)
-                    if all(Job(study, row.key, shift, True) in results
-                           for shift in range(1, seeds + 1))]
+            seen = {row.key: named for row in rows
+                    if (named := named_by_seed(study, row.key, results, seeds, False))}
+            moved = list(seen.values())
+            kept = [named for named in (named_by_seed(study, row.key, results, seeds, True)
+                                        for row in rows) if named is not None]
             by_seed = ', '.join(str(sum(term in named[shift] for named in moved))
                                 for shift in range(seeds + 1))
-            as_study = sum(named[0] == tuple(row.outcome.named) for named, row in zip(moved, rows))
+            as_study = sum(seen[row.key][0] == tuple(row.outcome.named) for row in rows
+                           if row.key in seen)
             lines.append(f'| {study} | {arm} | {same(moved)} | '
                          f'{same(kept) if kept else "-"} | {by_seed} | '
-                         f'{as_study} of {len(rows)} |')
+                         f'{as_study} of {len(moved)} |')
     return lines
 
 
@@ -166,12 +179,9 @@ def report(tables: dict[str, list[tuple[Any, Any]]], results: dict[Job, Diagnose
     for study, pairs in tables.items():
         for row, _ in pairs:
             for keep_split in (False, True):
-                jobs = [Job(study, row.key, shift, keep_split and shift > 0)
-                        for shift in range(seeds + 1)]
-                if all(job in results for job in jobs):
-                    named = [results[job].named for job in jobs]
-                    if len(set(named)) > 1:
-                        changed.append((study, row.key, keep_split, named))
+                named = named_by_seed(study, row.key, results, seeds, keep_split)
+                if named is not None and len(set(named)) > 1:
+                    changed.append((study, row.key, keep_split, named))
     if changed:
         print('\nData sets whose named terms changed with the seed (study seed | moved):\n')
         for study, key, keep_split, named in changed:
