@@ -41,16 +41,17 @@ def rebuilt(spec: Any, task: Any, null_row: Any) -> DataSet:
     from octoroach_model.studies.design import draw_robot
 
     draw = draw_robot(spec, task.replicate)
-    effects = study.task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
-    runs = task.runs_cell if task.runs_cell is not None else draw.runs
-    measured = study.simulate_data(spec, draw, runs, effects).paths
+    effects = study.task_effects(task, spec, null_row, draw.duration_s)
+    measured = study.simulate_data(spec, draw, task.runs(draw), effects).paths
     return DataSet(draw, effects, measured, study.task_settings(task, spec, draw.data_seed))
 
 
-def race_step(spec_path: Path, replicate: int, term: str, null_row: Any,
+def race_step(spec_path: Path | Any, replicate: int, term: str, null_row: Any,
               simulation_shift: int = 0, moment_runs: int | None = None) -> RaceStep:
     """
     Rebuild the replicate's data set with `term` at 1x its limit and weigh the term on it.
+
+    `spec_path`: the study's spec file, or the spec itself (a StudySpec).
 
     `simulation_shift` moves the seed of every simulation (fits, wobble choice, scores) and
     keeps the split of the runs into halves, which the study's seed makes; `moment_runs`
@@ -63,7 +64,7 @@ def race_step(spec_path: Path, replicate: int, term: str, null_row: Any,
     from octoroach_model.studies.design import build_tasks
     from octoroach_model.studies.spec import load_spec
 
-    spec = load_spec(spec_path)
+    spec = load_spec(spec_path) if isinstance(spec_path, (str, Path)) else spec_path
     task = next(task for task in build_tasks(spec)
                 if task.replicate == replicate and task.key.startswith(f'{term}@1x'))
     draw, effects, measured, settings = rebuilt(spec, task, null_row)

@@ -39,6 +39,12 @@ class Task:
     replicate: int
     depends_on: str | None = None
 
+    def runs(self, draw: RobotDraw) -> int:
+        """Return the task's run count: its cell's, else the one its replicate drew."""
+        runs = self.runs_cell if self.runs_cell is not None else draw.runs
+        assert runs is not None, 'without run-count cells, every replicate draws its own count'
+        return runs
+
 
 @dataclass(frozen=True)
 class RobotDraw:
@@ -63,6 +69,11 @@ class RobotDraw:
                        touchdown_angles=(phi1, phi2, phi3, phi4),
                        stride_frequency=self.stride_frequency_hz,
                        sample_rate=self.sample_rate_hz).with_paper_liftoff()
+
+    @property
+    def duration_s(self) -> float:
+        """Return a run's duration: its cycles at the stride frequency."""
+        return self.cycles / self.stride_frequency_hz
 
     def sigmas(self) -> tuple[float, float]:
         """Return (sigma1, sigma2) in rad: Table III times the spread scale."""

@@ -129,7 +129,7 @@ def check_task(spec: StudySpec, question: Question, runs: int, replicate: int
     draw = draw_robot(spec, replicate)
     task = replace(build_tasks(spec)[0], runs_cell=runs, replicate=replicate)
     try:
-        effects = task_effects(task, spec, None, draw.cycles / draw.stride_frequency_hz)
+        effects = task_effects(task, spec, None, draw.duration_s)
         measured = simulate_data(spec, draw, runs, effects).paths
         settings = spec.diagnosis_settings(draw.data_seed)
         held = fit_held(measured, question, settings, robot_model(draw), with_power=False)

@@ -63,11 +63,10 @@ def run_task(task: Task, spec: StudySpec, null_row: StudyRow | None = None) -> S
     use_large_malloc_thresholds()
     started = time.perf_counter()
     draw = draw_robot(spec, task.replicate)
-    runs = task.runs_cell if task.runs_cell is not None else draw.runs
-    assert runs is not None  # without run-count cells, every replicate draws its own count
+    runs = task.runs(draw)
     row = _empty_row(task, draw, runs)
     try:
-        effects = task_effects(task, spec, null_row, draw.cycles / draw.stride_frequency_hz)
+        effects = task_effects(task, spec, null_row, draw.duration_s)
         row = replace(row, true_causes=tuple(effects), terms=_truth_terms(effects))
         simulated = simulate_data(spec, draw, runs, effects)
         row = replace(row, duration_s=simulated.duration_s, runs_cut=simulated.runs_cut,
