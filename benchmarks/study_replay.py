@@ -46,6 +46,11 @@ def rebuilt(spec: Any, task: Any, null_row: Any) -> DataSet:
     return DataSet(draw, effects, measured, study.task_settings(task, spec, draw.data_seed))
 
 
+def at_its_limit(task: Any, term: str) -> bool:
+    """Return whether `task` puts `term` alone at 1x its limit (whatever the arm's sign)."""
+    return task.arm.cause == term and task.arm.limit_multiple == 1.0
+
+
 def race_step(spec_path: Path | Any, replicate: int, term: str, null_row: Any,
               simulation_shift: int = 0, moment_runs: int | None = None) -> RaceStep:
     """
@@ -66,7 +71,7 @@ def race_step(spec_path: Path | Any, replicate: int, term: str, null_row: Any,
 
     spec = load_spec(spec_path) if isinstance(spec_path, (str, Path)) else spec_path
     task = next(task for task in build_tasks(spec)
-                if task.replicate == replicate and task.key.startswith(f'{term}@1x'))
+                if task.replicate == replicate and at_its_limit(task, term))
     draw, effects, measured, settings = rebuilt(spec, task, null_row)
     halves = halves_as_diagnosed(measured, settings)
     settings = replace(settings, seed=settings.seed + simulation_shift,
