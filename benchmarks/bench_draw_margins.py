@@ -87,10 +87,10 @@ def diagnosed(family: str, size: float, fraction: float, runs: int, data_seed: i
 def study_null(spec_path: str, replicate: int) -> tuple[Any, float]:
     """Diagnose replicate `replicate`'s null data set as the study does; its row and CPU s."""
     from octoroach_model.studies.replicate import run_task
+    from octoroach_model.studies.spec import ArmKind
 
     spec = study_spec(spec_path, replicate)
-    task = next(task for task in study_tasks(spec, replicate) if task.depends_on is None
-                and task.arm.kind.name == 'NULL')
+    task = next(task for task in study_tasks(spec, replicate) if task.arm.kind == ArmKind.NULL)
     started = time.process_time()
     return run_task(task, spec), time.process_time() - started
 
@@ -270,6 +270,8 @@ def study_nulls(args: argparse.Namespace, pool: Any) -> Iterator[tuple[int, Any]
     """Diagnose the replicates' nulls; yield each one that reports a limit for the family."""
     from concurrent.futures import as_completed
 
+    from octoroach_model.studies.rows import Status
+
     nulls = {pool.submit(study_null, args.study, replicate): replicate
              for replicate in args.replicates}
     for future in as_completed(nulls):
@@ -279,7 +281,7 @@ def study_nulls(args: argparse.Namespace, pool: Any) -> Iterator[tuple[int, Any]
         print(f'null of replicate {replicate}: {row.status}, named '
               f'{", ".join(row.outcome.named) or "nothing"}; '
               f'{args.family} limit {limit:.3g} ({cpu_s:.0f} s)', flush=True)
-        if row.status.name != 'OK' or not math.isfinite(limit) or limit <= 0:
+        if row.status != Status.OK or not math.isfinite(limit) or limit <= 0:
             print(f'  replicate {replicate} left out: no limit to put the term at')
             continue
         yield replicate, row
