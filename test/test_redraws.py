@@ -53,6 +53,64 @@ def test_other_draws_of_the_simulations_are_reported_beside_the_decision():
     assert draws.sentence() in summary_text(report)
     # one draw (the default) writes no such entry
     assert 'simulation_draws' not in replace(report, simulation_draws=None).to_json()
+    # every term that was scored says how far its t moves with other scored runs
+    scored = [c for c in report.candidates if not c.screened and c.gain_se > 0]
+    assert scored and all(c.t_scoring_se is not None and c.t_scoring_se > 0 for c in scored)
+    assert all('t_scoring_se' in entry for entry in plain['candidates'])
+    close_calls_are_said(report, scored[0])
+
+
+def close_calls_are_said(report, candidate) -> None:
+    """Check that a test ending within two scoring errors of its critical t is said, only then."""
+    from scipy import stats
+
+    from octoroach_model.diagnosis.summary import close_calls
+
+    critical = float(stats.t.isf(report.steps[candidate.step - 1].test_level,
+                                 report.split['held_out'] - 1))
+    decided = replace(candidate, clears_floor=True, screened=False, gain_se=0.1,
+                      gain=max(0.1 * (critical + 0.5), report.decision.min_gain))
+    t = decided.gain / decided.gain_se
+    for error, said in ((0.6 * abs(t - critical) + 0.01, True),
+                        (0.4 * abs(t - critical), False)):
+        others = tuple(c for c in report.candidates if c.cause != candidate.cause)
+        shown = replace(report, candidates=(replace(decided, t_scoring_se=error),) + tuple(
+            replace(c, t_scoring_se=None) for c in others), extension_candidates=())
+        assert [(c.cause, round(tc, 6)) for c, tc, _ in close_calls(shown)] == (
+            [(candidate.cause, round(t, 6))] if said else [])
+        text = summary_text(shown)
+        assert ('Decided close to the threshold' in text) == said
+        if said:
+            assert f'- {candidate.cause} (' in text and f'against {critical:.2f}' in text
+
+
+def test_the_scoring_error_of_t_is_the_spread_of_t_over_other_scored_runs():
+    # the true model with a turning-rate spread against the same without it, fits held: only
+    # the scored runs move between draws (benchmarks/bench_scoring_error.py: 1.05-1.5 times
+    # the spread over five terms; above 1 the report flags more close calls, never fewer)
+    from octoroach_model.diagnosis.diagnose import prepare_halves, score_held_out, Simulator
+    from octoroach_model.diagnosis.modelfit import FittedModel
+    from octoroach_model.diagnosis.scoring import PairedGain, t_scoring_se
+    from octoroach_model.fitting import mean_start_pose
+
+    effects = {'persistent_turning': {'yaw_rate_std_deg_s': 4.0}}
+    measured = om.simulate(300, seed=SEED % 10_000, effects=effects)
+    settings = replace(FAST, seed=SEED)
+    halves = prepare_halves(measured, settings)
+    start = tuple(mean_start_pose(measured))
+    current = FittedModel(om.ModelParameters.nominal(), start, 1.0, {})
+    candidate = FittedModel(om.ModelParameters.nominal(), start, 1.0, effects)
+    observed = halves.test.features / halves.scales
+    t_values, reported = [], []
+    for draw in range(24):
+        simulator = Simulator(halves.test, SEED + 1000 + draw)
+        before = score_held_out(simulator, current, halves, settings)
+        after = score_held_out(simulator, candidate, halves, settings)
+        gain = PairedGain.of(after.log - before.log)
+        t_values.append(gain.mean / gain.standard_error)
+        reported.append(t_scoring_se(after, before, observed, np.random.default_rng(draw)))
+    ratio = float(np.median(reported)) / float(np.std(t_values, ddof=1))
+    assert 0.75 <= ratio <= 2.0, (SEED, ratio, np.mean(t_values))
 
 
 def test_a_draw_keeps_the_halves_and_moves_only_the_simulations():

@@ -51,7 +51,7 @@ from octoroach_model.diagnosis.records import (
     NamedCause, NamedExtension, PaperValidation, Rival, RunLengths, ScoreSummary, StepResult)
 from octoroach_model.diagnosis.redraws import DrawAgreement
 from octoroach_model.diagnosis.scoring import (
-    feature_scales, PairedGain, position_points_cm, score_model, Scores)
+    feature_scales, PairedGain, position_points_cm, score_model, Scores, t_scoring_se)
 from octoroach_model.diagnosis.stages import StageClock
 from octoroach_model.errors import DataError
 from octoroach_model.fitting import fit_nominal, mean_start_pose, NominalFitSettings
@@ -622,9 +622,11 @@ class Evaluation:
     gain: PairedGain
     gain_cm: float
     screened: bool = False
+    t_scoring_se: float | None = None     # the gain's t: error from the scored runs alone
 
 
 SCREEN_ALLOWANCE = 2.0
+T_SCORING_PURPOSE = 43
 
 
 def evaluate_candidate(halves: Halves, current: FittedModel, current_scores: Scores,
@@ -666,7 +668,10 @@ def evaluate_candidate(halves: Halves, current: FittedModel, current_scores: Sco
     scores = score_held_out(Simulator(halves.test, settings.seed), model, halves, settings)
     return Evaluation(cause, model, estimates, scores,
                       PairedGain.of(scores.log - current_scores.log),
-                      float(np.mean(current_scores.energy_cm - scores.energy_cm)))
+                      float(np.mean(current_scores.energy_cm - scores.energy_cm)),
+                      t_scoring_se=t_scoring_se(
+                          scores, current_scores, halves.test.features / halves.scales,
+                          np.random.default_rng([settings.seed, T_SCORING_PURPOSE])))
 
 
 def quick_fit(train: RunData, current: FittedModel, cause: Cause,
@@ -764,7 +769,7 @@ def candidate_result(evaluation: Evaluation, verdict: SizeVerdict, step: int,
         detectable_method=LimitMethod.SIZE_BOUND, detectable_power={},
         clears_floor=verdict.clears_floor, significant=significant, named_here=named_here,
         step=step, statistic=cause.statistic_name, family=cause.family,
-        screened=evaluation.screened)
+        screened=evaluation.screened, t_scoring_se=evaluation.t_scoring_se)
 
 
 def _rival(chosen: Evaluation, eligible: list[Evaluation], alpha: float) -> Rival | None:

@@ -91,6 +91,7 @@ class CandidateResult:
     family: str = ''             # the extension family ('' for a cause of the table)
     screened: bool = False       # its bound could not reach the floor: neither refit nor scored
     detectable_caveat: str = ''  # where studies found such a limit not to hold (Cause)
+    t_scoring_se: float | None = None   # gain / gain_se: its error from the scored runs alone
 
     def with_limit(self, limit: Limit) -> CandidateResult:
         """Return this result with the detection limit of the whole decision (limits.py)."""

@@ -24,6 +24,10 @@ covariate, `features.COVARIATES`, and never itself scored). Every other model pr
 runs alike, as before.
 
 Every comparison is paired run by run: the per-run gain's mean, and a one-sided t-test.
+The held-out runs are not the t's only source of error: each model's mean and spread come
+from its simulated runs, and other simulated runs give another t. `t_scoring_se` says how
+much, by resampling the scored runs of both models together (a run of each drew the same
+random numbers), the held-out runs fixed: the part of the t that is the simulation's.
 """
 from __future__ import annotations
 
@@ -41,6 +45,7 @@ PAIR_RUNS = 400           # model runs used for the energy score's spread term
 FLOOR = 0.25              # smallest spread (in data spreads) a model is credited with
 CAP = 8.0                 # a feature further off than this (in predictive spreads) counts as CAP
 NUMERICAL_NOISE = 1e-6    # per-run score differences below this are rounding, not evidence
+SCORING_RESAMPLES = 50    # resamples of the scored runs behind `t_scoring_se`
 
 
 @dataclass(frozen=True)
@@ -49,6 +54,8 @@ class Scores:
 
     log: FloatArray                 # feature log score, nats (higher is better)
     energy_cm: FloatArray           # position energy score, cm (lower is better)
+    sample: FloatArray | None = None    # the model's scored runs' features, in data spreads
+    by_position: bool = False           # predicted at each run's place (module docstring)
 
 
 def feature_scales(calibration_features: FloatArray) -> FloatArray:
@@ -193,9 +200,9 @@ def score_model(model_features: FloatArray, model_points_cm: FloatArray,
         As in `feature_log_score`.
 
     """
-    return Scores(feature_log_score(model_features / scales, observed_features / scales,
-                                    by_position),
-                  energy_score(model_points_cm, observed_points_cm))
+    sample = model_features / scales
+    return Scores(feature_log_score(sample, observed_features / scales, by_position),
+                  energy_score(model_points_cm, observed_points_cm), sample, by_position)
 
 
 @dataclass(frozen=True)
@@ -220,3 +227,29 @@ class PairedGain:
             return cls(mean, 0.0, 0.0 if mean > 1e-9 else 1.0)
         p_value = float(stats.t.sf(mean / standard_error, df=len(improvement) - 1))
         return cls(mean, standard_error, p_value)
+
+
+def t_scoring_se(candidate: Scores, current: Scores, observed: FloatArray,
+                 rng: np.random.Generator) -> float | None:
+    """
+    Return the error of the paired t of `candidate` over `current` from their scored runs.
+
+    Both models' scored runs are resampled together, run i of each with run i of the other
+    (they drew the same random numbers), SCORING_RESAMPLES times; the held-out runs
+    (`observed`, features in data spreads) stay. None where either has no scored runs kept,
+    or where fewer than half of the resamples give a t (a gain of no spread).
+    """
+    if candidate.sample is None or current.sample is None:
+        return None
+    runs = min(len(candidate.sample), len(current.sample))
+    t_values = []
+    for _ in range(SCORING_RESAMPLES):
+        pick = rng.integers(0, runs, runs)
+        gain = PairedGain.of(
+            feature_log_score(candidate.sample[pick], observed, candidate.by_position)
+            - feature_log_score(current.sample[pick], observed, current.by_position))
+        if 0.0 < gain.standard_error < math.inf:
+            t_values.append(gain.mean / gain.standard_error)
+    if 2 * len(t_values) < SCORING_RESAMPLES:
+        return None
+    return float(np.std(t_values, ddof=1))

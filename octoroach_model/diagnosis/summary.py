@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import math
 
+from scipy import stats
+
 from octoroach_model.diagnosis.causes import BY_NAME
 from octoroach_model.diagnosis.records import CandidateResult, DiagnosisReport, Rival
 
@@ -127,6 +129,7 @@ def summary_text(report: DiagnosisReport) -> str:
                   f'better): {_closer(closer)} per run.']
     if report.simulation_draws is not None:
         lines += ['', report.simulation_draws.sentence()]
+    lines += _close_call_lines(report)
     lines += ['', '## What the extended model still misses', '']
     if report.adequate:
         lines.append('Nothing material: every statistic of the data agrees with the extended '
@@ -162,6 +165,53 @@ def summary_text(report: DiagnosisReport) -> str:
                            for stage, seconds in report.stages_s.items())
         lines += ['', f'Time: {stages} (wall time of each stage).']
     return '\n'.join(lines) + '\n'
+
+
+# A held-out t within this many of its scoring standard errors of the critical value could
+# have fallen on the other side with other simulated runs.
+CLOSE_CALL_SE = 2.0
+
+
+def close_calls(report: DiagnosisReport) -> list[tuple[CandidateResult, float, float]]:
+    """
+    Return the candidates whose held-out test decided within reach of the simulation's error.
+
+    Those whose size cleared its floor and whose gain was material (so the test decided),
+    with t = gain / gain_se within CLOSE_CALL_SE of its `t_scoring_se` of the critical t at
+    their step's level: each with its t and that critical value.
+    """
+    degrees = report.split['held_out'] - 1
+    calls = []
+    for candidate in (*report.candidates, *report.extension_candidates):
+        spread = candidate.t_scoring_se
+        if (spread is None or candidate.screened or not candidate.clears_floor
+                or candidate.gain < report.decision.min_gain
+                or not 0.0 < candidate.gain_se < math.inf):
+            continue
+        critical = float(stats.t.isf(report.steps[candidate.step - 1].test_level, degrees))
+        t = candidate.gain / candidate.gain_se
+        if abs(t - critical) <= CLOSE_CALL_SE * spread:
+            calls.append((candidate, t, critical))
+    return calls
+
+
+def _close_call_lines(report: DiagnosisReport) -> list[str]:
+    """Say which decisions other simulated runs could have turned, and what settles them."""
+    calls = close_calls(report)
+    if not calls:
+        return []
+    lines = ['', '**Decided close to the threshold**: the held-out test of these terms ended '
+                 f'within {CLOSE_CALL_SE:g} standard errors of its critical value, counting '
+                 "only the error of t that comes from the models' simulated runs (the held-out "
+                 'runs fixed):']
+    named = report.named_terms
+    for candidate, t, critical in calls:
+        verdict = 'named' if candidate.cause in named else 'not named'
+        lines.append(f'- {candidate.cause} ({verdict}): t = {t:.2f} against {critical:.2f}, '
+                     f'simulation error {candidate.t_scoring_se:.2f}')
+    lines.append('Other simulated runs could decide these the other way: '
+                 '`--simulation-draws 4` shows how often; more runs settle them.')
+    return lines
 
 
 def _closer(gain_cm: float) -> str:
