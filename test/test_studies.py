@@ -6,6 +6,7 @@ power-curve fit. No diagnosis runs here (test_studies_dask.py runs whole studies
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import json
 import math
 import os
@@ -285,18 +286,26 @@ def test_a_file_that_is_not_a_study_table_is_refused(tmp_path):
 # the diagnosis adapter
 
 def a_report(causes=(), candidates=(), extensions=(), extension_candidates=(), steps=(),
-             adequate=True, unexplained=(), discrepancies=(), adequacy_bound_z=3.0):
+             adequate=True, unexplained=(), discrepancies=(), adequacy_bound_z=3.0,
+             critical_t=3.0):
     """
     Return what a study reads of a DiagnosisReport, its records written out by hand.
 
-    Each record holds the fields the study reads, so that its columns can be checked by hand.
+    Each record holds the fields the study reads, so that its columns can be checked by hand;
+    a candidate without a held-out t given was not scored (screened), and every step asked
+    for a t of `critical_t`.
     """
     def records(entries):
         return tuple(SimpleNamespace(**entry) for entry in entries)
 
+    def scored(entries):
+        return tuple(SimpleNamespace(**{'held_out_t': None, 't_scoring_se': None, **entry})
+                     for entry in entries)
+
     return SimpleNamespace(
-        causes=records(causes), candidates=records(candidates),
-        extensions=records(extensions), extension_candidates=records(extension_candidates),
+        causes=records(causes), candidates=scored(candidates),
+        extensions=records(extensions), extension_candidates=scored(extension_candidates),
+        critical_t=lambda candidate: critical_t,
         steps=tuple(SimpleNamespace(chosen=step['chosen'], rival=step['rival'] and
                                     SimpleNamespace(**step['rival'])) for step in steps),
         adequate=adequate, unexplained=records(unexplained),
@@ -310,7 +319,10 @@ def test_the_adapter_reads_a_typed_report_with_several_causes_and_intervals():
                 {'cause': 'measurement_noise', 'parameters': {'position_std_cm': 0.1},
                  'interval': {'position_std_cm': [0.08, 0.12]}}],
         candidates=[{'cause': 'lateral_slip', 'parameters': {'velocity_cm_s': 0.01},
-                     'detectable': {'velocity_cm_s': 0.2}}],
+                     'detectable': {'velocity_cm_s': 0.2}, 'held_out_t': 1.25,
+                     't_scoring_se': 0.5},
+                    {'cause': 'persistent_turning', 'parameters': {'yaw_rate_std_deg_s': 0.0},
+                     'detectable': {'yaw_rate_std_deg_s': 2.0}}],
         adequate=False, unexplained=[{'statistic': 'heading_rate_spread', 'z': 5.0}],
         discrepancies=[{'statistic': 'heading_rate_spread', 'z': 5.0, 'material': True}])
     outcome, terms = read_report(report, {'speed_decay': {'fraction': 0.2},
@@ -324,6 +336,12 @@ def test_the_adapter_reads_a_typed_report_with_several_causes_and_intervals():
     assert terms['speed_decay'].true == 0.2 and terms['initial_pose_error'].named is False
     assert outcome.unexplained == ('heading_rate_spread',)
     assert terms['lateral_slip'].limit == 0.2 and terms['lateral_slip'].estimate == 0.01
+    # how far each scored term's held-out test got, against what it had to pass
+    slip = terms['lateral_slip']
+    assert (slip.t, slip.t_critical, slip.t_scoring_se) == (1.25, 3.0, 0.5)
+    assert all(math.isnan(value) for value in (
+        terms['persistent_turning'].t, terms['persistent_turning'].t_critical,
+        terms['speed_decay'].t))
 
 
 # --------------------------------------------------------------------------------------------
@@ -393,6 +411,15 @@ def test_power_at_a_limit_multiple_counts_the_misses_and_which_were_not_silent()
     assert (entry.named.successes, entry.named.trials, entry.missed) == (7, 10, 3)
     assert entry.missed_not_adequate == 1        # replicate 7 (8 was adequate, 9 not judged)
     assert entry.meets_target is True
+    assert entry.median_t_margin is None and entry.close_calls is None   # no t columns
+    # t against its critical value: margins -1.0, 0.5, 1.0, 2.5 (the others not scored);
+    # within two scoring errors (0.6 each) of it: the margins -1.0, 0.5 and 1.0
+    scored = {0: 2.0, 1: 3.5, 2: 4.0, 3: 5.5}
+    rows = [replace(row, terms={**row.terms, 'speed_decay': replace(
+        row.terms['speed_decay'], t=scored[row.replicate], t_critical=3.0, t_scoring_se=0.6)})
+            if row.replicate in scored else row for row in rows]
+    entry = summarize(spec, rows).power_at_limit_multiples[0]
+    assert entry.median_t_margin == pytest.approx(0.75) and entry.close_calls == 3
 
 
 # --------------------------------------------------------------------------------------------

@@ -35,6 +35,10 @@ POWER = 0.8
 INTERVAL_LEVEL = 0.95
 # a moments statistic below this share of the level its cause adds at the floor is a zero
 NUMERICAL_ZERO = 1e-9
+# A held-out t within this many of its scoring errors (t_scoring_se) of the critical value
+# could have fallen on the other side with other simulated runs: a close call, said, not
+# decided differently (summary.md, the studies' close_calls).
+CLOSE_CALL_SE = 2.0
 
 
 @dataclass(frozen=True)

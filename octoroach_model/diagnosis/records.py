@@ -15,6 +15,7 @@ from enum import Enum
 from typing import Any, TYPE_CHECKING, TypedDict
 
 import numpy as np
+from scipy import stats
 
 from octoroach_model.diagnosis.causes import BY_NAME
 from octoroach_model.diagnosis.discrepancies import Discrepancy
@@ -92,6 +93,13 @@ class CandidateResult:
     screened: bool = False       # its bound could not reach the floor: neither refit nor scored
     detectable_caveat: str = ''  # where studies found such a limit not to hold (Cause)
     t_scoring_se: float | None = None   # gain / gain_se: its error from the scored runs alone
+
+    @property
+    def held_out_t(self) -> float | None:
+        """Return the held-out t, gain / gain_se (None: not scored, or a gain of no spread)."""
+        if self.screened or not 0.0 < self.gain_se < float('inf'):
+            return None
+        return self.gain / self.gain_se
 
     def with_limit(self, limit: Limit) -> CandidateResult:
         """Return this result with the detection limit of the whole decision (limits.py)."""
@@ -381,6 +389,11 @@ class DiagnosisReport:
     def named_terms(self) -> dict[str, NamedCause | NamedExtension]:
         """Return what the report names, by term (`named_by_term`)."""
         return named_by_term(self.causes, self.extensions)
+
+    def critical_t(self, candidate: CandidateResult) -> float:
+        """Return the held-out t `candidate` had to pass at its step (one-sided, its level)."""
+        level = self.steps[candidate.step - 1].test_level
+        return float(stats.t.isf(level, self.split['held_out'] - 1))
 
     def to_json(self) -> dict[str, Any]:
         plain = fields_jsonable(self)

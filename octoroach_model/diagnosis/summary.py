@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import math
 
-from scipy import stats
-
 from octoroach_model.diagnosis.causes import BY_NAME
+from octoroach_model.diagnosis.decide import CLOSE_CALL_SE
 from octoroach_model.diagnosis.records import CandidateResult, DiagnosisReport, Rival
 
 
@@ -167,11 +166,6 @@ def summary_text(report: DiagnosisReport) -> str:
     return '\n'.join(lines) + '\n'
 
 
-# A held-out t within this many of its scoring standard errors of the critical value could
-# have fallen on the other side with other simulated runs.
-CLOSE_CALL_SE = 2.0
-
-
 def close_calls(report: DiagnosisReport) -> list[tuple[CandidateResult, float, float]]:
     """
     Return the candidates whose held-out test decided within reach of the simulation's error.
@@ -180,16 +174,13 @@ def close_calls(report: DiagnosisReport) -> list[tuple[CandidateResult, float, f
     with t = gain / gain_se within CLOSE_CALL_SE of its `t_scoring_se` of the critical t at
     their step's level: each with its t and that critical value.
     """
-    degrees = report.split['held_out'] - 1
     calls = []
     for candidate in (*report.candidates, *report.extension_candidates):
-        spread = candidate.t_scoring_se
-        if (spread is None or candidate.screened or not candidate.clears_floor
-                or candidate.gain < report.decision.min_gain
-                or not 0.0 < candidate.gain_se < math.inf):
+        spread, t = candidate.t_scoring_se, candidate.held_out_t
+        if (spread is None or t is None or not candidate.clears_floor
+                or candidate.gain < report.decision.min_gain):
             continue
-        critical = float(stats.t.isf(report.steps[candidate.step - 1].test_level, degrees))
-        t = candidate.gain / candidate.gain_se
+        critical = report.critical_t(candidate)
         if abs(t - critical) <= CLOSE_CALL_SE * spread:
             calls.append((candidate, t, critical))
     return calls

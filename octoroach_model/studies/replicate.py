@@ -28,6 +28,7 @@ from octoroach_model.studies.terms import main_parameter, null_value, term_value
 
 if TYPE_CHECKING:
     from octoroach_model.diagnosis import DiagnosisReport
+    from octoroach_model.diagnosis.records import CandidateResult
 
 
 class Skip(Exception):
@@ -190,8 +191,18 @@ def read_report(report: DiagnosisReport, effects: Mapping[str, Mapping[str, floa
             rel_error=(estimate - truth) / distance
             if truth is not None and distance and math.isfinite(estimate) else math.nan,
             limit=_number(main_value(candidate.detectable, main))
-            if candidate is not None else math.nan)
+            if candidate is not None else math.nan, **_test_columns(report, candidate))
     return outcome, terms
+
+
+def _test_columns(report: DiagnosisReport, candidate: CandidateResult | None
+                  ) -> dict[str, float]:
+    """Return a term's held-out t, the t it had to pass and its scoring error (NaN: none)."""
+    t = candidate.held_out_t if candidate is not None else None
+    if candidate is None or t is None:
+        return {}
+    return {'t': t, 't_critical': report.critical_t(candidate),
+            't_scoring_se': _number(candidate.t_scoring_se)}
 
 
 def main_value(values: Mapping[str, Any], main: str) -> Any:

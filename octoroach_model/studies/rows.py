@@ -32,7 +32,9 @@ class TermOutcome:
     One term's columns: its size in the data, whether it was named, and what was reported.
 
     Sizes are the term's main parameter; `rel_error` is the estimate's error relative to the
-    true size's distance from the value of no effect; `limit` the detection limit reported.
+    true size's distance from the value of no effect; `limit` the detection limit reported;
+    `t`, `t_critical` and `t_scoring_se` how far its held-out test got (how far above or below
+    its threshold a term at a limit sits, and whether other simulated runs could turn it).
     NaN where there is nothing to say; `named` None where the task was not diagnosed.
     """
 
@@ -43,6 +45,9 @@ class TermOutcome:
     high: float = math.nan
     rel_error: float = math.nan
     limit: float = math.nan
+    t: float = math.nan              # held-out t at the last step it was weighed
+    t_critical: float = math.nan     # what that t had to pass there
+    t_scoring_se: float = math.nan   # that t's error from the scored simulated runs
 
 
 NO_TERMS: Mapping[str, TermOutcome] = {term: TermOutcome() for term in TERMS}

@@ -12,11 +12,13 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 import math
+from typing import Any
 
 import numpy as np
 
 from octoroach_model.diagnosis.causes import BY_NAME
-from octoroach_model.studies.rows import Status, StudyRow
+from octoroach_model.diagnosis.decide import CLOSE_CALL_SE
+from octoroach_model.studies.rows import Status, StudyRow, TermOutcome
 from octoroach_model.studies.spec import ArmKind, StudySpec
 from octoroach_model.studies.summary_records import (
     Confusion, DetectionLimit, Estimation, FalsePositive, InadequateOnNulls, Power, PowerAtLimit,
@@ -149,8 +151,19 @@ def _relative_power(spec: StudySpec, ok: Sequence[StudyRow]) -> tuple[PowerAtLim
                 baseline_inadequate=wilson(
                     sum(row.outcome.baseline_adequate is False for row in group),
                     sum(row.outcome.baseline_adequate is not None for row in group)),
-                target=target, meets_target=meets_target))
+                target=target, meets_target=meets_target,
+                **_test_margins([row.terms[arm.cause] for row in group])))
     return tuple(entries)
+
+
+def _test_margins(outcomes: Sequence[TermOutcome]) -> dict[str, Any]:
+    """Return the median t - t_critical and the close calls of the scored (empty: none)."""
+    scored = [o for o in outcomes if math.isfinite(o.t) and math.isfinite(o.t_critical)]
+    if not scored:
+        return {}
+    return {'median_t_margin': _median(o.t - o.t_critical for o in scored),
+            'close_calls': sum(abs(o.t - o.t_critical) <= CLOSE_CALL_SE * o.t_scoring_se
+                               for o in scored if math.isfinite(o.t_scoring_se))}
 
 
 def _limit_target(limit_multiple: float, rate: float | None) -> tuple[str | None, bool | None]:

@@ -87,7 +87,8 @@ class PowerAtLimit:
     """
     The share that named a cause put in at a multiple of its reported detection limit.
 
-    With what became of the misses; `target` and `meets_target` at 1 x and 2 x only.
+    With what became of the misses; `target` and `meets_target` at 1 x and 2 x only; how far
+    the held-out test got.
     """
 
     cause: str
@@ -101,6 +102,11 @@ class PowerAtLimit:
     baseline_inadequate: Rate
     target: str | None = field(default=None, metadata=OMIT_NONE)
     meets_target: bool | None = field(default=None, metadata=OMIT_NONE)
+    # the term's held-out t against the t it had to pass, where it was scored: the median of
+    # t - t_critical, and in how many data sets it ended within CLOSE_CALL_SE of its scoring
+    # errors of it (other simulated runs could have turned it); None for tables without them
+    median_t_margin: float | None = field(default=None, metadata=OMIT_NONE)
+    close_calls: int | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True, kw_only=True)
