@@ -13,7 +13,7 @@ import subprocess
 import sys
 
 from hidden_effects import FAST, FEW_SIMULATED_RUNS, SEED
-from hypothesis import given, strategies as st
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 
@@ -84,10 +84,43 @@ def close_calls_are_said(report, candidate) -> None:
             assert f'- {candidate.cause} (' in text and f'against {critical:.2f}' in text
 
 
+@settings(max_examples=40, deadline=None)
+@given(runs=st.integers(3, 60), held_out=st.integers(1, 20), by_position=st.booleans(),
+       shift=st.floats(-2.0, 2.0), seed=st.integers(0, 2 ** 32 - 1))
+def test_the_scoring_error_is_the_spread_of_paired_t_over_resampled_scored_runs(
+        runs, held_out, by_position, shift, seed):
+    # the resamples computed at once are PairedGain's t on the picked runs, one by one
+    from octoroach_model.diagnosis.features import FEATURES
+    from octoroach_model.diagnosis.scoring import (
+        feature_log_score, PairedGain, SCORING_RESAMPLES, Scores, t_scoring_se)
+
+    rng = np.random.default_rng(seed)
+    width = len(FEATURES)
+    current = rng.normal(size=(runs, width)) * rng.uniform(0.01, 3.0, width)
+    candidate = current + shift * rng.normal(size=(runs, width)) ** 2
+    observed = rng.normal(size=(held_out, width))
+    empty = np.zeros(held_out)
+    got = t_scoring_se(Scores(empty, empty, candidate, by_position),
+                       Scores(empty, empty, current, by_position), observed,
+                       np.random.default_rng(seed))
+    picks = np.random.default_rng(seed).integers(0, runs, (SCORING_RESAMPLES, runs))
+    t_values = []
+    for pick in picks:
+        gain = PairedGain.of(feature_log_score(candidate[pick], observed, by_position)
+                             - feature_log_score(current[pick], observed, by_position))
+        if 0.0 < gain.standard_error < np.inf:
+            t_values.append(gain.mean / gain.standard_error)
+    if 2 * len(t_values) < SCORING_RESAMPLES:
+        assert got is None
+    else:
+        assert got == pytest.approx(np.std(t_values, ddof=1), rel=1e-6, abs=1e-9)
+
+
 def test_the_scoring_error_of_t_is_the_spread_of_t_over_other_scored_runs():
     # the true model with a turning-rate spread against the same without it, fits held: only
     # the scored runs move between draws (benchmarks/bench_scoring_error.py: 1.05-1.5 times
-    # the spread over five terms; above 1 the report flags more close calls, never fewer)
+    # the spread over five terms; 0.82-1.26 for this term on other data sets); 48 draws of
+    # 400 scored runs a model put the spread within about a tenth
     from octoroach_model.diagnosis.diagnose import prepare_halves, score_held_out, Simulator
     from octoroach_model.diagnosis.modelfit import FittedModel
     from octoroach_model.diagnosis.scoring import PairedGain, t_scoring_se
@@ -95,14 +128,14 @@ def test_the_scoring_error_of_t_is_the_spread_of_t_over_other_scored_runs():
 
     effects = {'persistent_turning': {'yaw_rate_std_deg_s': 4.0}}
     measured = om.simulate(300, seed=SEED % 10_000, effects=effects)
-    settings = replace(FAST, seed=SEED)
+    settings = replace(FAST, seed=SEED, score_runs=400)
     halves = prepare_halves(measured, settings)
     start = tuple(mean_start_pose(measured))
     current = FittedModel(om.ModelParameters.nominal(), start, 1.0, {})
     candidate = FittedModel(om.ModelParameters.nominal(), start, 1.0, effects)
     observed = halves.test.features / halves.scales
     t_values, reported = [], []
-    for draw in range(24):
+    for draw in range(48):
         simulator = Simulator(halves.test, SEED + 1000 + draw)
         before = score_held_out(simulator, current, halves, settings)
         after = score_held_out(simulator, candidate, halves, settings)
@@ -110,7 +143,7 @@ def test_the_scoring_error_of_t_is_the_spread_of_t_over_other_scored_runs():
         t_values.append(gain.mean / gain.standard_error)
         reported.append(t_scoring_se(after, before, observed, np.random.default_rng(draw)))
     ratio = float(np.median(reported)) / float(np.std(t_values, ddof=1))
-    assert 0.75 <= ratio <= 2.0, (SEED, ratio, np.mean(t_values))
+    assert 0.6 <= ratio <= 2.0, (SEED, ratio, np.mean(t_values))
 
 
 def test_a_draw_keeps_the_halves_and_moves_only_the_simulations():
