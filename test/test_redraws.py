@@ -53,11 +53,14 @@ def test_other_draws_of_the_simulations_are_reported_beside_the_decision():
     assert draws.sentence() in summary_text(report)
     # one draw (the default) writes no such entry
     assert 'simulation_draws' not in replace(report, simulation_draws=None).to_json()
-    # every term that was scored says how far its t moves with other scored runs
-    scored = [c for c in report.candidates if not c.screened and c.gain_se > 0]
-    assert scored and all(c.t_scoring_se is not None and c.t_scoring_se > 0 for c in scored)
+    # every term whose test decides (size past its floor, gain material) says how far its t
+    # moves with other scored runs; the others, whose test decides nothing, do not
+    for candidate in report.candidates:
+        decides = (candidate.clears_floor and not candidate.screened and candidate.gain_se > 0
+                   and candidate.gain >= report.decision.min_gain)
+        assert (candidate.t_scoring_se is not None and candidate.t_scoring_se > 0) == decides
     assert all('t_scoring_se' in entry for entry in plain['candidates'])
-    close_calls_are_said(report, scored[0])
+    close_calls_are_said(report, report.candidates[0])
 
 
 def close_calls_are_said(report, candidate) -> None:

@@ -353,7 +353,7 @@ def run_race(halves: Halves, settings: DiagnosisSettings, pool: Executor,
                                settings, z_step) for cause in remaining]
         evaluated = [future.result() for future in futures]
         last_evaluated.update({evaluation.cause: evaluation for evaluation in evaluated})
-        result, chosen = _step_result(step, evaluated, halves, settings)
+        result, chosen = _step_result(step, evaluated, halves, settings, current_scores)
         for candidate in result.candidates:
             last_seen[candidate.cause] = candidate
         steps.append(result)
@@ -622,7 +622,6 @@ class Evaluation:
     gain: PairedGain
     gain_cm: float
     screened: bool = False
-    t_scoring_se: float | None = None     # the gain's t: error from the scored runs alone
 
 
 SCREEN_ALLOWANCE = 2.0
@@ -668,10 +667,7 @@ def evaluate_candidate(halves: Halves, current: FittedModel, current_scores: Sco
     scores = score_held_out(Simulator(halves.test, settings.seed), model, halves, settings)
     return Evaluation(cause, model, estimates, scores,
                       PairedGain.of(scores.log - current_scores.log),
-                      float(np.mean(current_scores.energy_cm - scores.energy_cm)),
-                      t_scoring_se=t_scoring_se(
-                          scores, current_scores, halves.test.features / halves.scales,
-                          np.random.default_rng([settings.seed, T_SCORING_PURPOSE])))
+                      float(np.mean(current_scores.energy_cm - scores.energy_cm)))
 
 
 def quick_fit(train: RunData, current: FittedModel, cause: Cause,
@@ -722,7 +718,8 @@ def score_held_out(simulator: Simulator, model: FittedModel, halves: Halves,
 
 
 def _step_result(step: int, evaluated: list[Evaluation], halves: Halves,
-                 settings: DiagnosisSettings) -> tuple[StepResult, Evaluation | None]:
+                 settings: DiagnosisSettings, current_scores: Scores
+                 ) -> tuple[StepResult, Evaluation | None]:
     m = len(evaluated)
     z = decision_z(settings.decision_alpha, m)
     level = settings.alpha / m
@@ -733,8 +730,14 @@ def _step_result(step: int, evaluated: list[Evaluation], halves: Halves,
         significant = evaluation.gain.p_value < level
         material = evaluation.gain.mean >= settings.min_gain
         named_here = verdict.clears_floor and significant and material
+        # the test's error from the scored runs, where the test decides (summary.md's close
+        # calls): only there, as it costs a few dozen ms a candidate
+        decides = verdict.clears_floor and material and not evaluation.screened
+        scoring_se = t_scoring_se(
+            evaluation.scores, current_scores, halves.test.features / halves.scales,
+            np.random.default_rng([settings.seed, T_SCORING_PURPOSE])) if decides else None
         results.append(candidate_result(evaluation, verdict, step, significant, named_here,
-                                        _excess_share(evaluation, halves)))
+                                        _excess_share(evaluation, halves), scoring_se))
         if named_here:
             eligible.append(evaluation)
     chosen = max(eligible, key=lambda e: e.gain.mean) if eligible else None
@@ -744,11 +747,13 @@ def _step_result(step: int, evaluated: list[Evaluation], halves: Halves,
 
 
 def candidate_result(evaluation: Evaluation, verdict: SizeVerdict, step: int,
-                     significant: bool, named_here: bool, relative: float) -> CandidateResult:
+                     significant: bool, named_here: bool, relative: float,
+                     scoring_se: float | None = None) -> CandidateResult:
     """
     Return one candidate of a step as the report shows it, before its whole-decision limit.
 
-    Its fitted values (an extension's in its family's form), gain and evidence, the size's
+    Its fitted values (an extension's in its family's form), gain and evidence (with the t's
+    error from the scored runs, `scoring_se`, where the test decides), the size's
     verdict; run_mixture's limit is of the spread it adds, stated as the yaw rate of
     MIXTURE_FRACTION's runs.
     """
@@ -769,7 +774,7 @@ def candidate_result(evaluation: Evaluation, verdict: SizeVerdict, step: int,
         detectable_method=LimitMethod.SIZE_BOUND, detectable_power={},
         clears_floor=verdict.clears_floor, significant=significant, named_here=named_here,
         step=step, statistic=cause.statistic_name, family=cause.family,
-        screened=evaluation.screened, t_scoring_se=evaluation.t_scoring_se)
+        screened=evaluation.screened, t_scoring_se=scoring_se)
 
 
 def _rival(chosen: Evaluation, eligible: list[Evaluation], alpha: float) -> Rival | None:
