@@ -10,7 +10,8 @@ the same seed, as the race scores them), and beside the spread of those t the me
 1 it is on the safe side (it flags more close calls than need be).
 
 Run: .venv/bin/python benchmarks/bench_scoring_error.py [--draws 24] [--runs 300]
-     [--score-runs 800] [--cases NAME ...]
+     [--score-runs 800] [--cases NAME ...] [--seeds N ...]
+(`--seeds`: the data sets' seeds, one row per case and seed; default 11.)
 """
 from __future__ import annotations
 
@@ -92,17 +93,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--runs', type=int, default=300)
     parser.add_argument('--score-runs', type=int, default=800)
     parser.add_argument('--cases', nargs='*', default=list(CASES), choices=list(CASES))
+    parser.add_argument('--seeds', nargs='*', type=int, default=[11])
     args = parser.parse_args(argv)
     print(f'{args.runs} runs, {args.score_runs} scored runs a model, {args.draws} draws\n')
-    print('| term hidden | mean t | t SD over draws | reported t_scoring_se: median (range) '
-          '| ratio | CPU s |')
-    print('| --- | --- | --- | --- | --- | --- |')
+    print('| term hidden | data seed | mean t | t SD over draws | reported t_scoring_se: median '
+          '(range) | ratio | CPU s |')
+    print('| --- | --- | --- | --- | --- | --- | --- |')
     for case in args.cases:
-        found = measure(case, args.draws, args.runs, args.score_runs)
-        low, high = found.reported_range
-        print(f'| {case} | {found.mean_t:.2f} | {found.t_sd_over_draws:.3f} | '
-              f'{found.reported_median:.3f} ({low:.3f}-{high:.3f}) | {found.ratio:.2f} | '
-              f'{found.cpu_s:.1f} |', flush=True)
+        for seed in args.seeds:
+            found = measure(case, args.draws, args.runs, args.score_runs, seed)
+            low, high = found.reported_range
+            print(f'| {case} | {seed} | {found.mean_t:.2f} | {found.t_sd_over_draws:.3f} | '
+                  f'{found.reported_median:.3f} ({low:.3f}-{high:.3f}) | {found.ratio:.2f} | '
+                  f'{found.cpu_s:.1f} |', flush=True)
     return 0
 
 

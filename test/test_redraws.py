@@ -122,8 +122,8 @@ def test_the_scoring_error_is_the_spread_of_paired_t_over_resampled_scored_runs(
 def test_the_scoring_error_of_t_is_the_spread_of_t_over_other_scored_runs():
     # the true model with a turning-rate spread against the same without it, fits held: only
     # the scored runs move between draws (benchmarks/bench_scoring_error.py: 1.05-1.5 times
-    # the spread over five terms; 0.82-1.26 for this term on other data sets); 48 draws of
-    # 400 scored runs a model put the spread within about a tenth
+    # the spread over five terms; 0.92-1.02 for this term on six other data sets at 400
+    # scored runs); 48 draws of 400 scored runs a model put the spread within about a tenth
     from octoroach_model.diagnosis.diagnose import prepare_halves, score_held_out, Simulator
     from octoroach_model.diagnosis.modelfit import FittedModel
     from octoroach_model.diagnosis.scoring import PairedGain, t_scoring_se
