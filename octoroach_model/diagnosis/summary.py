@@ -170,15 +170,14 @@ def close_calls(report: DiagnosisReport) -> list[tuple[CandidateResult, float, f
     """
     Return the candidates whose held-out test decided within reach of the simulation's error.
 
-    Those whose size cleared its floor and whose gain was material (so the test decided),
-    with t = gain / gain_se within CLOSE_CALL_SE of its `t_scoring_se` of the critical t at
-    their step's level: each with its t and that critical value.
+    Those with a `t_scoring_se` (given only where the test decides: diagnose._step_result)
+    whose t = gain / gain_se ended within CLOSE_CALL_SE of it of the critical t at their
+    step's level: each with its t and that critical value.
     """
     calls = []
     for candidate in (*report.candidates, *report.extension_candidates):
         spread, t = candidate.t_scoring_se, candidate.held_out_t
-        if (spread is None or t is None or not candidate.clears_floor
-                or candidate.gain < report.decision.min_gain):
+        if spread is None or t is None:
             continue
         critical = report.critical_t(candidate)
         if abs(t - critical) <= CLOSE_CALL_SE * spread:
