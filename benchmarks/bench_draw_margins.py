@@ -30,8 +30,13 @@ first step is fitted once (`study_replay.race_step`) and only the simulated runs
 half is scored against are drawn again: the scoring's share of the t's scatter, the rest
 being the fits'.
 
+`--close-call-factors 1 4` diagnoses every draw twice, its close calls not scored again and
+scored again on four times the runs (the default, diagnose._settled), the null and the data
+sets the same: whether scoring again makes the draws agree, and what it costs.
+
 Run: .venv/bin/python benchmarks/bench_draw_margins.py [--family run_mixture] [--size 3.9]
      [--data-seeds 1 2 3] [--draws 4] [--runs 500] [--seed 0] [--workers 2]
+     [--close-call-factors 1 4]
      .venv/bin/python benchmarks/bench_draw_margins.py --study studies/open_world.yaml
      --replicates 0 1 2 3 4 [--family heading_random_walk] [--draws 4] [--scoring-only]
 """
@@ -66,10 +71,12 @@ class Criteria(NamedTuple):
     size_se: float             # its standard error
     screened: bool             # not refit nor scored: its bound or evidence out of reach (t nan)
     cpu_s: float
+    factor: int = 4            # close_call_factor of the diagnosis
+    first_t: float = math.nan  # the t before a close call was scored again
 
 
 def diagnosed(family: str, size: float, fraction: float, runs: int, data_seed: int, seed: int,
-              draw: int) -> Criteria:
+              draw: int, factor: int) -> Criteria:
     """Simulate the data set, diagnose it at draw `draw` (halves of `seed`), read the criteria."""
     import octoroach_model as om
     from octoroach_model.diagnosis import diagnose, DiagnosisSettings
@@ -80,8 +87,9 @@ def diagnosed(family: str, size: float, fraction: float, runs: int, data_seed: i
         values['fraction'] = fraction
     measured = om.simulate(runs, seed=data_seed, extensions={family: values})
     started = time.process_time()
-    report = diagnose(measured, redraw_settings(DiagnosisSettings(seed=seed), draw))
-    return criteria(report, family, data_seed, draw, time.process_time() - started)
+    report = diagnose(measured, redraw_settings(DiagnosisSettings(
+        seed=seed, close_call_factor=factor), draw))
+    return criteria(report, family, data_seed, draw, time.process_time() - started, factor)
 
 
 def study_null(spec_path: str, replicate: int) -> tuple[Any, float]:
@@ -96,8 +104,10 @@ def study_null(spec_path: str, replicate: int) -> tuple[Any, float]:
 
 
 def study_diagnosed(spec_path: str, replicate: int, family: str, null_row: Any,
-                    draw: int) -> Criteria:
+                    draw: int, factor: int) -> Criteria:
     """Diagnose replicate `replicate`'s data set with `family` at 1x its limit, at `draw`."""
+    from dataclasses import replace
+
     from study_replay import at_its_limit, rebuilt
 
     from octoroach_model.diagnosis import diagnose
@@ -107,8 +117,9 @@ def study_diagnosed(spec_path: str, replicate: int, family: str, null_row: Any,
     task = next(task for task in study_tasks(spec, replicate) if at_its_limit(task, family))
     data = rebuilt(spec, task, null_row)
     started = time.process_time()
-    report = diagnose(data.measured, redraw_settings(data.settings, draw))
-    return criteria(report, family, replicate, draw, time.process_time() - started)
+    report = diagnose(data.measured, redraw_settings(
+        replace(data.settings, close_call_factor=factor), draw))
+    return criteria(report, family, replicate, draw, time.process_time() - started, factor)
 
 
 def scoring_draws(spec_path: str, replicate: int, family: str, null_row: Any,
@@ -164,7 +175,8 @@ def study_tasks(spec: Any, replicate: int) -> list[Any]:
     return [task for task in build_tasks(spec) if task.replicate == replicate]
 
 
-def criteria(report: Any, family: str, data_id: int, draw: int, cpu_s: float) -> Criteria:
+def criteria(report: Any, family: str, data_id: int, draw: int, cpu_s: float,
+             factor: int) -> Criteria:
     """Read the term's criteria at the race's first step off a report."""
     from scipy import stats
 
@@ -179,7 +191,8 @@ def criteria(report: Any, family: str, data_id: int, draw: int, cpu_s: float) ->
     return Criteria(data_id, draw, tuple(report.named_terms), t, t_critical, margin,
                     first.decision_z,
                     float(size) if isinstance(size, (int, float)) else math.nan,
-                    entry.standard_error, entry.screened, cpu_s)
+                    entry.standard_error, entry.screened, cpu_s, factor,
+                    math.nan if entry.first_t is None else entry.first_t)
 
 
 def _t(row: Criteria) -> str:
@@ -219,6 +232,9 @@ def main() -> int:
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--scoring-only', action='store_true',
                         help='with --study: hold the fits, draw only the scored runs again')
+    parser.add_argument('--close-call-factors', type=int, nargs='+', default=[4],
+                        help='diagnose every draw with each of these close_call_factor '
+                        '(1: a close call is not scored again; default 4, the default)')
     parser.add_argument('--score-runs', type=int,
                         help='with --scoring-only: score against this many simulated runs '
                         "(default: the study's)")
@@ -239,13 +255,16 @@ def reference_rows(args: argparse.Namespace) -> tuple[list[Criteria], list[int]]
     from octoroach_model.workers import process_pool
 
     size = DEFAULT_SIZES[args.family] if args.size is None else args.size
-    jobs = [(data_seed, draw) for data_seed in args.data_seeds for draw in range(args.draws)]
+    jobs = [(data_seed, draw, factor) for data_seed in args.data_seeds
+            for draw in range(args.draws) for factor in args.close_call_factors]
     print(f'{args.family} at {size:g} ({PARAMETERS[args.family]}), {args.runs} runs: '
-          f'{len(args.data_seeds)} data sets x {args.draws} draws = {len(jobs)} diagnoses, '
+          f'{len(args.data_seeds)} data sets x {args.draws} draws x '
+          f'{len(args.close_call_factors)} close-call factors = {len(jobs)} diagnoses, '
           f'{args.workers} processes', flush=True)
     with process_pool(args.workers, command=True) as pool:
         futures = [pool.submit(diagnosed, args.family, size, args.fraction, args.runs,
-                               data_seed, args.seed, draw) for data_seed, draw in jobs]
+                               data_seed, args.seed, draw, factor)
+                   for data_seed, draw, factor in jobs]
         return collected(futures), list(args.data_seeds)
 
 
@@ -255,14 +274,16 @@ def study_rows(args: argparse.Namespace) -> tuple[list[Criteria], list[int]]:
 
     print(f'{args.family} at 1x the limit each null reports, robots of {args.study}: '
           f'{len(args.replicates)} nulls, then {len(args.replicates)} data sets x {args.draws} '
-          f'draws, {args.workers} processes', flush=True)
+          f'draws x {len(args.close_call_factors)} close-call factors, {args.workers} '
+          'processes', flush=True)
     futures = []
     with process_pool(args.workers, command=True) as pool:
         kept = []
         for replicate, row in study_nulls(args, pool):
             kept.append(replicate)
             futures += [pool.submit(study_diagnosed, args.study, replicate, args.family, row,
-                                    draw) for draw in range(args.draws)]
+                                    draw, factor) for draw in range(args.draws)
+                        for factor in args.close_call_factors]
         return collected(futures), sorted(kept)
 
 
@@ -326,7 +347,8 @@ def collected(futures: list[Any]) -> list[Criteria]:
     for done, future in enumerate(as_completed(futures), 1):
         row = future.result()
         found.append(row)
-        print(f'[{done}/{len(futures)}] data {row.data_set} draw {row.draw}: '
+        print(f'[{done}/{len(futures)}] data {row.data_set} draw {row.draw} '
+              f'(close-call factor {row.factor}): '
               f'{", ".join(row.named) or "nothing"}; t {_t(row)} (critical '
               f'{row.t_critical:.2f}), bound margin {row.bound_margin:.2f} (needs '
               f'{row.bound_z:.2f}) ({row.cpu_s:.0f} s)', flush=True)
@@ -334,13 +356,21 @@ def collected(futures: list[Any]) -> list[Criteria]:
 
 
 def report(found: list[Criteria], data_sets: list[int]) -> None:
+    """Print, for each close-call factor, the criteria draw by draw and their pooled spreads."""
+    for factor in sorted({row.factor for row in found}):
+        report_factor([row for row in found if row.factor == factor], data_sets, factor)
+
+
+def report_factor(found: list[Criteria], data_sets: list[int], factor: int) -> None:
     """Print the criteria draw by draw for each data set, and their pooled spreads."""
     import numpy as np
 
-    print('\n| data set | named the same at every draw | t over draws | its SD | '
-          'bound margin over draws | its SD | size over draws | its SD / its SE |')
+    print(f'\nclose_call_factor {factor} (a close call '
+          + ('not scored again' if factor == 1 else f'scored again on {factor}x the runs') + ')')
+    print('\n| data set | named the same at every draw | t over draws (* scored again) | '
+          'its SD | bound margin over draws | its SD | size over draws | its SD / its SE |')
     print('| --- | --- | --- | --- | --- | --- | --- | --- |')
-    t_sd, margin_sd, size_sd = [], [], []
+    t_sd, margin_sd, size_sd, same_count = [], [], [], 0
     for data_set in data_sets:
         rows = sorted((row for row in found if row.data_set == data_set),
                       key=lambda row: row.draw)
@@ -351,15 +381,20 @@ def report(found: list[Criteria], data_sets: list[int]) -> None:
         margin_sd.append(_spread(margins))
         size_sd.append(_spread(sizes) / float(np.mean([row.size_se for row in rows])))
         same = len({frozenset(row.named) for row in rows}) == 1
+        same_count += same
         print(f'| {data_set} | {"yes" if same else "no"} | '
-              f'{" ".join(_t(row) for row in rows)} | {t_sd[-1]:.2f} | '
+              f'{" ".join(_t(row) + ("*" if math.isfinite(row.first_t) else "") for row in rows)}'
+              f' | {t_sd[-1]:.2f} | '
               f'{" ".join(f"{value:.2f}" for value in margins)} | {margin_sd[-1]:.2f} | '
               f'{" ".join(f"{value:.3g}" for value in sizes)} | {size_sd[-1]:.2f} |')
     pooled_t, pooled_margin, pooled_size = (_pooled(sds) for sds in (t_sd, margin_sd, size_sd))
     cpu_s = sum(row.cpu_s for row in found)
+    again = sum(math.isfinite(row.first_t) for row in found)
     print(f'\npooled SD over draws, same runs: t {pooled_t:.2f}, bound margin '
           f"{pooled_margin:.2f}, size {pooled_size:.2f} of its standard error (the data's "
-          f'own: 1 each); CPU {cpu_s:.0f} s of the draws')
+          f'own: 1 each); named the same at every draw on {same_count} of {len(data_sets)} '
+          f'data sets; {again} of {len(found)} first-step tests scored again; CPU '
+          f'{cpu_s:.0f} s of the draws')
 
 
 if __name__ == '__main__':

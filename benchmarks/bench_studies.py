@@ -226,9 +226,10 @@ def print_tables(names: list[str]) -> None:
                        is not None]
             if margins:
                 print('held-out t at 1x, median margin over the t it had to pass (data sets '
-                      'within two scoring errors of it: close calls): ' + '; '.join(
+                      'within two scoring errors of it: close calls, scored again; turned: '
+                      'decided the other way on the runs scored again): ' + '; '.join(
                           f'{e.cause} {e.median_t_margin:+.2f} ({e.close_calls} of '
-                          f'{e.named.trials})' for e in margins) + '\n')
+                          f'{e.named.trials}, turned {e.turned})' for e in margins) + '\n')
             for multiple in (1.0, 2.0):
                 chosen = [e for e in entries if e.limit_multiple == multiple]
                 missed = sum(e.missed for e in chosen)

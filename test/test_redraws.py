@@ -149,6 +149,66 @@ def test_the_scoring_error_of_t_is_the_spread_of_t_over_other_scored_runs():
     assert 0.6 <= ratio <= 2.0, (SEED, ratio, np.mean(t_values))
 
 
+def test_a_close_call_is_decided_on_runs_scored_again(monkeypatch):
+    # every test that decides made a close call (the band widened): each is scored again on
+    # close_call_factor times the runs and decided on those; its first t is the t the same
+    # diagnosis without scoring again gives, and the t's scoring error about halves
+    import importlib
+
+    from octoroach_model.diagnosis.summary import summary_text
+
+    diagnose_module = importlib.import_module('octoroach_model.diagnosis.diagnose')
+    measured = om.simulate(120, seed=SEED % 1000, cycles=6, effects={
+        'persistent_turning': {'yaw_rate_std_deg_s': 6.0}})
+    settings = replace(FAST, seed=SEED, **FEW_SIMULATED_RUNS)
+    monkeypatch.setattr(diagnose_module, 'CLOSE_CALL_SE', float('inf'))
+    once = diagnose(measured, replace(settings, close_call_factor=1))
+    again = diagnose(measured, settings)
+    first_step = {c.cause: c for c in once.candidates + once.extension_candidates
+                  if c.step == 1}
+    decided = [c for c in again.candidates + again.extension_candidates
+               if c.t_scoring_se is not None]
+    assert decided, SEED
+    for candidate in decided:
+        assert candidate.scored_runs == 4 * settings.score_runs, candidate.cause
+        assert candidate.first_t is not None
+        level = again.steps[candidate.step - 1].test_level
+        assert candidate.named_here == (candidate.clears_floor and candidate.p_value < level
+                                        and candidate.gain >= settings.min_gain)
+        if candidate.step == 1:
+            before = first_step[candidate.cause]
+            assert candidate.first_t == pytest.approx(before.held_out_t, rel=1e-12)
+            assert before.first_t is None and before.scored_runs == settings.score_runs
+            assert candidate.t_scoring_se < 0.75 * before.t_scoring_se, (
+                SEED, candidate.cause, candidate.t_scoring_se, before.t_scoring_se)
+    text = summary_text(again)
+    assert f'scored again on {4 * settings.score_runs} runs' in text
+    assert all(f'- {candidate.cause} (' in text for candidate in decided)
+    plain = json.loads(dumps(again))
+    assert all({'scored_runs', 'first_t'} <= set(entry) for entry in plain['candidates'])
+
+
+def test_a_model_scored_in_two_batches_is_scored_as_on_all_its_runs_at_once():
+    from octoroach_model.diagnosis.features import FEATURES
+    from octoroach_model.diagnosis.scoring import pooled_scores, score_model
+
+    rng = np.random.default_rng(SEED)
+    width = len(FEATURES)
+    scales = rng.uniform(0.5, 2.0, width)
+    features, points = rng.normal(size=(90, width)), rng.normal(size=(90, 10))
+    observed, observed_points = rng.normal(size=(25, width)), rng.normal(size=(25, 10))
+    for by_position in (False, True):
+        first = score_model(features[:30], points[:30], observed, observed_points, scales,
+                            by_position)
+        more = score_model(features[30:], points[30:], observed, observed_points, scales,
+                           by_position)
+        whole = score_model(features, points, observed, observed_points, scales, by_position)
+        both = pooled_scores(first, more, observed / scales, observed_points)
+        np.testing.assert_allclose(both.log, whole.log, rtol=1e-12)
+        np.testing.assert_allclose(both.energy_cm, whole.energy_cm, rtol=1e-12)
+        assert both.runs == 90 and both.by_position == by_position
+
+
 def test_a_draw_keeps_the_halves_and_moves_only_the_simulations():
     settings = replace(FAST, seed=SEED, simulation_draws=3)
     second = redraw_settings(settings, 2)

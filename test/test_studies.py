@@ -299,8 +299,8 @@ def a_report(causes=(), candidates=(), extensions=(), extension_candidates=(), s
         return tuple(SimpleNamespace(**entry) for entry in entries)
 
     def scored(entries):
-        return tuple(SimpleNamespace(**{'held_out_t': None, 't_scoring_se': None, **entry})
-                     for entry in entries)
+        return tuple(SimpleNamespace(**{'held_out_t': None, 't_scoring_se': None,
+                                        'first_t': None, **entry}) for entry in entries)
 
     return SimpleNamespace(
         causes=records(causes), candidates=scored(candidates),
@@ -320,7 +320,7 @@ def test_the_adapter_reads_a_typed_report_with_several_causes_and_intervals():
                  'interval': {'position_std_cm': [0.08, 0.12]}}],
         candidates=[{'cause': 'lateral_slip', 'parameters': {'velocity_cm_s': 0.01},
                      'detectable': {'velocity_cm_s': 0.2}, 'held_out_t': 1.25,
-                     't_scoring_se': 0.5},
+                     't_scoring_se': 0.5, 'first_t': 2.5},
                     {'cause': 'persistent_turning', 'parameters': {'yaw_rate_std_deg_s': 0.0},
                      'detectable': {'yaw_rate_std_deg_s': 2.0}}],
         adequate=False, unexplained=[{'statistic': 'heading_rate_spread', 'z': 5.0}],
@@ -338,10 +338,10 @@ def test_the_adapter_reads_a_typed_report_with_several_causes_and_intervals():
     assert terms['lateral_slip'].limit == 0.2 and terms['lateral_slip'].estimate == 0.01
     # how far each scored term's held-out test got, against what it had to pass
     slip = terms['lateral_slip']
-    assert (slip.t, slip.t_critical, slip.t_scoring_se) == (1.25, 3.0, 0.5)
+    assert (slip.t, slip.t_critical, slip.t_scoring_se, slip.first_t) == (1.25, 3.0, 0.5, 2.5)
     assert all(math.isnan(value) for value in (
         terms['persistent_turning'].t, terms['persistent_turning'].t_critical,
-        terms['speed_decay'].t))
+        terms['persistent_turning'].first_t, terms['speed_decay'].t))
 
 
 # --------------------------------------------------------------------------------------------
@@ -420,6 +420,17 @@ def test_power_at_a_limit_multiple_counts_the_misses_and_which_were_not_silent()
             if row.replicate in scored else row for row in rows]
     entry = summarize(spec, rows).power_at_limit_multiples[0]
     assert entry.median_t_margin == pytest.approx(0.75) and entry.close_calls == 3
+    assert entry.turned == 0
+    # close calls scored again (first_t given) count whatever their t now: replicate 4 was
+    # turned (2.9 below 3.0 at first, 3.2 on the runs scored again), replicate 5 was not;
+    # margins now -1.0, 0.2, 0.5, 1.0, 2.0, 2.5
+    again = {4: (3.2, 2.9), 5: (5.0, 3.1)}
+    rows = [replace(row, terms={**row.terms, 'speed_decay': replace(
+        row.terms['speed_decay'], t=again[row.replicate][0], first_t=again[row.replicate][1],
+        t_critical=3.0, t_scoring_se=0.3)}) if row.replicate in again else row for row in rows]
+    entry = summarize(spec, rows).power_at_limit_multiples[0]
+    assert entry.median_t_margin == pytest.approx(0.75)
+    assert (entry.close_calls, entry.turned) == (5, 1)
 
 
 # --------------------------------------------------------------------------------------------

@@ -36,8 +36,9 @@ INTERVAL_LEVEL = 0.95
 # a moments statistic below this share of the level its cause adds at the floor is a zero
 NUMERICAL_ZERO = 1e-9
 # A held-out t within this many of its scoring errors (t_scoring_se) of the critical value
-# could have fallen on the other side with other simulated runs: a close call, said, not
-# decided differently (summary.md, the studies' close_calls).
+# could have fallen on the other side with other simulated runs: a close call, scored again
+# on more runs and decided on those (diagnose._settled), said in summary.md and counted by
+# the studies (close_calls).
 CLOSE_CALL_SE = 2.0
 
 

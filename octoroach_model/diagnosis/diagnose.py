@@ -33,7 +33,7 @@ from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.causes import (
     BY_NAME, CANDIDATES, Cause, CAUSES, EstimateKind, FAMILIES, MIXTURE_FRACTION,
     periodic_limit_hz, RunScale)
-from octoroach_model.diagnosis.decide import decision_z, judge, SizeVerdict
+from octoroach_model.diagnosis.decide import CLOSE_CALL_SE, decision_z, judge, SizeVerdict
 from octoroach_model.diagnosis.descriptions import describe
 from octoroach_model.diagnosis.discrepancies import (
     critical_z, discrepancies, statistic_values, STATISTICS)
@@ -51,9 +51,10 @@ from octoroach_model.diagnosis.records import (
     NamedCause, NamedExtension, PaperValidation, Rival, RunLengths, ScoreSummary, StepResult)
 from octoroach_model.diagnosis.redraws import DrawAgreement
 from octoroach_model.diagnosis.scoring import (
-    feature_scales, PairedGain, position_points_cm, score_model, Scores, t_scoring_se)
+    feature_scales, PairedGain, pooled_scores, position_points_cm, score_model, Scores,
+    t_scoring_se)
 from octoroach_model.diagnosis.stages import StageClock
-from octoroach_model.errors import DataError
+from octoroach_model.errors import DataError, ParameterError
 from octoroach_model.fitting import fit_nominal, mean_start_pose, NominalFitSettings
 from octoroach_model.fitting.gait import stride_frequency_estimate
 from octoroach_model.fitting.target import average_target
@@ -72,6 +73,7 @@ MAX_SAMPLES_PER_CYCLE = 64
 MIN_CYCLES = 3
 SCORE_PURPOSE = 31
 DISCREPANCY_PURPOSE = 32
+RESCORE_PURPOSE = 34     # the further scored runs of a close call (`_settled`)
 
 
 @dataclass(frozen=True)
@@ -113,9 +115,13 @@ class DiagnosisSettings:
     workers: int = 2
     split_seed: int | None = None
     simulation_draws: int = setting(1, SIMULATION_DRAWS)
+    close_call_factor: int = 4
 
     def __post_init__(self) -> None:
         check_fields(self)
+        if self.close_call_factor < 1:
+            raise ParameterError(f'close_call_factor must be at least 1, got '
+                                 f'{self.close_call_factor!r}')
 
     @property
     def halves_seed(self) -> int:
@@ -353,7 +359,8 @@ def run_race(halves: Halves, settings: DiagnosisSettings, pool: Executor,
                                settings, z_step) for cause in remaining]
         evaluated = [future.result() for future in futures]
         last_evaluated.update({evaluation.cause: evaluation for evaluation in evaluated})
-        result, chosen = _step_result(step, evaluated, halves, settings, current_scores)
+        result, chosen = _step_result(step, evaluated, halves, settings, current_scores,
+                                      CloseCallScoring(simulator, halves, settings, model))
         for candidate in result.candidates:
             last_seen[candidate.cause] = candidate
         steps.append(result)
@@ -718,26 +725,24 @@ def score_held_out(simulator: Simulator, model: FittedModel, halves: Halves,
 
 
 def _step_result(step: int, evaluated: list[Evaluation], halves: Halves,
-                 settings: DiagnosisSettings, current_scores: Scores
+                 settings: DiagnosisSettings, current_scores: Scores,
+                 rescoring: CloseCallScoring | None = None
                  ) -> tuple[StepResult, Evaluation | None]:
     m = len(evaluated)
     z = decision_z(settings.decision_alpha, m)
     level = settings.alpha / m
+    critical = float(stats.t.isf(level, halves.test.n - 1))
     results, eligible = [], []
-    for evaluation in evaluated:
-        cause = BY_NAME[evaluation.cause]
-        verdict = judge(evaluation.estimates[evaluation.cause], cause.floor(halves.run_scale), z)
+    for first in evaluated:
+        cause = BY_NAME[first.cause]
+        verdict = judge(first.estimates[first.cause], cause.floor(halves.run_scale), z)
+        evaluation, scoring_se, first_t = _settled(first, verdict, current_scores, critical,
+                                                   halves, settings, rescoring)
         significant = evaluation.gain.p_value < level
         material = evaluation.gain.mean >= settings.min_gain
         named_here = verdict.clears_floor and significant and material
-        # the test's error from the scored runs, where the test decides (summary.md's close
-        # calls): only there, as it costs a few dozen ms a candidate
-        decides = verdict.clears_floor and material and not evaluation.screened
-        scoring_se = t_scoring_se(
-            evaluation.scores, current_scores, halves.test.features / halves.scales,
-            np.random.default_rng([settings.seed, T_SCORING_PURPOSE])) if decides else None
         results.append(candidate_result(evaluation, verdict, step, significant, named_here,
-                                        _excess_share(evaluation, halves), scoring_se))
+                                        _excess_share(evaluation, halves), scoring_se, first_t))
         if named_here:
             eligible.append(evaluation)
     chosen = max(eligible, key=lambda e: e.gain.mean) if eligible else None
@@ -746,14 +751,96 @@ def _step_result(step: int, evaluated: list[Evaluation], halves: Halves,
             chosen)
 
 
+@dataclass
+class CloseCallScoring:
+    """
+    Score a step's close calls again on more runs: the candidate's, and the current model's once.
+
+    Each model keeps its first score_runs scored runs and adds (close_call_factor - 1) times
+    as many of its own random numbers (RESCORE_PURPOSE), the current model's and every
+    candidate's drawing the same ones, run by run, as their first batches do.
+    """
+
+    simulator: Simulator
+    halves: Halves
+    settings: DiagnosisSettings
+    current: FittedModel
+    _current_scores: Scores | None = None
+
+    def candidate(self, evaluation: Evaluation) -> Scores:
+        """Return the candidate's scores on all its scored runs."""
+        return self._pooled(evaluation.scores, evaluation.model)
+
+    def current_model(self, first: Scores) -> Scores:
+        """Return the current model's scores on all its scored runs (scored once a step)."""
+        if self._current_scores is None:
+            self._current_scores = self._pooled(first, self.current)
+        return self._current_scores
+
+    def _pooled(self, first: Scores, model: FittedModel) -> Scores:
+        more_runs = (self.settings.close_call_factor - 1) * first.runs
+        paths, positions = self.simulator.runs(model, more_runs, RESCORE_PURPOSE)
+        halves = self.halves
+        more = score_model(halves.every.features_of(paths, positions),
+                           position_points_cm(paths.positions, paths.lengths),
+                           halves.test.features, halves.test_points_cm, halves.scales,
+                           model.order_dependent)
+        return pooled_scores(first, more, halves.test.features / halves.scales,
+                             halves.test_points_cm)
+
+
+def _settled(evaluation: Evaluation, verdict: SizeVerdict, current_scores: Scores,
+             critical: float, halves: Halves, settings: DiagnosisSettings,
+             rescoring: CloseCallScoring | None
+             ) -> tuple[Evaluation, float | None, float | None]:
+    """
+    Return the evaluation its test decides on, the t's scoring error and the first t.
+
+    Where the test decides (the size past its floor, a material gain: elsewhere the t names
+    nothing), the t's error from the scored runs is computed (`t_scoring_se`, a few dozen ms).
+    A t within CLOSE_CALL_SE of it of the `critical` t is a close call: other scored runs
+    could turn it, so the candidate and the current model are scored again on
+    close_call_factor times the runs, and the test decides on those (the first t is returned
+    beside, None where nothing was scored again). The error and the first t are the report's;
+    only the scores scored again change a decision.
+    """
+    decides = (verdict.clears_floor and evaluation.gain.mean >= settings.min_gain
+               and not evaluation.screened)
+    if not decides:
+        return evaluation, None, None
+    observed = halves.test.features / halves.scales
+
+    def error_of(candidate: Scores, current: Scores) -> float | None:
+        return t_scoring_se(candidate, current, observed,
+                            np.random.default_rng([settings.seed, T_SCORING_PURPOSE]))
+
+    scoring_se = error_of(evaluation.scores, current_scores)
+    t = _t_of(evaluation.gain)
+    if (rescoring is None or settings.close_call_factor < 2 or scoring_se is None or t is None
+            or abs(t - critical) > CLOSE_CALL_SE * scoring_se):
+        return evaluation, scoring_se, None
+    current = rescoring.current_model(current_scores)
+    scores = rescoring.candidate(evaluation)
+    settled = replace(evaluation, scores=scores, gain=PairedGain.of(scores.log - current.log),
+                      gain_cm=float(np.mean(current.energy_cm - scores.energy_cm)))
+    return settled, error_of(scores, current), t
+
+
+def _t_of(gain: PairedGain) -> float | None:
+    """Return the paired test's t, gain / its standard error (None: no finite t)."""
+    return gain.mean / gain.standard_error if 0.0 < gain.standard_error < math.inf else None
+
+
 def candidate_result(evaluation: Evaluation, verdict: SizeVerdict, step: int,
                      significant: bool, named_here: bool, relative: float,
-                     scoring_se: float | None = None) -> CandidateResult:
+                     scoring_se: float | None = None, first_t: float | None = None
+                     ) -> CandidateResult:
     """
     Return one candidate of a step as the report shows it, before its whole-decision limit.
 
     Its fitted values (an extension's in its family's form), gain and evidence (with the t's
-    error from the scored runs, `scoring_se`, where the test decides), the size's
+    error from the scored runs, `scoring_se`, where the test decides, and the t first found,
+    `first_t`, where a close call was scored again), the size's
     verdict; run_mixture's limit is of the spread it adds, stated as the yaw rate of
     MIXTURE_FRACTION's runs.
     """
@@ -774,7 +861,8 @@ def candidate_result(evaluation: Evaluation, verdict: SizeVerdict, step: int,
         detectable_method=LimitMethod.SIZE_BOUND, detectable_power={},
         clears_floor=verdict.clears_floor, significant=significant, named_here=named_here,
         step=step, statistic=cause.statistic_name, family=cause.family,
-        screened=evaluation.screened, t_scoring_se=scoring_se)
+        screened=evaluation.screened, t_scoring_se=scoring_se,
+        scored_runs=0 if evaluation.screened else evaluation.scores.runs, first_t=first_t)
 
 
 def _rival(chosen: Evaluation, eligible: list[Evaluation], alpha: float) -> Rival | None:
@@ -817,7 +905,9 @@ def _step_message(result: StepResult) -> str:
     best = max(result.candidates, key=lambda c: c.gain)
     head = f'step {result.step}: ' + (
         f'{result.chosen} enters' if result.chosen else 'no cause qualifies')
-    return f'{head} (best gain {best.cause} {best.gain:.3g}, p = {best.p_value:.2g})'
+    settled = [c.cause for c in result.candidates if c.first_t is not None]
+    return (f'{head} (best gain {best.cause} {best.gain:.3g}, p = {best.p_value:.2g})'
+            + (f'; close calls scored again: {", ".join(settled)}' if settled else ''))
 
 
 def fit_errors(simulator: Simulator, model: FittedModel,

@@ -93,6 +93,8 @@ class CandidateResult:
     screened: bool = False       # its bound could not reach the floor: neither refit nor scored
     detectable_caveat: str = ''  # where studies found such a limit not to hold (Cause)
     t_scoring_se: float | None = None   # gain / gain_se: its error from the scored runs alone
+    scored_runs: int = 0         # simulated runs per model its held-out test was scored on
+    first_t: float | None = None    # a close call's t on the first scored runs (scored again)
 
     @property
     def held_out_t(self) -> float | None:

@@ -56,6 +56,12 @@ class Scores:
     energy_cm: FloatArray           # position energy score, cm (lower is better)
     sample: FloatArray | None = None    # the model's scored runs' features, in data spreads
     by_position: bool = False           # predicted at each run's place (module docstring)
+    points_cm: FloatArray | None = None     # the scored runs' `position_points_cm`
+
+    @property
+    def runs(self) -> int:
+        """Return how many scored runs these scores came from (0: none kept)."""
+        return 0 if self.sample is None else len(self.sample)
 
 
 def feature_scales(calibration_features: FloatArray) -> FloatArray:
@@ -202,7 +208,25 @@ def score_model(model_features: FloatArray, model_points_cm: FloatArray,
     """
     sample = model_features / scales
     return Scores(feature_log_score(sample, observed_features / scales, by_position),
-                  energy_score(model_points_cm, observed_points_cm), sample, by_position)
+                  energy_score(model_points_cm, observed_points_cm), sample, by_position,
+                  model_points_cm)
+
+
+def pooled_scores(first: Scores, more: Scores, observed: FloatArray,
+                  observed_points_cm: FloatArray) -> Scores:
+    """
+    Return the scores under both batches of one model's scored runs at once.
+
+    `first` and `more` are the same model scored on runs of their own random numbers;
+    `observed` the held-out runs' features in data spreads. A close call is scored again this
+    way (diagnose.py): the first batch's runs are kept, not simulated again.
+    """
+    assert first.sample is not None and more.sample is not None
+    assert first.points_cm is not None and more.points_cm is not None
+    sample = np.concatenate([first.sample, more.sample])
+    points = np.concatenate([first.points_cm, more.points_cm])
+    return Scores(feature_log_score(sample, observed, first.by_position),
+                  energy_score(points, observed_points_cm), sample, first.by_position, points)
 
 
 @dataclass(frozen=True)

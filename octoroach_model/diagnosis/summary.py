@@ -168,39 +168,56 @@ def summary_text(report: DiagnosisReport) -> str:
 
 def close_calls(report: DiagnosisReport) -> list[tuple[CandidateResult, float, float]]:
     """
-    Return the candidates whose held-out test decided within reach of the simulation's error.
+    Return the candidates whose held-out test ended within reach of the simulation's error.
 
-    Those with a `t_scoring_se` (given only where the test decides: diagnose._step_result)
-    whose t = gain / gain_se ended within CLOSE_CALL_SE of it of the critical t at their
-    step's level: each with its t and that critical value.
+    Those scored again as close calls (`first_t` given: diagnose._settled), and those with a
+    `t_scoring_se` (given only where the test decides) whose t = gain / gain_se ended within
+    CLOSE_CALL_SE of it of the critical t at their step's level: each with its t and that
+    critical value.
     """
     calls = []
     for candidate in (*report.candidates, *report.extension_candidates):
-        spread, t = candidate.t_scoring_se, candidate.held_out_t
-        if spread is None or t is None:
+        t = candidate.held_out_t
+        if candidate.t_scoring_se is None or t is None:
             continue
         critical = report.critical_t(candidate)
-        if abs(t - critical) <= CLOSE_CALL_SE * spread:
+        if candidate.first_t is not None or still_close(candidate, t, critical):
             calls.append((candidate, t, critical))
     return calls
 
 
+def still_close(candidate: CandidateResult, t: float, critical: float) -> bool:
+    """Whether `t` is within CLOSE_CALL_SE of the candidate's scoring error of `critical`."""
+    spread = candidate.t_scoring_se
+    return spread is not None and abs(t - critical) <= CLOSE_CALL_SE * spread
+
+
 def _close_call_lines(report: DiagnosisReport) -> list[str]:
-    """Say which decisions other simulated runs could have turned, and what settles them."""
+    """Say which decisions were close to the simulation's error, and how they were settled."""
     calls = close_calls(report)
     if not calls:
         return []
+    again = any(candidate.first_t is not None for candidate, _, _ in calls)
     lines = ['', '**Decided close to the threshold**: the held-out test of these terms ended '
                  f'within {CLOSE_CALL_SE:g} standard errors of its critical value, counting '
                  "only the error of t that comes from the models' simulated runs (the held-out "
-                 'runs fixed):']
+                 'runs fixed)' + ('; where it says "scored again", the test was then decided on '
+                                  'that many simulated runs of both models:' if again else ':')]
     named = report.named_terms
+    unsettled = 0
     for candidate, t, critical in calls:
         verdict = 'named' if candidate.cause in named else 'not named'
-        lines.append(f'- {candidate.cause} ({verdict}): t = {t:.2f} against {critical:.2f}, '
-                     f'simulation error {candidate.t_scoring_se:.2f}')
-    lines.append('Other simulated runs could decide these the other way: '
-                 '`--simulation-draws 4` shows how often; more runs settle them.')
+        first = ('' if candidate.first_t is None else
+                 f'{candidate.first_t:.2f} at first, scored again on '
+                 f'{candidate.scored_runs} runs: ')
+        close = still_close(candidate, t, critical)
+        unsettled += close
+        lines.append(f'- {candidate.cause} ({verdict}): t = {first}{t:.2f} against '
+                     f'{critical:.2f}, simulation error {candidate.t_scoring_se:.2f}'
+                     + (' (still close)' if close else ''))
+    if unsettled:
+        lines.append('Other simulated runs could decide those still close the other way: '
+                     '`--simulation-draws 4` shows how often; more runs settle them.')
     return lines
 
 

@@ -197,12 +197,13 @@ def read_report(report: DiagnosisReport, effects: Mapping[str, Mapping[str, floa
 
 def _test_columns(report: DiagnosisReport, candidate: CandidateResult | None
                   ) -> dict[str, float]:
-    """Return a term's held-out t, the t it had to pass and its scoring error (NaN: none)."""
+    """Return a term's held-out t, the t it had to pass, its scoring error, its first t."""
     t = candidate.held_out_t if candidate is not None else None
     if candidate is None or t is None:
         return {}
     return {'t': t, 't_critical': report.critical_t(candidate),
-            't_scoring_se': _number(candidate.t_scoring_se)}
+            't_scoring_se': _number(candidate.t_scoring_se),
+            'first_t': _number(candidate.first_t)}
 
 
 def main_value(values: Mapping[str, Any], main: str) -> Any:

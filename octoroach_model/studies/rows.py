@@ -34,7 +34,8 @@ class TermOutcome:
     Sizes are the term's main parameter; `rel_error` is the estimate's error relative to the
     true size's distance from the value of no effect; `limit` the detection limit reported;
     `t`, `t_critical` and `t_scoring_se` how far its held-out test got (how far above or below
-    its threshold a term at a limit sits, and whether other simulated runs could turn it).
+    its threshold a term at a limit sits, and whether other simulated runs could turn it);
+    `first_t` its t before a close call was scored again on more simulated runs.
     NaN where there is nothing to say; `named` None where the task was not diagnosed.
     """
 
@@ -48,6 +49,7 @@ class TermOutcome:
     t: float = math.nan              # held-out t at the last step it was weighed
     t_critical: float = math.nan     # what that t had to pass there
     t_scoring_se: float = math.nan   # that t's error from the scored simulated runs
+    first_t: float = math.nan        # a close call's t on its first scored runs (scored again)
 
 
 NO_TERMS: Mapping[str, TermOutcome] = {term: TermOutcome() for term in TERMS}

@@ -157,13 +157,22 @@ def _relative_power(spec: StudySpec, ok: Sequence[StudyRow]) -> tuple[PowerAtLim
 
 
 def _test_margins(outcomes: Sequence[TermOutcome]) -> dict[str, Any]:
-    """Return the median t - t_critical and the close calls of the scored (empty: none)."""
+    """
+    Return the median t - t_critical, the close calls and those turned (empty: none scored).
+
+    A close call was scored again (its `first_t` given), or, in a table made without that,
+    ended within CLOSE_CALL_SE scoring errors of its critical t; turned: scored again and
+    decided the other way than its first t.
+    """
     scored = [o for o in outcomes if math.isfinite(o.t) and math.isfinite(o.t_critical)]
     if not scored:
         return {}
+    again = [o for o in scored if math.isfinite(o.first_t)]
     return {'median_t_margin': _median(o.t - o.t_critical for o in scored),
-            'close_calls': sum(abs(o.t - o.t_critical) <= CLOSE_CALL_SE * o.t_scoring_se
-                               for o in scored if math.isfinite(o.t_scoring_se))}
+            'close_calls': len(again) + sum(
+                abs(o.t - o.t_critical) <= CLOSE_CALL_SE * o.t_scoring_se
+                for o in scored if math.isfinite(o.t_scoring_se) and not math.isfinite(o.first_t)),
+            'turned': sum((o.first_t > o.t_critical) != (o.t > o.t_critical) for o in again)}
 
 
 def _limit_target(limit_multiple: float, rate: float | None) -> tuple[str | None, bool | None]:

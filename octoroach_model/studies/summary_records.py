@@ -103,10 +103,12 @@ class PowerAtLimit:
     target: str | None = field(default=None, metadata=OMIT_NONE)
     meets_target: bool | None = field(default=None, metadata=OMIT_NONE)
     # the term's held-out t against the t it had to pass, where it was scored: the median of
-    # t - t_critical, and in how many data sets it ended within CLOSE_CALL_SE of its scoring
-    # errors of it (other simulated runs could have turned it); None for tables without them
+    # t - t_critical, in how many data sets it was a close call (within CLOSE_CALL_SE of its
+    # scoring errors of it: scored again on more runs) and in how many of those the runs
+    # scored again turned the decision; None for tables without them
     median_t_margin: float | None = field(default=None, metadata=OMIT_NONE)
     close_calls: int | None = field(default=None, metadata=OMIT_NONE)
+    turned: int | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True, kw_only=True)

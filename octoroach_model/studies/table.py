@@ -52,7 +52,7 @@ _OUTCOME: tuple[tuple[str, type], ...] = (
 _PER_CAUSE: tuple[tuple[str, type], ...] = (
     ('true', float), ('named', bool), ('estimate', float), ('low', float), ('high', float),
     ('rel_error', float), ('limit', float), ('t', float), ('t_critical', float),
-    ('t_scoring_se', float),
+    ('t_scoring_se', float), ('first_t', float),
 )
 _TAIL: tuple[tuple[str, type], ...] = (('status', Status), ('note', str), ('elapsed_s', float))
 COLUMNS: tuple[tuple[str, type], ...] = (
