@@ -157,11 +157,11 @@ def test_a_close_call_is_decided_on_runs_scored_again(monkeypatch):
 
     from octoroach_model.diagnosis.summary import summary_text
 
-    diagnose_module = importlib.import_module('octoroach_model.diagnosis.diagnose')
+    decide_module = importlib.import_module('octoroach_model.diagnosis.decide')
     measured = om.simulate(120, seed=SEED % 1000, cycles=6, effects={
         'persistent_turning': {'yaw_rate_std_deg_s': 6.0}})
     settings = replace(FAST, seed=SEED, **FEW_SIMULATED_RUNS)
-    monkeypatch.setattr(diagnose_module, 'CLOSE_CALL_SE', float('inf'))
+    monkeypatch.setattr(decide_module, 'CLOSE_CALL_SE', float('inf'))
     once = diagnose(measured, replace(settings, close_call_factor=1))
     again = diagnose(measured, settings)
     first_step = {c.cause: c for c in once.candidates + once.extension_candidates

@@ -137,6 +137,11 @@ def _moments_limit(estimate: SizeEstimate, floor: float, z_decision: float) -> f
     return math.sqrt(high)
 
 
+def close_call(t: float, critical: float, scoring_se: float) -> bool:
+    """Whether `t` ended within CLOSE_CALL_SE of its `scoring_se` of the `critical` t."""
+    return abs(t - critical) <= CLOSE_CALL_SE * scoring_se
+
+
 def decision_z(alpha: float, candidates: int) -> float:
     """One-sided normal quantile at level alpha / candidates."""
     return float(stats.norm.isf(alpha / max(candidates, 1)))

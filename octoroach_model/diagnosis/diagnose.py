@@ -33,7 +33,7 @@ from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.causes import (
     BY_NAME, CANDIDATES, Cause, CAUSES, EstimateKind, FAMILIES, MIXTURE_FRACTION,
     periodic_limit_hz, RunScale)
-from octoroach_model.diagnosis.decide import CLOSE_CALL_SE, decision_z, judge, SizeVerdict
+from octoroach_model.diagnosis.decide import close_call, decision_z, judge, SizeVerdict
 from octoroach_model.diagnosis.descriptions import describe
 from octoroach_model.diagnosis.discrepancies import (
     critical_z, discrepancies, statistic_values, STATISTICS)
@@ -765,7 +765,7 @@ class CloseCallScoring:
     halves: Halves
     settings: DiagnosisSettings
     current: FittedModel
-    _current_scores: Scores | None = None
+    _current_scores: Scores | None = field(default=None, init=False)
 
     def candidate(self, evaluation: Evaluation) -> Scores:
         """Return the candidate's scores on all its scored runs."""
@@ -817,7 +817,7 @@ def _settled(evaluation: Evaluation, verdict: SizeVerdict, current_scores: Score
     scoring_se = error_of(evaluation.scores, current_scores)
     t = _t_of(evaluation.gain)
     if (rescoring is None or settings.close_call_factor < 2 or scoring_se is None or t is None
-            or abs(t - critical) > CLOSE_CALL_SE * scoring_se):
+            or not close_call(t, critical, scoring_se)):
         return evaluation, scoring_se, None
     current = rescoring.current_model(current_scores)
     scores = rescoring.candidate(evaluation)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 from octoroach_model.diagnosis.causes import BY_NAME
-from octoroach_model.diagnosis.decide import CLOSE_CALL_SE
+from octoroach_model.diagnosis.decide import close_call, CLOSE_CALL_SE
 from octoroach_model.diagnosis.records import CandidateResult, DiagnosisReport, Rival
 
 
@@ -189,7 +189,7 @@ def close_calls(report: DiagnosisReport) -> list[tuple[CandidateResult, float, f
 def still_close(candidate: CandidateResult, t: float, critical: float) -> bool:
     """Whether `t` is within CLOSE_CALL_SE of the candidate's scoring error of `critical`."""
     spread = candidate.t_scoring_se
-    return spread is not None and abs(t - critical) <= CLOSE_CALL_SE * spread
+    return spread is not None and close_call(t, critical, spread)
 
 
 def _close_call_lines(report: DiagnosisReport) -> list[str]:

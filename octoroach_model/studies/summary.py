@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from octoroach_model.diagnosis.causes import BY_NAME
-from octoroach_model.diagnosis.decide import CLOSE_CALL_SE
+from octoroach_model.diagnosis.decide import close_call
 from octoroach_model.studies.rows import Status, StudyRow, TermOutcome
 from octoroach_model.studies.spec import ArmKind, StudySpec
 from octoroach_model.studies.summary_records import (
@@ -170,7 +170,7 @@ def _test_margins(outcomes: Sequence[TermOutcome]) -> dict[str, Any]:
     again = [o for o in scored if math.isfinite(o.first_t)]
     return {'median_t_margin': _median(o.t - o.t_critical for o in scored),
             'close_calls': len(again) + sum(
-                abs(o.t - o.t_critical) <= CLOSE_CALL_SE * o.t_scoring_se
+                close_call(o.t, o.t_critical, o.t_scoring_se)
                 for o in scored if math.isfinite(o.t_scoring_se) and not math.isfinite(o.first_t)),
             'turned': sum((o.first_t > o.t_critical) != (o.t > o.t_critical) for o in again)}
 
