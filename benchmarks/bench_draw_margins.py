@@ -71,8 +71,8 @@ class Criteria(NamedTuple):
     size_se: float             # its standard error
     screened: bool             # not refit nor scored: its bound or evidence out of reach (t nan)
     cpu_s: float
-    factor: int = 4            # close_call_factor of the diagnosis
-    first_t: float = math.nan  # the t before a close call was scored again
+    factor: int                # close_call_factor of the diagnosis
+    first_t: float             # the t before a close call was scored again (nan: not)
 
 
 def diagnosed(family: str, size: float, fraction: float, runs: int, data_seed: int, seed: int,

@@ -54,7 +54,7 @@ from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, pooled_scores, position_points_cm, score_model, Scores,
     t_scoring_se)
 from octoroach_model.diagnosis.stages import StageClock
-from octoroach_model.errors import DataError, ParameterError
+from octoroach_model.errors import DataError
 from octoroach_model.fitting import fit_nominal, mean_start_pose, NominalFitSettings
 from octoroach_model.fitting.gait import stride_frequency_estimate
 from octoroach_model.fitting.target import average_target
@@ -115,13 +115,11 @@ class DiagnosisSettings:
     workers: int = 2
     split_seed: int | None = None
     simulation_draws: int = setting(1, SIMULATION_DRAWS)
-    close_call_factor: int = 4
+    close_call_factor: int = setting(4, 'times score_runs a close call is scored again on '
+                                        '(1: never scored again)', low=1)
 
     def __post_init__(self) -> None:
         check_fields(self)
-        if self.close_call_factor < 1:
-            raise ParameterError(f'close_call_factor must be at least 1, got '
-                                 f'{self.close_call_factor!r}')
 
     @property
     def halves_seed(self) -> int:
@@ -715,9 +713,16 @@ def out_of_reach(estimate: SizeEstimate, floor: float, z: float) -> bool:
 
 
 def score_held_out(simulator: Simulator, model: FittedModel, halves: Halves,
-                   settings: DiagnosisSettings) -> Scores:
-    """Score the held-out runs under `model` (its runs cut to the held-out lengths)."""
-    paths, positions = simulator.runs(model, settings.score_runs, SCORE_PURPOSE)
+                   settings: DiagnosisSettings, runs: int | None = None,
+                   purpose: int = SCORE_PURPOSE) -> Scores:
+    """
+    Score the held-out runs under `model` (its runs cut to the held-out lengths).
+
+    On settings.score_runs simulated runs, or `runs` of another `purpose` (a close call's
+    further runs, `CloseCallScoring`).
+    """
+    paths, positions = simulator.runs(model, settings.score_runs if runs is None else runs,
+                                      purpose)
     features = halves.every.features_of(paths, positions)
     points = position_points_cm(paths.positions, paths.lengths)
     return score_model(features, points, halves.test.features, halves.test_points_cm,
@@ -778,15 +783,11 @@ class CloseCallScoring:
         return self._current_scores
 
     def _pooled(self, first: Scores, model: FittedModel) -> Scores:
-        more_runs = (self.settings.close_call_factor - 1) * first.runs
-        paths, positions = self.simulator.runs(model, more_runs, RESCORE_PURPOSE)
-        halves = self.halves
-        more = score_model(halves.every.features_of(paths, positions),
-                           position_points_cm(paths.positions, paths.lengths),
-                           halves.test.features, halves.test_points_cm, halves.scales,
-                           model.order_dependent)
-        return pooled_scores(first, more, halves.test.features / halves.scales,
-                             halves.test_points_cm)
+        more = score_held_out(self.simulator, model, self.halves, self.settings,
+                              (self.settings.close_call_factor - 1) * first.runs,
+                              RESCORE_PURPOSE)
+        return pooled_scores(first, more, self.halves.test.features / self.halves.scales,
+                             self.halves.test_points_cm)
 
 
 def _settled(evaluation: Evaluation, verdict: SizeVerdict, current_scores: Scores,
