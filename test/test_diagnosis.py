@@ -713,8 +713,8 @@ def test_runs_that_end_early_keep_the_sizes_of_the_full_duration(effects):
     interval on the side of the miss), whichever is wider: persistent_turning's error here is
     about 7 % of its size, so a fixed 15 % is 2.1 of them and fails about 4 % of seeds where
     the interval is right (suite seed 473147: 9.21 for 8.0, interval 8.01-10.27);
-    speed_decay's is about 2 %, so its band stays 15 %. Either band still fails the bias of 30 % this test was written
-    for.
+    speed_decay's is about 2 %, so its band stays 15 %. Either band still fails the bias of
+    30 % this test was written for.
     """
     cause = next(iter(effects))
     truth = effects[cause][main_parameter(cause)]
