@@ -19,13 +19,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
+import statistics
 import sys
 import tempfile
 import time
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from octoroach_model.studies.rows import StudyRow
     from octoroach_model.studies.summary_records import (
         Estimation, InadequateOnNulls, Rate, RateByRuns, Recovery, StudySummary)
 
@@ -132,12 +135,13 @@ def _wall(name: str, summary: StudySummary) -> str:
     return 'wall time unknown'
 
 
-def table_summary(name: str) -> tuple[StudySummary, str | None]:
+def table_summary(name: str) -> tuple[StudySummary, str | None, list[StudyRow]]:
     """
     Summarize the study's table as it stands (the table is the record; summary.json may be older).
 
-    The wall time is the one the last finished run measured. Returns the summary and, for a
-    study stopped before its end, a sentence saying how many data sets of how many it holds.
+    The wall time is the one the last finished run measured. Returns the summary, for a study
+    stopped before its end a sentence saying how many data sets of how many it holds, and the
+    table's rows.
     """
     from octoroach_model.studies.design import build_tasks
     from octoroach_model.studies.spec import load_spec
@@ -151,11 +155,32 @@ def table_summary(name: str) -> tuple[StudySummary, str | None]:
                    if earlier.exists() else None)
     total = len(build_tasks(spec))
     if len(rows) >= total:
-        return summarize(spec, rows, wall_time_s), None
+        return summarize(spec, rows, wall_time_s), None, rows
     replicates = sorted({row.replicate for row in rows})
     return summarize(spec, rows), (
         f'{len(rows)} of the {total} data sets of the spec (replicates {replicates[0]}-'
-        f'{replicates[-1]}, not all complete); `--studies {name}` resumes it')
+        f'{replicates[-1]}, not all complete); `--studies {name}` resumes it'), rows
+
+
+def print_close_calls(rows: list[StudyRow]) -> None:
+    """
+    Print each close call at 1x a limit: its held-out t on the first scored runs and on all.
+
+    Where the term is there, a test picked for a t near its critical value is expected to
+    move towards its data's t (above it on average at a limit) when scored again.
+    """
+    calls = [(term, row.replicate, row.terms[term]) for row in rows
+             if row.ok and row.limit_multiple == 1.0 for term in row.true_causes
+             if math.isfinite(row.terms[term].first_t)]
+    if not calls:
+        return
+    print('close calls at 1x, held-out t on the first scored runs -> on all of them (critical '
+          't): ' + '; '.join(f'{term} replicate {replicate} {o.first_t:.2f} -> {o.t:.2f} '
+                             f'({o.t_critical:.2f})' for term, replicate, o in calls))
+    changes = [o.t - o.first_t for _, _, o in calls]
+    print(f't rose in {sum(change > 0 for change in changes)} of {len(changes)} (change '
+          f'{min(changes):+.2f} to {max(changes):+.2f}, median {statistics.median(changes):+.2f})'
+          '\n')
 
 
 def print_tables(names: list[str]) -> None:
@@ -164,7 +189,7 @@ def print_tables(names: list[str]) -> None:
         if not (OUT / name / 'table.csv').exists():
             print(f'\n{name}: no table in {OUT / name} (run --studies {name})')
             continue
-        summary, partial = table_summary(name)
+        summary, partial, rows = table_summary(name)
         command = (f'python -m octoroach_model study studies/{name}.yaml '
                    f'--out out/studies/{name}')
         print(f'\n### {name} (`{command}`, {_wall(name, summary)} on this machine)\n')
@@ -230,6 +255,7 @@ def print_tables(names: list[str]) -> None:
                       'decided the other way on the runs scored again): ' + '; '.join(
                           f'{e.cause} {e.median_t_margin:+.2f} ({e.close_calls} of '
                           f'{e.named.trials}, turned {e.turned})' for e in margins) + '\n')
+            print_close_calls(rows)
             for multiple in (1.0, 2.0):
                 chosen = [e for e in entries if e.limit_multiple == multiple]
                 missed = sum(e.missed for e in chosen)

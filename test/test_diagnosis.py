@@ -709,12 +709,11 @@ def test_runs_that_end_early_keep_the_sizes_of_the_full_duration(effects):
     A quarter of the runs leaving the capture volume at 70-95 % of the duration must not bend
     the sizes (with a common duration, speed_decay 0.2 was once read as 0.139).
 
-    The size may miss by 15 % or by three of its standard errors (read off its reported 95 %
-    interval on the side of the miss), whichever is wider: persistent_turning's error here is
-    about 7 % of its size, so a fixed 15 % is 2.1 of them and fails about 4 % of seeds where
-    the interval is right (suite seed 473147: 9.21 for 8.0, interval 8.01-10.27);
-    speed_decay's is about 2 %, so its band stays 15 %. Either band still fails the bias of
-    30 % this test was written for.
+    The size may miss by 15 % or by three of its reported standard errors, whichever is wider:
+    persistent_turning's error here is about 7 % of its size, so a fixed 15 % is about two of
+    them and fails about 4 % of seeds where the error is right (suite seed 473147: 9.21 for
+    8.0, interval 8.01-10.27); speed_decay's is about 2 %, so its band stays 15 %. Either band
+    still fails the bias of 30 % this test was written for.
     """
     cause = next(iter(effects))
     truth = effects[cause][main_parameter(cause)]
@@ -727,10 +726,10 @@ def test_runs_that_end_early_keep_the_sizes_of_the_full_duration(effects):
     found = named_sizes(report)
     message = f'{replay(f"{effects} with {len(early)} runs cut short")}: named {found}'
     assert set(found) == {cause}, message
-    low, high = next(c for c in report.causes if c.cause == cause).interval[main_parameter(cause)]
-    standard_error = (found[cause] - low if found[cause] > truth else high - found[cause]) / 1.96
+    standard_error = next(c for c in report.causes
+                          if c.cause == cause).standard_error[main_parameter(cause)]
     band = max(0.15 * truth, 3.0 * standard_error)
-    assert abs(found[cause] - truth) <= band, f'{message}, interval {low:.4g}-{high:.4g}'
+    assert abs(found[cause] - truth) <= band, f'{message}, standard error {standard_error:.3g}'
     assert report.runs.ended_early == len(early)
 
 
