@@ -37,6 +37,13 @@ def test_the_numerical_core_is_checked_as_strictly_as_mypy_strict(monkeypatch, t
                       if getattr(plain, name) != getattr(strict, name)]
     assert len(strict_options) >= 8, strict_options
     _, configured = process_options(['--config-file', 'setup.cfg'], require_targets=False)
+    global_options = [name for name in dir(strict) if not name.startswith('_')
+                      and name not in PER_MODULE_OPTIONS
+                      and not callable(getattr(strict, name))
+                      and getattr(plain, name) != getattr(strict, name)]
+    looser = [name for name in global_options
+              if getattr(configured, name) != getattr(strict, name)]
+    assert not looser, f'setup.cfg leaves out global options --strict sets: {looser}'
     for package in STRICT_PACKAGES:
         ours = configured.clone_for_module(f'{package}.any_module')
         looser = [name for name in strict_options
