@@ -112,8 +112,8 @@ class Cause:
     factor 1); `order_dependent` terms are predicted run by run at the run's place;
     `limit_caveat` says in words where studies found the term's detection limit not to hold
     as computed (the report carries it beside the limit); none does now (periodic_heading's,
-    named in 7 of 12 data sets at 1x in studies/heading_terms.yaml, was named in 18 of 24
-    with studies/periodic_limits.yaml's twelve).
+    named in 7 of 12 data sets at 1x in studies/heading_terms.yaml's first run, was named in
+    19 of 24 with studies/periodic_limits.yaml's twelve at commit 33f1294).
     """
 
     name: str
