@@ -4,6 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 JOBS ?= 2
+PYTEST_ARGS ?=
 
 # make demo writes DEMO and marks it as its own; a DEMO without the mark is a user's, never
 # replaced. Each run replaces the demo's own previous output (diagnose writes it at once).
@@ -26,8 +27,9 @@ $(STAMP): requirements.txt setup.py
 # (run first, test/conftest.py) go to whichever worker is free; without it xdist hands each
 # worker a quarter of the suite at once, and one worker got every long test. (On the
 # command line, not in setup.cfg: colcon test runs pytest where xdist may be absent.)
+# PYTEST_ARGS: more pytest options (benchmarks/bench_suite.py adds --durations=0 and -q)
 test: venv
-	$(PY) -m pytest -n $(JOBS) --maxschedchunk=2 test
+	$(PY) -m pytest -n $(JOBS) --maxschedchunk=2 test $(PYTEST_ARGS)
 
 demo: venv
 	@if [ -L $(DEMO) ] || { [ -e $(DEMO) ] && [ ! -f $(DEMO)/$(DEMO_MARK) ]; }; then \

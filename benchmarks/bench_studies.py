@@ -190,25 +190,27 @@ def print_scoring_error(rows: list[StudyRow]) -> None:
     The limits take the test's power as Phi(T - z) (docs/diagnosis.md, section 8): t's spread
     over the held-out runs alone. The simulated runs that score them add an error of their own
     (`t_scoring_se`, of the t each decision used); with it the power at a limit the test
-    decides is Phi(z_80 / sqrt(1 + se^2)) instead of 0.80.
+    decides is Phi(z_POWER / sqrt(1 + se^2)) instead of POWER (decide.py).
     """
     from scipy import stats
+
+    from octoroach_model.diagnosis.decide import POWER
 
     errors = sorted(row.terms[term].t_scoring_se for row in rows
                     if row.ok and row.limit_multiple == 1.0 for term in row.true_causes
                     if math.isfinite(row.terms[term].t_scoring_se))
     if not errors:
         return
-    z80 = float(stats.norm.ppf(0.8))
+    z_power = float(stats.norm.ppf(POWER))
 
     def power(se: float) -> str:
-        return f'{stats.norm.cdf(z80 / math.sqrt(1.0 + se * se)):.3f}'
+        return f'{stats.norm.cdf(z_power / math.sqrt(1.0 + se * se)):.3f}'
 
     median, high = statistics.median(errors), errors[int(0.9 * (len(errors) - 1))]
     print(f'scoring error of the held-out t at 1x: median {median:.2f}, 90th percentile '
           f'{high:.2f}, largest {errors[-1]:.2f} ({len(errors)} data sets); power at a limit '
           f'the test decides, with that error: {power(median)}, {power(high)}, '
-          f'{power(errors[-1])} (0.80 without it)\n')
+          f'{power(errors[-1])} ({POWER:.2f} without it)\n')
 
 
 def print_tables(names: list[str]) -> None:
