@@ -5,7 +5,10 @@ Runs `make test JOBS=N` itself at a fixed suite seed, once per worker count aske
 `--durations=0` added (the Makefile's PYTEST_ARGS), and prints per run: the wall time, the
 machine's busy and idle core-seconds over it (from /proc/stat: run it with nothing else on
 the machine), the worker-seconds pytest lists, and those of the groups that take most of them
-(the tests that hide effects in data, the Dask study tests, the robot-space property).
+(the tests that hide effects in data, the Dask study tests, the robot-space property). Where
+the workers' seconds went that were not in a test (`suite_timeline.py`, a pytest plugin
+loaded for the run): before each worker's first test (start-up, collection), after each
+one's last (the other still busy: the imbalance; then the suite's exit), and between tests.
 
 Why it is here: issue 26 asks for `make test` within 6 minutes; this says whether the cores
 are idle (more workers would help) or full (the tests must cost less), and which tests cost.
@@ -22,7 +25,10 @@ from pathlib import Path
 import re
 import subprocess
 import sys
+import tempfile
 import time
+
+from suite_timeline import FOLDER_VARIABLE
 
 REPO = Path(__file__).resolve().parents[1]
 GROUPS = {
@@ -46,15 +52,49 @@ def cpu_seconds() -> tuple[float, float] | None:
     return (user + nice + system) / tick, (idle + iowait) / tick
 
 
+def outside_tests(folder: Path, launched: float, finished: float) -> dict[str, str]:
+    """
+    Return the workers' seconds outside their tests, from `suite_timeline`'s files.
+
+    Before the first test, after the last one (and the suite's exit after the last test of
+    all), and between tests (set-up of module fixtures is inside a test's span).
+    """
+    spans, in_tests = [], 0.0
+    for path in sorted(folder.glob('gw*.txt')):
+        events = [line.split('\t') for line in path.read_text().splitlines()]
+        starts = [float(time_s) for event, time_s, _ in events if event == 'start']
+        ends = [float(time_s) for event, time_s, _ in events if event == 'end']
+        if starts and ends:
+            spans.append((starts[0], ends[-1]))
+            in_tests += sum(end - start for start, end in zip(starts, ends))
+    if not spans:
+        return dict.fromkeys(TIMELINE_CELLS, 'n/a')
+    before = sum(first - launched for first, _ in spans)
+    after = sum(finished - last for _, last in spans)
+    between = sum(last - first for first, last in spans) - in_tests
+    return dict(zip(TIMELINE_CELLS, (
+        f'{before:.0f}', f'{after:.0f} ({finished - max(last for _, last in spans):.0f} s exit)',
+        f'{between:.0f}')))
+
+
+TIMELINE_CELLS = ('worker-s before first test', 'worker-s after last test',
+                  'worker-s between tests')
+
+
 def run_suite(jobs: int, seed: int) -> dict[str, str]:
     """Run `make test` once on `jobs` workers; return the table row's cells."""
-    before, started = cpu_seconds(), time.monotonic()
-    done = subprocess.run(
-        ['make', '--no-print-directory', 'test', f'JOBS={jobs}',
-         'PYTEST_ARGS=--durations=0 -q -p no:cacheprovider'],
-        cwd=REPO, env={**os.environ, 'OCTOROACH_TEST_SEED': str(seed)},
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    wall, after = time.monotonic() - started, cpu_seconds()
+    with tempfile.TemporaryDirectory(prefix='suite-timeline-') as folder:
+        path = os.pathsep.join(filter(None, [str(REPO / 'benchmarks'),
+                                             os.environ.get('PYTHONPATH')]))
+        env = {**os.environ, 'OCTOROACH_TEST_SEED': str(seed), 'PYTHONPATH': path,
+               FOLDER_VARIABLE: folder}
+        before, started, launched = cpu_seconds(), time.monotonic(), time.time()
+        done = subprocess.run(
+            ['make', '--no-print-directory', 'test', f'JOBS={jobs}',
+             'PYTEST_ARGS=--durations=0 -q -p no:cacheprovider -p suite_timeline'],
+            cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        wall, after, finished = time.monotonic() - started, cpu_seconds(), time.time()
+        timeline = outside_tests(Path(folder), launched, finished)
     per_file: dict[str, float] = defaultdict(float)
     passed = '?'
     for line in done.stdout.splitlines():
@@ -70,7 +110,7 @@ def run_suite(jobs: int, seed: int) -> dict[str, str]:
              'worker-s listed': f'{sum(per_file.values()):.0f}'}
     for group, files in GROUPS.items():
         cells[group] = f'{sum(per_file[name] for name in files):.0f}'
-    return cells
+    return {**cells, **timeline}
 
 
 def main(argv: list[str] | None = None) -> int:
