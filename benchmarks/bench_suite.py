@@ -56,24 +56,31 @@ def outside_tests(folder: Path, launched: float, finished: float) -> dict[str, s
     """
     Return the workers' seconds outside their tests, from `suite_timeline`'s files.
 
-    Before the first test, after the last one (and the suite's exit after the last test of
-    all), and between tests (set-up of module fixtures is inside a test's span).
+    Before the first test, after the last one (with the suite's exit after the last test of
+    all, and the longest a worker took from its unconfigure to its exit handler), and
+    between tests (set-up of module fixtures is inside a test's span).
     """
-    spans, in_tests = [], 0.0
+    spans, in_tests, own_ends = [], 0.0, []
     for path in sorted(folder.glob('gw*.txt')):
         events = [line.split('\t') for line in path.read_text().splitlines()]
-        starts = [float(time_s) for event, time_s, _ in events if event == 'start']
-        ends = [float(time_s) for event, time_s, _ in events if event == 'end']
+        times = defaultdict(list)
+        for event, time_s, _ in events:
+            times[event].append(float(time_s))
+        starts, ends = times['start'], times['end']
         if starts and ends:
             spans.append((starts[0], ends[-1]))
             in_tests += sum(end - start for start, end in zip(starts, ends))
+            own_ends += [exit_s - stop for exit_s, stop in zip(times['exit'][-1:],
+                                                               times['unconfigure'][-1:])]
     if not spans:
         return dict.fromkeys(TIMELINE_CELLS, 'n/a')
     before = sum(first - launched for first, _ in spans)
     after = sum(finished - last for _, last in spans)
     between = sum(last - first for first, last in spans) - in_tests
+    last_test = max(last for _, last in spans)
+    own = f'{max(own_ends):.1f}' if own_ends else 'n/a'
     return dict(zip(TIMELINE_CELLS, (
-        f'{before:.0f}', f'{after:.0f} ({finished - max(last for _, last in spans):.0f} s exit)',
+        f'{before:.0f}', f'{after:.0f} (exit {finished - last_test:.0f} s, teardown {own} s)',
         f'{between:.0f}')))
 
 

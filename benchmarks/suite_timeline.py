@@ -4,10 +4,14 @@ A pytest plugin for `bench_suite.py`: when each test process starts and ends eac
 Loaded with `-p suite_timeline` (benchmarks/ on PYTHONPATH); each process (the xdist
 controller and every worker) appends its events to its own file in the folder that
 OCTOROACH_SUITE_TIMELINE names, one line each: event, wall-clock time (s), test id. Without
-that variable it records nothing.
+that variable it records nothing. `exit` is written by an exit handler registered at
+configure: it runs after the handlers registered later (by modules the tests import) and
+after the interpreter joined its threads, so a long gap from `unconfigure` to it is a test
+process slow to end.
 """
 from __future__ import annotations
 
+import atexit
 import os
 from pathlib import Path
 import time
@@ -29,6 +33,7 @@ def _write(event: str, test: str = '') -> None:
 
 def pytest_configure(config) -> None:
     _write('configure')
+    atexit.register(_write, 'exit')
 
 
 def pytest_runtest_logstart(nodeid: str, location) -> None:
