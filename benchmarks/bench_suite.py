@@ -10,6 +10,12 @@ the workers' seconds went that were not in a test (`suite_timeline.py`, a pytest
 loaded for the run): before each worker's first test (start-up, collection), after each
 one's last (the other still busy: the imbalance; then the suite's exit), and between tests.
 
+The machine's speed moves from day to day (the same suite at the same seed was busy 791 and
+991 core-seconds on two days), so before and after the suites it times a reference
+workload in a fresh process: the suite's Table II null diagnosis (test_diagnosis.py's
+settings, 300 runs), and prints the busy core-seconds in units of it: a figure that compares
+across days where seconds do not.
+
 Why it is here: issue 26 asks for `make test` within 6 minutes; this says whether the cores
 are idle (more workers would help) or full (the tests must cost less), and which tests cost.
 Not in `make bench` (it takes two cores for about 8 minutes a run).
@@ -120,6 +126,27 @@ def run_suite(jobs: int, seed: int) -> dict[str, str]:
     return {**cells, **timeline}
 
 
+REFERENCE = """
+import sys, time
+from dataclasses import replace
+sys.path.insert(0, sys.argv[1])
+import octoroach_model as om
+from octoroach_model.diagnosis import diagnose
+from hidden_effects import FAST
+measured = om.simulate(300, seed=7)
+started = time.process_time()
+diagnose(measured, replace(FAST, seed=7))
+print(time.process_time() - started)
+"""
+
+
+def reference_seconds() -> float:
+    """Return the CPU seconds of the reference diagnosis in a fresh process (one core)."""
+    done = subprocess.run([sys.executable, '-c', REFERENCE, str(REPO / 'test')], cwd=REPO,
+                          stdout=subprocess.PIPE, text=True, check=True)
+    return float(done.stdout.split()[-1])
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--seed', type=int, default=4242,
@@ -127,12 +154,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--jobs', type=int, nargs='+', default=[2],
                         help='xdist worker counts to run, in turn (default 2, as make test)')
     arguments = parser.parse_args(argv)
+    print('timing the reference diagnosis ...', file=sys.stderr, flush=True)
+    references = [reference_seconds()]
     rows = []
     for jobs in arguments.jobs:
         print(f'running the suite on {jobs} workers at seed {arguments.seed} ...',
               file=sys.stderr, flush=True)
         rows.append(run_suite(jobs, arguments.seed))
-    print(f'suite seed {arguments.seed}; core-seconds of the whole machine over the run')
+    references.append(reference_seconds())
+    reference = sum(references) / len(references)
+    for row in rows:
+        busy = row['busy core-s']
+        row['busy, references'] = f'{float(busy) / reference:.0f}' if busy != 'n/a' else 'n/a'
+    print(f'suite seed {arguments.seed}; core-seconds of the whole machine over the run; '
+          f'reference diagnosis {references[0]:.1f} and {references[1]:.1f} CPU-s before '
+          f'and after (test_diagnosis.py\'s Table II null; "busy, references": busy '
+          f'core-s over their mean)')
     print('| ' + ' | '.join(rows[0]) + ' |')
     print('|' + ' --- |' * len(rows[0]))
     for row in rows:
