@@ -53,8 +53,9 @@ def main() -> int:
     def angles(model) -> str:
         return ', '.join(f'{math.degrees(a):.1f}' for a in model.parameters.touchdown_angles)
 
-    print(f'replicate {REPLICATE}: robot angles {", ".join(f"{a:.1f}" for a in draw.touchdown_angles_deg)} '
-          f'deg, slip {SLIP_CM_S:.3f} cm/s; baseline angles {angles(baseline)} deg\n')
+    robot_angles = ', '.join(f'{angle:.1f}' for angle in draw.touchdown_angles_deg)
+    print(f'replicate {REPLICATE}: robot angles {robot_angles} deg, slip {SLIP_CM_S:.3f} '
+          f'cm/s; baseline angles {angles(baseline)} deg\n')
     print('| start | cost | angles, deg | slip, cm/s |')
     print('| --- | --- | --- | --- |')
     names = ('current geometry', 'equal angles', "Table II's angles")
@@ -73,12 +74,12 @@ def main() -> int:
     evaluation = evaluate_candidate(halves, baseline, scores, 'lateral_slip', settings)
     estimate = evaluation.estimates['lateral_slip']
     floor = BY_NAME['lateral_slip'].floor(halves.run_scale)
-    print(f'\nthe race\'s first step: lateral_slip {estimate.size:+.3f} +- {estimate.se:.3f} '
+    verdict = ('the slip is found, with its sign'
+               if np.sign(estimate.size) == np.sign(SLIP_CM_S) and evaluation.gain.mean > 0
+               else 'a fit of the other sign or a gain below 0 misses it')
+    print(f'\nthe first race step: lateral_slip {estimate.size:+.3f} +- {estimate.se:.3f} '
           f'cm/s (floor {floor:.3f}), held-out gain {evaluation.gain.mean:+.3f} nats per run '
-          f'(+- {evaluation.gain.standard_error:.3f})')
-    print(f'(the robot\'s slip: {SLIP_CM_S:+.3f}; a fit of the other sign or a gain below 0 '
-          f'misses it)' if not np.sign(estimate.size) == np.sign(SLIP_CM_S)
-          or evaluation.gain.mean <= 0 else '(the slip is found, with its sign)')
+          f'(+- {evaluation.gain.standard_error:.3f}): {verdict}')
     return 0
 
 
