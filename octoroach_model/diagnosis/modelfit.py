@@ -469,53 +469,36 @@ def restarted_geometry(simulator: Simulator, model: FittedModel,
                        path_causes: tuple[str, ...], new: list[str], settings: FitSettings
                        ) -> tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]:
     """
-    Fit the geometry with new path causes from three starts; keep the best fit.
+    Fit the geometry with new path causes from two starts; keep the better fit.
 
     A geometry fitted without a path cause has bent to mimic it (an asymmetric gait crabs
     sideways as a slip would), and from there the joint fit can stay in that valley. So the
-    fit starts from the current geometry, from the same one with its four touchdown angles
-    made equal (no asymmetry to crab with), and with Table II's angles (the robot space's
-    centre), each with the new causes' sizes read off their signatures (`path_start`); the
-    lowest least-squares cost wins (the earlier start of equal costs). The third (left out
-    where the current angles are within a degree of Table II's, the same start): a robot
-    whose own asymmetry crabs one way and a slip the other (limits.yaml replicate 3, angles
-    48.7, 38.5, 41.7, 47.4 deg and a slip of -0.36 cm/s) ended from the first two at +0.11
-    cm/s and nearly equal front angles, a cost of 7438, and from Table II's at -0.33 cm/s
-    near the robot's angles, a cost of 961 (`benchmarks/bench_slip_valley.py`).
+    fit starts both from the current geometry and from the same one with its four touchdown
+    angles made equal (no asymmetry to crab with), each with the new causes' sizes read off
+    their signatures (`path_start`), and the lower least-squares cost wins (the earlier start
+    of equal costs). Neither reaches the robot where its own asymmetry crabs one way and a
+    slip the other (`benchmarks/bench_slip_valley.py`, docs/diagnosis.md section 3).
     """
     fits = [fit_geometry(simulator.data, start, path_causes, settings)
             for start in geometry_starts(simulator, model, new, settings)]
     return min(fits, key=lambda fit: fit[2].cost)
 
 
-# Table II's start is left out where every touchdown angle of the current geometry is within
-# this of it (deg): a geometry that has not bent away from the robot space's centre
-SAME_START_DEG = 1.0
-
-
 def geometry_starts(simulator: Simulator, model: FittedModel, new: list[str],
                     settings: FitSettings) -> list[FittedModel]:
     """
-    Return the starts of `restarted_geometry`, in order: current, equal angles, Table II's.
+    Return the starts of `restarted_geometry`, in order: the current geometry, equal angles.
 
-    Table II's only where the current angles are not all within SAME_START_DEG of it. Each
-    with the new causes' sizes read off their signatures and its stride frequency set to show
-    the runs' (`same_strides`); where change_point is new, each followed by the same striding
-    as the runs do before the change (`before_change`, where it can be seen).
+    Each with the new causes' sizes read off their signatures and its stride frequency set to
+    show the runs' (`same_strides`); where change_point is new, each followed by the same
+    striding as the runs do before the change (`before_change`, where it can be seen).
     """
     angle = float(np.mean(model.parameters.touchdown_angles))
     symmetric = replace(model, parameters=replace(
         model.parameters, touchdown_angles=(angle, angle, angle, angle)).with_paper_liftoff())
-    table_ii = ModelParameters.nominal().touchdown_angles
-    paper = replace(model, parameters=replace(
-        model.parameters, touchdown_angles=table_ii).with_paper_liftoff())
-    # a constant gait cannot mimic a change in time: change_point alone needs no other
+    # a constant gait cannot mimic a change in time: change_point alone needs no symmetric
     # start, but one at the strides the runs show before the change (`before_change`)
-    geometries: tuple[FittedModel, ...] = (
-        (model,) if set(new) == {'change_point'} else (model, symmetric, paper))
-    if max(abs(a - b) for a, b in zip(model.parameters.touchdown_angles, table_ii)) \
-            < math.radians(SAME_START_DEG):
-        geometries = geometries[:2]       # Table II's start is the current one
+    geometries = (model,) if set(new) == {'change_point'} else (model, symmetric)
     duration = float(simulator.data.paths.t[-1])
     starts = []
     for start in geometries:
