@@ -128,7 +128,7 @@ class DiagnosisSettings:
 
     def fit(self, seed_offset: int = 0) -> FitSettings:
         return FitSettings(self.moment_runs, self.mean_path_runs, self.heading_weight_m,
-                           self.rounds, self.seed + seed_offset)
+                           self.rounds, self.seed + seed_offset, score_runs=self.score_runs)
 
 
 @dataclass

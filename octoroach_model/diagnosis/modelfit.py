@@ -30,6 +30,8 @@ from scipy import stats
 from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind, MIXTURE_FRACTION
 from octoroach_model.diagnosis.features import INDEX, run_features
+from octoroach_model.diagnosis.scoring import (
+    feature_scales, PairedGain, position_points_cm, score_model)
 from octoroach_model.fitting.covariance import cost_gap_se, path_covariance, target_changes
 from octoroach_model.fitting.gait import (
     cycle_distances, GAIT_FEATURES, stride_frequency_estimate, stride_samples)
@@ -116,6 +118,7 @@ class FitSettings:
     rounds: int = 2
     seed: int = 0
     tolerance: float = 1e-5     # least squares stops at this relative change (MC noise: 1e-4)
+    score_runs: int = 1200      # simulated runs that score the calibration runs (`best_valley`)
 
 
 @dataclass
@@ -265,6 +268,7 @@ class Simulator:
 GAIT_COLUMNS = [INDEX[name] for name in GAIT_FEATURES]
 MOMENTS = 11     # purpose codes of the simulations (each its own random numbers)
 SPREAD = 12
+VALLEY = 13
 
 
 @dataclass(frozen=True)
@@ -469,36 +473,117 @@ def restarted_geometry(simulator: Simulator, model: FittedModel,
                        path_causes: tuple[str, ...], new: list[str], settings: FitSettings
                        ) -> tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]:
     """
-    Fit the geometry with new path causes from two starts; keep the better fit.
+    Fit the geometry with new path causes from up to three starts; keep the best valley.
 
     A geometry fitted without a path cause has bent to mimic it (an asymmetric gait crabs
     sideways as a slip would), and from there the joint fit can stay in that valley. So the
-    fit starts both from the current geometry and from the same one with its four touchdown
-    angles made equal (no asymmetry to crab with), each with the new causes' sizes read off
-    their signatures (`path_start`), and the lower least-squares cost wins (the earlier start
-    of equal costs). Neither reaches the robot where its own asymmetry crabs one way and a
-    slip the other (`benchmarks/bench_slip_valley.py`, docs/diagnosis.md section 3).
+    fit starts from the current geometry, from the same one with its four touchdown angles
+    made equal (no asymmetry to crab with) and from Table II's angles (the robot space's
+    centre), each with the new causes' sizes read off their signatures (`path_start`); of
+    the ends, `best_valley` keeps one.
     """
     fits = [fit_geometry(simulator.data, start, path_causes, settings)
             for start in geometry_starts(simulator, model, new, settings)]
-    return min(fits, key=lambda fit: fit[2].cost)
+    return best_valley(simulator, fits, settings)
+
+
+# a fit from another start that ends this many standard errors away in some entry of the
+# geometry (leg, angles, stride frequency; and the path-cause sizes in `best_valley`) is in
+# another valley of the objective
+DISTINCT_SE = 2.0
+# it replaces the lowest cost end where the calibration runs score higher under it by more
+# than this many paired standard errors
+VALLEY_Z = 2.0
+
+GeometryFit = tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]
+
+
+def best_valley(simulator: Simulator, fits: Sequence[GeometryFit], settings: FitSettings
+                ) -> GeometryFit:
+    """
+    Return the end of the lowest cost, unless another valley's end predicts the runs better.
+
+    The least-squares cost weighs the mean path and the sway within a stride; its lowest end
+    is not always the robot. For a slip against the robot's own crab (limits.yaml replicate
+    6: angles 49.2, 35.5, 44.4, 43.4 deg, a slip of -0.236 cm/s) Table II's start ended at
+    a cost of 196 and a slip of -0.352 cm/s, the current geometry's at 280 and -0.254. On
+    ten other simulation seeds the costs kept their order (107 apart, sd 33), but the
+    calibration runs' log score preferred the second by 0.14 +- 0.026 nats per run, and so
+    did the held-out runs (0.11 +- 0.029). So ends in other valleys (`DISTINCT_SE`) are
+    compared by the score the race decides on, taken on the calibration runs they were
+    fitted to (the held-out runs stay for the race's test), on common random numbers: the
+    lowest cost's end gives way only to a clearly better score (`VALLEY_Z`), and of several
+    to the best.
+    """
+    order = sorted(range(len(fits)), key=lambda index: fits[index][2].cost)   # stable
+    best = fits[order[0]]
+    errors = np.sqrt(np.maximum(np.diag(best[2].covariance), 1e-300))
+    kept = [_fit_vector(best)]
+    rivals = []
+    for index in order[1:]:
+        vector = _fit_vector(fits[index])
+        if len(vector) == len(errors) and all(
+                np.max(np.abs(vector - seen) / errors) > DISTINCT_SE for seen in kept):
+            kept.append(vector)
+            rivals.append(fits[index])
+    if not rivals:
+        return best
+    base = calibration_log_scores(simulator, best[0], settings)
+    chosen, chosen_gain = best, 0.0
+    for rival in rivals:
+        gain = PairedGain.of(calibration_log_scores(simulator, rival[0], settings) - base)
+        if gain.mean > VALLEY_Z * gain.standard_error and gain.mean > chosen_gain:
+            chosen, chosen_gain = rival, gain.mean
+    return chosen
+
+
+def _fit_vector(fit: GeometryFit) -> FloatArray:
+    model, _, uncertainty = fit
+    return np.append(geometry_vector(model.parameters),
+                     [float(model.effects[cause][parameter])
+                      for cause, parameter in uncertainty.free])
+
+
+def calibration_log_scores(simulator: Simulator, model: FittedModel, settings: FitSettings
+                           ) -> FloatArray:
+    """Return each calibration run's log score under `model` (diagnose.score_held_out's)."""
+    data = simulator.data
+    paths, positions = simulator.runs(model, settings.score_runs, VALLEY)
+    scores = score_model(data.features_of(paths, positions),
+                         position_points_cm(paths.positions, paths.lengths), data.features,
+                         position_points_cm(data.paths.positions, data.lengths),
+                         feature_scales(data.features), model.order_dependent)
+    return np.asarray(scores.log, dtype=float)
+
+
+# Table II's start is left out where every touchdown angle of the current geometry is within
+# this of it (deg): a geometry that has not bent away from the robot space's centre
+SAME_START_DEG = 1.0
 
 
 def geometry_starts(simulator: Simulator, model: FittedModel, new: list[str],
                     settings: FitSettings) -> list[FittedModel]:
     """
-    Return the starts of `restarted_geometry`, in order: the current geometry, equal angles.
+    Return the starts of `restarted_geometry`, in order: current, equal angles, Table II's.
 
-    Each with the new causes' sizes read off their signatures and its stride frequency set to
-    show the runs' (`same_strides`); where change_point is new, each followed by the same
-    striding as the runs do before the change (`before_change`, where it can be seen).
+    Table II's only where the current angles are not all within SAME_START_DEG of it. Each
+    with the new causes' sizes read off their signatures and its stride frequency set to show
+    the runs' (`same_strides`); where change_point is new, each followed by the same striding
+    as the runs do before the change (`before_change`, where it can be seen).
     """
     angle = float(np.mean(model.parameters.touchdown_angles))
     symmetric = replace(model, parameters=replace(
         model.parameters, touchdown_angles=(angle, angle, angle, angle)).with_paper_liftoff())
-    # a constant gait cannot mimic a change in time: change_point alone needs no symmetric
+    table_ii = ModelParameters.nominal().touchdown_angles
+    paper = replace(model, parameters=replace(
+        model.parameters, touchdown_angles=table_ii).with_paper_liftoff())
+    # a constant gait cannot mimic a change in time: change_point alone needs no other
     # start, but one at the strides the runs show before the change (`before_change`)
-    geometries = (model,) if set(new) == {'change_point'} else (model, symmetric)
+    geometries: tuple[FittedModel, ...] = (
+        (model,) if set(new) == {'change_point'} else (model, symmetric, paper))
+    if max(abs(a - b) for a, b in zip(model.parameters.touchdown_angles, table_ii)) \
+            < math.radians(SAME_START_DEG):
+        geometries = geometries[:2]       # Table II's start is the current one
     duration = float(simulator.data.paths.t[-1])
     starts = []
     for start in geometries:
@@ -631,9 +716,6 @@ def geometry_residuals(data: RunData, model: FittedModel, path_causes: tuple[str
     return residuals
 
 
-# a fit from another start that ends this many standard errors away in some entry of the
-# geometry (leg, angles, stride frequency) is in another valley of the objective
-DISTINCT_SE = 2.0
 RIVAL_BOOTSTRAP = 60
 
 
