@@ -347,6 +347,8 @@ def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path
     written = write_report(report, tmp_path, plots=False)
     summary = written['summary'].read_text()
     assert 'not adequate' in summary and report.unexplained[0].statistic in summary, message
+    if report.causes or report.extensions:    # what was named is said to stand in, in part
+        assert 'may stand in for part of it' in summary.splitlines()[2], message
     assert 'Where to look' in summary and misfit.part.quantity in summary, message
     assert json.loads(written['report'].read_text())['misfit']['part']['quantity'] == \
         misfit.part.quantity
