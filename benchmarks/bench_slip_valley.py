@@ -80,7 +80,7 @@ def show(replicate: int) -> None:
     print(f"| start | cost | cost on {OTHER_SEEDS} other seeds, minus the lowest cost end's "
           '(sd) | angles, deg | slip, cm/s | calibration score | held-out score |')
     print('| --- | --- | --- | --- | --- | --- | --- |')
-    names = ('current geometry', 'equal angles', "Table II's angles")
+    names = ('the current geometry', 'equal angles', "Table II's angles")
     unslipped = baseline.with_effect('lateral_slip', {'velocity_cm_s': 0.0})
     starts = geometry_starts(simulator, unslipped, ['lateral_slip'], fit)
     own = replace(baseline, parameters=replace(
@@ -108,7 +108,7 @@ def show(replicate: int) -> None:
     print("(scores: nats per run against the lowest cost's end, paired standard errors)")
     kept = best_valley(simulator, ends, fit)
     chosen = next(name for name, end in zip(names, ends) if end is kept)
-    print(f"best_valley keeps the {chosen}'s end: slip "
+    print(f'best_valley keeps the end from {chosen}: slip '
           f"{kept[1]['lateral_slip'].size:+.3f} cm/s")
     scores = score_held_out(held_out, baseline, halves, settings)
     evaluation = evaluate_candidate(halves, baseline, scores, 'lateral_slip', settings)

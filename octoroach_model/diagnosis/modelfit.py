@@ -508,7 +508,7 @@ def best_valley(simulator: Simulator, fits: Sequence[GeometryFit], settings: Fit
     6: angles 49.2, 35.5, 44.4, 43.4 deg, a slip of -0.236 cm/s) Table II's start ended at
     a cost of 196 and a slip of -0.352 cm/s, the current geometry's at 280 and -0.254. On
     ten other simulation seeds the costs kept their order (107 apart, sd 33), but the
-    calibration runs' log score preferred the second by 0.14 +- 0.026 nats per run, and so
+    calibration runs' log score preferred the second by 0.15 +- 0.027 nats per run, and so
     did the held-out runs (0.11 +- 0.029). So ends in other valleys (`DISTINCT_SE`) are
     compared by the score the race decides on, taken on the calibration runs they were
     fitted to (the held-out runs stay for the race's test), on common random numbers: the
