@@ -43,7 +43,7 @@ def conclusion(report: DiagnosisReport) -> str:
     Its numbers are the ones the summary gives below (the share of the baseline's gap the
     extended model closes, the position gain: positive when the extended model is better);
     where the extended model is not adequate, that what was named may stand in for part of
-    an effect nothing names.
+    an effect no named term explains.
     """
     added = [c.cause for c in report.causes] + [e.family for e in report.extensions]
     if not added:
@@ -62,9 +62,9 @@ def conclusion(report: DiagnosisReport) -> str:
         # an effect outside table and library leaves statistics off, and the terms named
         # beside it may only mimic the part of it they can (a gait speed that swings with a
         # period was named as five terms, none of them there: test_extensions.py)
-        tail += (': the runs carry an effect that neither the table nor the library names, '
-                 f'and {"it" if len(added) == 1 else "what was named"} may stand in for part '
-                 'of it')
+        tail += (': the runs carry an effect no named term explains (outside the table and '
+                 'the library, or too small to be named), and '
+                 f'{"it" if len(added) == 1 else "what was named"} may stand in for part of it')
     return f'**Conclusion:** {head}{tail}.'
 
 
