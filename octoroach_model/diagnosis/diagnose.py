@@ -44,8 +44,8 @@ from octoroach_model.diagnosis.modelfit import (
     at_geometry, at_size, CausesFit, CHANGE_POINT_BOOTSTRAP, change_point_step,
     distinct_geometries, fit_causes, fit_geometry, fit_mixture, fit_moment, fit_spread,
     fit_trend, FitSettings, FittedModel, GeometryUncertainty, MIXTURE_EVIDENCE_NATS,
-    rival_geometries, RivalGeometry, RunData, Simulator, SizeEstimate, spread_error,
-    spread_statistic)
+    rival_geometries, RivalGeometry, RunData, scores_under, Simulator, SizeEstimate,
+    spread_error, spread_statistic)
 from octoroach_model.diagnosis.records import (
     CandidateResult, DecisionRules, DiagnosisReport, LimitMethod, ModelSummary, named_by_term,
     NamedCause, NamedExtension, PaperValidation, Rival, RunLengths, ScoreSummary, StepResult)
@@ -721,12 +721,8 @@ def score_held_out(simulator: Simulator, model: FittedModel, halves: Halves,
     On settings.score_runs simulated runs, or `runs` of another `purpose` (a close call's
     further runs, `CloseCallScoring`).
     """
-    paths, positions = simulator.runs(model, settings.score_runs if runs is None else runs,
-                                      purpose)
-    features = halves.every.features_of(paths, positions)
-    points = position_points_cm(paths.positions, paths.lengths)
-    return score_model(features, points, halves.test.features, halves.test_points_cm,
-                       halves.scales, model.order_dependent)
+    return scores_under(simulator, model, settings.score_runs if runs is None else runs,
+                        purpose, halves.test, halves.test_points_cm, halves.scales)
 
 
 def _step_result(step: int, evaluated: list[Evaluation], halves: Halves,

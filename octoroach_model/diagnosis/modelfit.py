@@ -31,7 +31,7 @@ from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind, MIXTURE_FRACTION
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.scoring import (
-    feature_scales, PairedGain, position_points_cm, score_model)
+    feature_scales, PairedGain, position_points_cm, score_model, Scores)
 from octoroach_model.fitting.covariance import cost_gap_se, path_covariance, target_changes
 from octoroach_model.fitting.gait import (
     cycle_distances, GAIT_FEATURES, stride_frequency_estimate, stride_samples)
@@ -522,8 +522,7 @@ def best_valley(simulator: Simulator, fits: Sequence[GeometryFit], settings: Fit
     rivals = []
     for index in order[1:]:
         vector = _fit_vector(fits[index])
-        if len(vector) == len(errors) and all(
-                np.max(np.abs(vector - seen) / errors) > DISTINCT_SE for seen in kept):
+        if all(np.max(np.abs(vector - seen) / errors) > DISTINCT_SE for seen in kept):
             kept.append(vector)
             rivals.append(fits[index])
     if not rivals:
@@ -544,15 +543,28 @@ def _fit_vector(fit: GeometryFit) -> FloatArray:
                       for cause, parameter in uncertainty.free])
 
 
+def scores_under(simulator: Simulator, model: FittedModel, n_runs: int, purpose: int,
+                 observed: RunData, observed_points_cm: FloatArray, scales: FloatArray
+                 ) -> Scores:
+    """
+    Score the `observed` runs under `n_runs` simulated runs of `model` (one `purpose`).
+
+    The simulated runs are measured with the observed runs' ruler; the race scores the
+    held-out half this way (`diagnose.score_held_out`), `best_valley` the calibration half.
+    """
+    paths, positions = simulator.runs(model, n_runs, purpose)
+    return score_model(observed.features_of(paths, positions),
+                       position_points_cm(paths.positions, paths.lengths), observed.features,
+                       observed_points_cm, scales, model.order_dependent)
+
+
 def calibration_log_scores(simulator: Simulator, model: FittedModel, settings: FitSettings
                            ) -> FloatArray:
-    """Return each calibration run's log score under `model` (diagnose.score_held_out's)."""
+    """Return each calibration run's log score under `model` (as the race scores)."""
     data = simulator.data
-    paths, positions = simulator.runs(model, settings.score_runs, VALLEY)
-    scores = score_model(data.features_of(paths, positions),
-                         position_points_cm(paths.positions, paths.lengths), data.features,
-                         position_points_cm(data.paths.positions, data.lengths),
-                         feature_scales(data.features), model.order_dependent)
+    scores = scores_under(simulator, model, settings.score_runs, VALLEY, data,
+                          position_points_cm(data.paths.positions, data.lengths),
+                          feature_scales(data.features))
     return np.asarray(scores.log, dtype=float)
 
 
