@@ -518,13 +518,9 @@ def best_valley(simulator: Simulator, fits: Sequence[GeometryFit], settings: Fit
     order = sorted(range(len(fits)), key=lambda index: fits[index][2].cost)   # stable
     best = fits[order[0]]
     errors = np.sqrt(np.maximum(np.diag(best[2].covariance), 1e-300))
-    kept = [_fit_vector(best)]
-    rivals = []
-    for index in order[1:]:
-        vector = _fit_vector(fits[index])
-        if all(np.max(np.abs(vector - seen) / errors) > DISTINCT_SE for seen in kept):
-            kept.append(vector)
-            rivals.append(fits[index])
+    others = [fits[index] for index in order[1:]]
+    rivals = [others[index] for index in other_valleys(
+        _fit_vector(best), errors, [_fit_vector(fit) for fit in others])]
     if not rivals:
         return best
     base = calibration_log_scores(simulator, best[0], settings)
@@ -741,14 +737,26 @@ def distinct_geometries(best: tuple[FittedModel, GeometryUncertainty],
     """
     model, uncertainty = best
     errors = np.sqrt(np.maximum(np.diag(uncertainty.covariance)[:6], 1e-300))
-    kept: list[FloatArray] = [geometry_vector(model.parameters)]
+    return tuple(others[index].parameters for index in other_valleys(
+        geometry_vector(model.parameters), errors,
+        [geometry_vector(other.parameters) for other in others]))
+
+
+def other_valleys(best: FloatArray, errors: FloatArray, vectors: Sequence[FloatArray]
+                  ) -> list[int]:
+    """
+    Return the indices of `vectors` in another valley than `best` and than each other.
+
+    Another valley: some entry more than DISTINCT_SE `errors` (best's standard errors) from
+    `best` and from every vector kept before it; of several in the same place, the first.
+    """
+    kept = [best]
     found = []
-    for other in others:
-        vector = geometry_vector(other.parameters)
+    for index, vector in enumerate(vectors):
         if all(np.max(np.abs(vector - seen) / errors) > DISTINCT_SE for seen in kept):
             kept.append(vector)
-            found.append(other.parameters)
-    return tuple(found)
+            found.append(index)
+    return found
 
 
 def geometry_vector(parameters: ModelParameters) -> FloatArray:
