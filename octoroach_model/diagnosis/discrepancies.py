@@ -183,6 +183,9 @@ STATISTICS: tuple[Statistic, ...] = (
               0.01, SPREAD),
     Statistic('heading rate excess kurtosis across runs', '', _kurtosis('heading_rate'), 1e-3,
               ABSOLUTE, material=0.5),
+    # what no term moves: a turn that grows within each run (features.py, note (5))
+    Statistic('heading rate change, 2nd half - 1st half', 'deg/s',
+              _mean('heading_rate_change', DEG), 0.01, MEAN, feature='heading_rate_change'),
 )
 
 

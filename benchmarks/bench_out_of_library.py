@@ -1,0 +1,202 @@
+"""
+Effects no table cause and no extension family names: what the diagnosis reports, over robots.
+
+The open world's question, measured as the instrument's error rates are: data sets carry an
+effect outside the table of causes and the extension library, on robots drawn as
+studies/open_world.yaml draws them (replicate r's robot and data seed), 500 runs each, and
+each is diagnosed as a study diagnoses an effect's data set (`DiagnosisSettings` with the
+data seed, no detection limits). Two effects, each the same in every run (so no term of run
+to run spread or drift can be it):
+
+- speed_wobble: the gait clock speeds up and slows down, tau(t) = t + A P / (2 pi)
+  (1 - cos(2 pi t / P)), the stride speed swinging by +-A (0.2-0.5) with a period P of a
+  third to two thirds of a run (a motor controller hunting, a cyclic load);
+- yaw_ramp: a turn that grows within each run, the yaw rate rising linearly from 0 to R
+  (3-8 deg/s, either sign) at the run's end (a motor that heats as it runs).
+
+Every term named in such a data set stands in for an effect it is not. Printed per effect:
+data sets reported not adequate (what the report should say), those named nothing, those with
+a stand-in named (and which terms), those whose named terms left the positions further off
+than the baseline (held-out energy score, cm per run), and the median share of the log score's
+gap the extended model closed. The same robots' null data sets (effect `none`) are diagnosed
+beside them: there "not adequate" is a false alarm and a named term a false positive, and the
+z of the statistic added for the yaw ramp (the heading rate's change from a run's first half
+to its second) is printed over them. Rows go to --out (one JSON line per data set, as it
+finishes); a stopped run resumes where it stopped.
+
+Run: .venv/bin/python benchmarks/bench_out_of_library.py [--replicates 6] [--workers 2]
+     [--effects none speed_wobble yaw_ramp] [--out out/studies/out_of_library/rows.jsonl]
+     [--report-only]
+A data set takes 14-426 s of one core (a null the least, a swinging gait speed the most).
+"""
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+import json
+import math
+from pathlib import Path
+import statistics
+import sys
+import time
+
+REPO = Path(__file__).resolve().parents[1]
+EFFECTS = ('none', 'speed_wobble', 'yaw_ramp')
+RAMP_STATISTIC = 'heading rate change, 2nd half - 1st half'
+RUNS = 500
+PURPOSE = 0x0DD          # the effect's own draws, apart from the study's robot and data streams
+SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1}
+
+
+def effect_values(effect: str, replicate: int, duration_s: float) -> dict[str, float]:
+    """Draw the effect's size for a replicate (its own seeded stream)."""
+    import numpy as np
+
+    if effect == 'none':
+        return {}
+    u = np.random.default_rng([PURPOSE, SIZE_STREAM[effect], replicate]).random(3)
+    if effect == 'speed_wobble':
+        return {'amplitude': float(0.2 + 0.3 * u[0]),
+                'period_s': float(duration_s / (1.5 + 1.5 * u[1]))}
+    sign = 1.0 if u[2] < 0.5 else -1.0
+    return {'final_yaw_rate_deg_s': float(sign * (3.0 + 5.0 * u[0]))}
+
+
+def data_set(effect: str, replicate: int):
+    """Return the replicate's robot, the effect's values and the runs that carry it."""
+    import numpy as np
+
+    import octoroach_model as om
+    from octoroach_model.model.effects import perturb_heading
+    from octoroach_model.studies.design import draw_robot
+    from octoroach_model.studies.spec import load_spec
+
+    draw = draw_robot(load_spec(REPO / 'studies' / 'open_world.yaml'), replicate)
+    sigma1, sigma2 = draw.sigmas()
+    common = {'seed': draw.data_seed, 'sigma1': sigma1, 'sigma2': sigma2,
+              'parameters': draw.parameters()}
+    paths = om.simulate(RUNS, cycles=draw.cycles, **common)
+    values = effect_values(effect, replicate, float(paths.t[-1]))
+    if effect == 'none':
+        pass
+    elif effect == 'speed_wobble':
+        amplitude, period = values['amplitude'], values['period_s']
+        swing = 1 - np.cos(2 * np.pi * paths.t / period)
+        tau = paths.t + amplitude * period / (2 * np.pi) * swing
+        paths = om.Paths(paths.t, om.simulate(RUNS, t=tau, **common).poses)
+    else:
+        ramp = math.radians(values['final_yaw_rate_deg_s']) / float(paths.t[-1])
+        heading = np.broadcast_to(0.5 * ramp * paths.t ** 2, paths.poses.shape[:2])
+        paths = om.Paths(paths.t, perturb_heading(paths.poses, np.ascontiguousarray(heading)))
+    return draw, values, paths
+
+
+def diagnose_one(effect: str, replicate: int) -> dict:
+    """Diagnose one data set; return its row (a worker's job)."""
+    from octoroach_model.diagnosis import diagnose, DiagnosisSettings
+
+    started = time.perf_counter()
+    draw, values, paths = data_set(effect, replicate)
+    report = diagnose(paths, DiagnosisSettings(seed=draw.data_seed, detection_limits=False,
+                                               workers=1))
+    energy = report.gain.energy_score_cm
+    ramp_z = [row.z for row in report.extended_discrepancies if row.statistic == RAMP_STATISTIC]
+    return {
+        'effect': effect, 'replicate': replicate, 'values': values,
+        'robot': {'leg_length_cm': draw.leg_length_cm,
+                  'touchdown_angles_deg': list(draw.touchdown_angles_deg),
+                  'stride_frequency_hz': draw.stride_frequency_hz, 'cycles': draw.cycles,
+                  'sample_rate_hz': draw.sample_rate_hz, 'spread_scale': draw.spread_scale},
+        'adequate': report.adequate, 'named': sorted(report.named_terms),
+        'unexplained': [row.statistic for row in report.unexplained],
+        'gap_closed': report.gain.relative, 'ramp_z': ramp_z[0] if ramp_z else None,
+        'energy_baseline_cm': energy['baseline'], 'energy_extended_cm': energy['extended'],
+        'elapsed_s': round(time.perf_counter() - started, 1)}
+
+
+def read_rows(path: Path) -> list[dict]:
+    """Rows written so far (a line cut by an interruption is left out)."""
+    if not path.exists():
+        return []
+    rows = []
+    for line in path.read_text().splitlines():
+        try:
+            rows.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return rows
+
+
+def table(rows: list[dict]) -> str:
+    """Return the README's table: per effect, what the reports said."""
+    from octoroach_model.studies.summary import wilson
+
+    lines = ['| effect | data sets | reported not adequate | nothing named | a stand-in named '
+             '(terms, data sets) | positions further off | median gap closed |',
+             '| --- | --- | --- | --- | --- | --- | --- |']
+    for effect in EFFECTS:
+        mine = [row for row in rows if row['effect'] == effect]
+        if not mine:
+            continue
+        n = len(mine)
+
+        def share(count: int) -> str:
+            low, high = wilson(count, n).interval
+            return f'{count}/{n} ({low:.0%}-{high:.0%})'
+
+        named = Counter(term for row in mine for term in row['named'])
+        terms = ', '.join(f'{term} {count}' for term, count in named.most_common()) or '-'
+        worse = sum(row['energy_extended_cm'] > row['energy_baseline_cm']
+                    for row in mine if row['named'])
+        lines.append(
+            f'| {effect} | {n} | {share(sum(not row["adequate"] for row in mine))} | '
+            f'{share(sum(not row["named"] for row in mine))} | '
+            f'{share(sum(bool(row["named"]) for row in mine))}: {terms} | '
+            f'{worse} of {sum(bool(row["named"]) for row in mine)} | '
+            f'{round(statistics.median(row["gap_closed"] for row in mine), 2) + 0.0:.0%} |')
+    nulls = [row['ramp_z'] for row in rows if row['effect'] == 'none'
+             and row.get('ramp_z') is not None]
+    if len(nulls) > 1:
+        lines.append(f'\nz of "{RAMP_STATISTIC}" on the null data sets: mean '
+                     f'{statistics.mean(nulls):+.2f}, sd {statistics.stdev(nulls):.2f}, largest '
+                     f'|z| {max(map(abs, nulls)):.2f} (n = {len(nulls)})')
+    return '\n'.join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Diagnose the data sets not done yet, then print the table of all rows."""
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
+    parser.add_argument('--replicates', type=int, default=6, help='robots (default 6)')
+    parser.add_argument('--effects', nargs='+', choices=EFFECTS, default=list(EFFECTS),
+                        help='which data sets to diagnose (default: all three)')
+    parser.add_argument('--workers', type=int, default=2, help='local processes (default 2)')
+    parser.add_argument('--out', type=Path, default=REPO / 'out' / 'studies' / 'out_of_library'
+                        / 'rows.jsonl')
+    parser.add_argument('--report-only', action='store_true')
+    args = parser.parse_args(argv)
+    rows = read_rows(args.out)
+    if not args.report_only:
+        from octoroach_model.workers import process_pool
+
+        done = {(row['effect'], row['replicate']) for row in rows}
+        todo = [(effect, replicate) for replicate in range(args.replicates)
+                for effect in args.effects if (effect, replicate) not in done]
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        started = time.perf_counter()
+        with process_pool(args.workers) as pool, open(args.out, 'a') as stream:
+            futures = [pool.submit(diagnose_one, *job) for job in todo]
+            for count, future in enumerate(futures, 1):
+                row = future.result()
+                stream.write(json.dumps(row) + '\n')
+                stream.flush()
+                rows.append(row)
+                print(f'[{count}/{len(todo)} {time.perf_counter() - started:5.0f} s] '
+                      f'{row["effect"]} r{row["replicate"]}: adequate {row["adequate"]}, '
+                      f'named {row["named"] or "nothing"}, energy {row["energy_baseline_cm"]:.2f}'
+                      f' -> {row["energy_extended_cm"]:.2f} cm', flush=True)
+    print(table(rows))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv[1:]))
