@@ -169,21 +169,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--replicates', type=int, default=6, help='robots (default 6)')
     parser.add_argument('--effects', nargs='+', choices=EFFECTS, default=list(EFFECTS),
                         help='which data sets to diagnose (default: all three)')
-    parser.add_argument('--workers', type=int, default=2, help='local processes (default 2)')
+    parser.add_argument('--workers', type=int, default=2,
+                        help='local processes (default 2; 1 or 0: all in this process)')
     parser.add_argument('--out', type=Path, default=REPO / 'out' / 'studies' / 'out_of_library'
                         / 'rows.jsonl')
     parser.add_argument('--report-only', action='store_true')
     args = parser.parse_args(argv)
     rows = read_rows(args.out)
     if not args.report_only:
-        from octoroach_model.workers import process_pool
+        from octoroach_model.workers import executor_for
 
         done = {(row['effect'], row['replicate']) for row in rows}
         todo = [(effect, replicate) for replicate in range(args.replicates)
                 for effect in args.effects if (effect, replicate) not in done]
         args.out.parent.mkdir(parents=True, exist_ok=True)
         started = time.perf_counter()
-        with process_pool(args.workers) as pool, open(args.out, 'a') as stream:
+        with executor_for(None, args.workers) as pool, open(args.out, 'a') as stream:
             futures = [pool.submit(diagnose_one, *job) for job in todo]
             for count, future in enumerate(futures, 1):
                 row = future.result()
