@@ -25,6 +25,7 @@ import octoroach_model as om
 from octoroach_model.diagnosis import diagnose, write_report
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.summary import summary_text
+from octoroach_model.studies.outside import speed_wobble, yaw_ramp
 
 N = 400
 DETERMINISTIC = {'sigma1': 0.0, 'sigma2': 0.0}
@@ -317,23 +318,12 @@ def test_a_family_hidden_in_data_from_a_random_robot_is_named_and_sized(family):
     assert named[0].description, message
 
 
-def speed_wobble(paths: om.Paths, amplitude: float, period_s: float) -> om.Paths:
-    """
-    Add an effect no family names: the gait clock speeds up and slows down with a period.
-
-    tau(t) = t + A P / (2 pi) (1 - cos(2 pi t / P)): the speed swings by +-A around its mean,
-    the same in every run. Sampled from the plain model at the warped times.
-    """
-    swing = 1 - np.cos(2 * np.pi * paths.t / period_s)
-    tau = paths.t + amplitude * period_s / (2 * np.pi) * swing
-    return om.Paths(paths.t, om.simulate(paths.n_paths, seed=SEED + 41, t=tau).poses)
-
-
 @pytest.mark.long
 def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path):
     rng = random.Random(SEED * 10 + 41)
     amplitude, period = rng.uniform(0.3, 0.5), rng.uniform(1.2, 2.0)
-    measured = speed_wobble(om.simulate(300, seed=SEED + 41), amplitude, period)
+    grid = om.simulate(300, seed=SEED + 41)
+    measured = speed_wobble(grid.t, grid.n_paths, amplitude, period, seed=SEED + 41)
     report = diagnose(measured, replace(FAST, seed=SEED + 41))
     message = replay(f'speed wobble +-{amplitude:.2f} every {period:.2f} s: causes '
                      f'{[c.cause for c in report.causes]}, extensions '
@@ -353,20 +343,6 @@ def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path
     assert 'Where to look' in summary and misfit.part.quantity in summary, message
     assert json.loads(written['report'].read_text())['misfit']['part']['quantity'] == \
         misfit.part.quantity
-
-
-def yaw_ramp(paths: om.Paths, final_yaw_rate_deg_s: float) -> om.Paths:
-    """
-    Add a turn no term describes: the same in every run, its yaw rate rising within each run.
-
-    From 0 at the start to `final_yaw_rate_deg_s` at the end (a motor that heats as it runs):
-    the heading gains 0.5 k t^2, and each sample step is turned with it.
-    """
-    from octoroach_model.model.effects import perturb_heading
-
-    ramp = math.radians(final_yaw_rate_deg_s) / float(paths.t[-1])
-    heading = np.broadcast_to(0.5 * ramp * paths.t ** 2, paths.poses.shape[:2]).copy()
-    return om.Paths(paths.t, perturb_heading(paths.poses, heading))
 
 
 @pytest.mark.long

@@ -50,10 +50,10 @@ def conclusion(report: DiagnosisReport) -> str:
         # no term helps, yet statistics stay off: a turn that grows within each run shows so
         # (benchmarks/bench_out_of_library.py); "explains these runs" would contradict below
         count = len(report.unexplained)
+        left = '1 statistic stays' if count == 1 else f'{count} statistics stay'
         return ("**Conclusion:** The paper's model does not explain these runs, and no cause "
                 'of the table and no extension improves the prediction of held-out runs by a '
-                f'size that matters: {count} statistic{"s" if count != 1 else ""} stay'
-                f'{"s" if count == 1 else ""} off (below), an effect outside the table and the '
+                f'size that matters: {left} off (below), an effect outside the table and the '
                 'library, or one too small to be named.')
     if not added:
         head = "The paper's model explains these runs: no cause of the table and no extension"
