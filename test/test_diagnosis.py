@@ -562,6 +562,43 @@ def test_a_mixture_whose_two_groups_show_only_further_up_still_gets_a_limit(monk
     assert limits.limit_from(shown, 1.0, sure, 0.1, 2.9, 2.935).size is None
 
 
+def test_a_limit_is_never_sought_beyond_the_sizes_a_path_cause_can_take():
+    """
+    A speed decay's T extrapolated from small sizes once put its limit at a fraction of 3.5.
+
+    Simulated there, the gait clock ran backwards and the diagnosis of a small null data set
+    ended in "stride_frequency ... must be positive" (test_studies_dask at seed 185463). No
+    size past the cause's bound is computed; a limit that lies past it is none.
+    """
+    from octoroach_model.diagnosis import limits
+    from octoroach_model.diagnosis.causes import BY_NAME, EstimateKind
+    from octoroach_model.diagnosis.modelfit import at_size, largest_size, SizeEstimate
+    from octoroach_model.model.effects import mean_gait_rate
+
+    for cause in (c for c in BY_NAME.values() if c.kind == EstimateKind.PATH):
+        for values in ({}, *({cause.parameter: cause.null + step} for step in (0.1, -0.1))):
+            largest = largest_size(cause, values)
+            edge = at_size(cause, largest, values)[cause.parameter]
+            assert min(cause.bounds) - 1e-12 <= edge <= max(cause.bounds) + 1e-12, (cause, edge)
+            effects = {cause.name: at_size(cause, largest, values)}
+            assert mean_gait_rate(effects, 10.0) > 0, (cause.name, values)
+    assert largest_size(BY_NAME['persistent_turning']) == math.inf
+    sizes: list[float] = []
+
+    def slow(size: float) -> float:                  # 80 % power only at size 4
+        sizes.append(size)
+        return (2.935 + 0.841621) * size / 4.0
+
+    sure = SizeEstimate('speed_decay', size=0.0, se=0.0, u=0.0, se_u=0.0,
+                        intercept=1.0, slope=1.0, data_statistic=1.0)
+    assert limits.limit_from(slow, 0.5, sure, 1e-3, 2.9, 2.935).size == pytest.approx(4.0)
+    sizes.clear()
+    assert limits.limit_from(slow, 0.5, sure, 1e-3, 2.9, 2.935, largest=0.9).size is None
+    assert max(sizes) == 0.9 and sizes[0] == pytest.approx(0.3)
+    within = limits.limit_from(slow, 0.5, sure, 1e-3, 2.9, 2.935, largest=5.0)
+    assert within.size == pytest.approx(4.0) and max(sizes) <= 5.0
+
+
 @pytest.mark.parametrize('cause, size', [('persistent_turning', 6.0),
                                          ('gait_frequency_variation', 0.04)])
 def test_a_moments_size_counts_the_error_of_its_simulated_slope(cause, size):

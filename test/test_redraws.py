@@ -150,14 +150,24 @@ def test_the_scoring_error_of_t_is_the_spread_of_t_over_other_scored_runs():
 
 
 def test_a_close_call_is_decided_on_runs_scored_again(monkeypatch):
-    # every test that decides made a close call (the band widened): each is scored again on
-    # close_call_factor times the runs and decided on those; its first t is the t the same
-    # diagnosis without scoring again gives, and the t's scoring error about halves
+    """
+    Every test that decides made a close call here (the band widened): each is scored again.
+
+    It is scored on close_call_factor times the runs and decided on those; its first t is
+    the t the same diagnosis without scoring again gives, and the t's scoring error falls: on
+    four times the runs to 0.44-0.73 of itself over 16 seeds of this test (median 0.52 with
+    400 resamples; 1/sqrt(4) would be 0.5). The bound 0.85 leaves room for that spread, and a
+    rescoring that kept the first runs alone would stay near 1. With the diagnosis's 50
+    resamples the error estimate itself spreads by a tenth: a bound of 0.75 failed at suite
+    seed 227396 (0.90; 0.73 with 400), so the test resamples 400 times.
+    """
     import importlib
 
+    from octoroach_model.diagnosis import scoring
     from octoroach_model.diagnosis.summary import summary_text
 
     decide_module = importlib.import_module('octoroach_model.diagnosis.decide')
+    monkeypatch.setattr(scoring, 'SCORING_RESAMPLES', 400)
     # few scored runs (they are what is scored again), the fits' runs as FAST has them: with
     # FEW_SIMULATED_RUNS' 60 moment runs the size bound missed its floor at some seeds
     # (855908), and then no test decided
@@ -182,7 +192,7 @@ def test_a_close_call_is_decided_on_runs_scored_again(monkeypatch):
             before = first_step[candidate.cause]
             assert candidate.first_t == pytest.approx(before.held_out_t, rel=1e-12)
             assert before.first_t is None and before.scored_runs == settings.score_runs
-            assert candidate.t_scoring_se < 0.75 * before.t_scoring_se, (
+            assert candidate.t_scoring_se < 0.85 * before.t_scoring_se, (
                 SEED, candidate.cause, candidate.t_scoring_se, before.t_scoring_se)
     text = summary_text(again)
     assert f'scored again on {4 * settings.score_runs} runs' in text

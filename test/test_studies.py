@@ -545,6 +545,22 @@ def test_a_task_puts_its_family_into_the_data_at_the_spec_s_size():
     assert mixture == {'run_mixture': {'fraction': 0.3, 'yaw_rate_deg_s': -8.0}}
 
 
+def test_a_multiple_of_a_limit_past_what_the_model_takes_is_skipped_with_its_reason():
+    """speed_decay's limit at 0.6 is a fraction of 1.2 at 2x: no data set, a skip that says so."""
+    from octoroach_model.studies.design import build_tasks
+    from octoroach_model.studies.replicate import Skip, task_effects
+
+    spec = spec_of('runs: [50]\ncauses: [none, {cause: speed_decay, limit_multiples: [1, 2], '
+                   'sign: positive}]')
+    tasks = {task.arm.label: task for task in build_tasks(spec) if task.replicate == 0}
+    null = a_row(key='n', replicate=0, arm='none', kind='null', true_causes=[],
+                 false_causes=[], limit_speed_decay=0.6)
+    once = task_effects(tasks['speed_decay@1x'], spec, null, 5.0)
+    assert once['speed_decay']['fraction'] == pytest.approx(0.6)
+    with pytest.raises(Skip, match=r'2 times the detection limit .* past what the model takes'):
+        task_effects(tasks['speed_decay@2x'], spec, null, 5.0)
+
+
 def test_the_adapter_reads_extensions_and_the_confusion_table_counts_them():
     from octoroach_model.studies.summary import confusion
 

@@ -54,7 +54,8 @@ from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind
 from octoroach_model.diagnosis.decide import POWER, se_u_if_true
 from octoroach_model.diagnosis.features import INDEX
 from octoroach_model.diagnosis.modelfit import (
-    at_size, fit_spread, FitSettings, FittedModel, MIXTURE_EVIDENCE_NATS, same_strides,
+    at_size, fit_spread, FitSettings, FittedModel, largest_size, MIXTURE_EVIDENCE_NATS,
+    same_strides,
     Simulator, SizeEstimate, spread_error, spread_statistic, two_groups, two_groups_evidence)
 from octoroach_model.diagnosis.scoring import feature_log_score
 
@@ -316,6 +317,7 @@ def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEs
     """
     cause = BY_NAME[estimate.cause]
     first = max(start or 0.0, 2 * floor, 1e-9)
+    largest = largest_size(cause, fitted_values)
     if base is None:
         base = limit_base(simulator, without, scales, score_runs)
 
@@ -324,16 +326,19 @@ def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEs
                            score_runs, fitted_values, fit, z_test)
         return TestPoint(min(max(point.t, 1e-9), T_CAP), point.identified)
 
-    return limit_from(t_computed, first, estimate, floor, z_bound, z_test)
+    return limit_from(t_computed, first, estimate, floor, z_bound, z_test, largest)
 
 
 def limit_from(t_computed: Callable[[float], TestPoint | float], first: float,
-               estimate: SizeEstimate, floor: float, z_bound: float, z_test: float) -> Limit:
+               estimate: SizeEstimate, floor: float, z_bound: float, z_test: float,
+               largest: float = math.inf) -> Limit:
     """
     Solve for the limit with T computed at `first`, 3 `first` and, if needed, the limit.
 
     Where no size reaches POWER through those two, T (and P3) is computed at 9 and 27 `first`
-    before the limit is said to be none.
+    before the limit is said to be none. No size above `largest` (a path cause's bound,
+    `modelfit.largest_size`) is computed or returned: a limit that would lie beyond it is
+    none (`first` comes down to a third of it where needed).
 
     The limit found is where T is computed next while the simulated part (the test, and P3)
     decides it (module docstring). `t_computed` gives a TestPoint, or T alone.
@@ -342,18 +347,20 @@ def limit_from(t_computed: Callable[[float], TestPoint | float], first: float,
         point = t_computed(size)
         return point if isinstance(point, TestPoint) else TestPoint(float(point))
 
+    first = min(first, largest / 3)
     points = {size: computed(size) for size in (first, 3 * first)}
-    limit = _solve(points, estimate, floor, z_bound, z_test)
+    limit = _solve(points, estimate, floor, z_bound, z_test, largest)
     for _ in range(FURTHER_UP):
         # no size reaches POWER through these points: P3 is held at its last value beyond
         # them, so a mixture whose two groups the runs at 3 `first` do not yet show never
         # reached it, and the report said "unseen at any size" (a null of
         # studies/mixture_limits.yaml); simulate further up before saying so
-        if limit is not None or bound_power(estimate, 1e6 * max(points), floor, z_bound) == 0:
-            break       # found, or a size bound that never clears: no simulation helps
-        top = 3 * max(points)
+        if limit is not None or max(points) >= largest or bound_power(
+                estimate, 1e6 * max(points), floor, z_bound) == 0:
+            break       # found, at the edge, or a bound that never clears: nothing to simulate
+        top = min(3 * max(points), largest)
         points[top] = computed(top)
-        limit = _solve(points, estimate, floor, z_bound, z_test)
+        limit = _solve(points, estimate, floor, z_bound, z_test, largest)
     for _ in range(REFINEMENTS):
         if limit is None or limit.size is None or limit.test_power * (
                 limit.two_groups_power or 1.0) >= TEST_DECIDES:
@@ -362,7 +369,12 @@ def limit_from(t_computed: Callable[[float], TestPoint | float], first: float,
         if min(abs(math.log(found / size)) for size in points) < CLOSE:
             break
         points[found] = computed(found)
-        limit = _solve(points, estimate, floor, z_bound, z_test)
+        limit = _solve(points, estimate, floor, z_bound, z_test, largest)
+    if limit is None and largest not in points and math.isfinite(largest) and bound_power(
+            estimate, largest, floor, z_bound) > 0:
+        # a refit moved the limit past the edge: none only if T computed there says so
+        points[largest] = computed(largest)
+        limit = _solve(points, estimate, floor, z_bound, z_test, largest)
     return Limit(estimate.cause, None, 0.0, 0.0) if limit is None else limit
 
 
@@ -402,8 +414,13 @@ def identified_interpolated(points: dict[float, float] | dict[float, TestPoint],
 
 
 def _solve(points: dict[float, float] | dict[float, TestPoint], estimate: SizeEstimate,
-           floor: float, z_bound: float, z_test: float) -> Limit | None:
-    """Return the smallest size where P(bound) x P(test) x P3 reaches POWER, T interpolated."""
+           floor: float, z_bound: float, z_test: float, largest: float = math.inf
+           ) -> Limit | None:
+    """
+    Return the smallest size where P(bound) x P(test) x P3 reaches POWER, T interpolated.
+
+    None where no size up to `largest` reaches it.
+    """
     mixture = BY_NAME[estimate.cause].kind == EstimateKind.MIXTURE
 
     def test_power(size: float) -> float:
@@ -417,7 +434,9 @@ def _solve(points: dict[float, float] | dict[float, TestPoint], estimate: SizeEs
     for _ in range(60):
         if power(high) >= POWER:
             break
-        high *= 1.5
+        if high >= largest:
+            return None
+        high = min(1.5 * high, largest)
     else:
         return None
     for _ in range(60):

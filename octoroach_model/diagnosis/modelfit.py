@@ -435,8 +435,7 @@ def at_size(cause: Cause, size: float, values: Mapping[str, float] | None = None
     """
     base = {**_zero(cause.name, data), **dict(values or {})}
     if cause.null != 0.0:
-        side = 1.0 if base.get(cause.parameter, cause.null) > cause.null else -1.0
-        return {**base, cause.parameter: float(cause.null + side * abs(size))}
+        return {**base, cause.parameter: float(cause.null + _side(cause, base) * abs(size))}
     if cause.kind == EstimateKind.MIXTURE:
         fraction = base.get('fraction', 0.0)
         fraction = fraction if 0.02 <= fraction <= 0.98 else MIXTURE_FRACTION
@@ -445,6 +444,28 @@ def at_size(cause: Cause, size: float, values: Mapping[str, float] | None = None
         return {**base, 'fraction': fraction,
                 'yaw_rate_deg_s': float(np.clip(rate, -90.0, 90.0))}
     return {**base, cause.parameter: float(size)}
+
+
+def largest_size(cause: Cause, values: Mapping[str, float] | None = None) -> float:
+    """
+    Return the largest size `at_size` may give a path cause: its bound on the side it takes.
+
+    A fit never goes beyond a path cause's bounds, and beyond them a clock term stops the gait
+    or runs it backwards (speed_decay's fraction 2 stops it at a run's end): a detection
+    limit's search that extrapolated past them simulated a negative stride frequency. Other
+    kinds have no such edge (inf).
+    """
+    if cause.kind != EstimateKind.PATH:
+        return math.inf
+    low, high = cause.bounds
+    if cause.null != 0.0 and _side(cause, {**_zero(cause.name), **dict(values or {})}) < 0:
+        return abs(cause.null - low)
+    return abs(high - cause.null)
+
+
+def _side(cause: Cause, values: Mapping[str, float]) -> float:
+    """Return the side of its null a term takes (+1 or -1): a slowdown where values have none."""
+    return 1.0 if values.get(cause.parameter, cause.null) > cause.null else -1.0
 
 
 def _values(model: FittedModel, cause: Cause, estimate: SizeEstimate, data: RunData,

@@ -16,6 +16,7 @@ import sys
 import time
 from typing import Any, NamedTuple, TYPE_CHECKING
 
+from octoroach_model.errors import ParameterError
 from octoroach_model.model import check_effects, simulate
 from octoroach_model.paths import Paths
 from octoroach_model.studies.damage import damage_paths
@@ -114,6 +115,12 @@ def task_effects(task: Task, spec: StudySpec, null_row: StudyRow | None,
         size = arm.size if arm.kind == ArmKind.ABSOLUTE else _limit_size(task, null_row)
         effects[arm.cause] = term_values(arm.cause, sign * size, effects[arm.cause],
                                          duration_s)
+        if arm.kind == ArmKind.RELATIVE:
+            try:
+                return check_effects(effects)
+            except ParameterError as error:     # a multiple of a limit near the term's edge
+                raise Skip(f'{arm.limit_multiple:g} times the detection limit on the null data '
+                           f'set is past what the model takes ({error})') from error
     else:
         for term, values in effects.items():
             main = main_parameter(term)
