@@ -31,6 +31,7 @@ import math
 import time
 from typing import Any, TYPE_CHECKING
 
+from octoroach_model.diagnosis.causes import CANDIDATES
 from octoroach_model.errors import OctoroachError, ParameterError
 from octoroach_model.jsonio import fields_jsonable, OMIT_NONE
 from octoroach_model.paths import Paths
@@ -161,11 +162,8 @@ class GuidanceAnswer:
         return plain
 
 
-QUESTIONS = (QuestionKind.NONE.value, QuestionKind.VALIDATION.value, 'initial_pose_error',
-             'measurement_noise', 'gait_frequency_variation', 'speed_decay', 'lateral_slip',
-             'persistent_turning', 'run_order_drift:stride_frequency',
-             'run_order_drift:yaw_rate', 'run_order_drift:lateral_velocity',
-             'heading_random_walk', 'periodic_heading', 'change_point', 'run_mixture')
+QUESTIONS = (QuestionKind.NONE.value, QuestionKind.VALIDATION.value,
+             *(cause.name for cause in CANDIDATES))
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from octoroach_model.errors import ParameterError
 
 def parser() -> argparse.ArgumentParser:
     """Build the `plan` command line (the search's options: the fields of PlanSettings)."""
+    from octoroach_model.diagnosis.causes import FAMILIES
     from octoroach_model.studies.plan import PlanSettings
     from octoroach_model.studies.terms import TERMS
 
@@ -28,9 +29,7 @@ def parser() -> argparse.ArgumentParser:
         'or table.csv) and power_curve.png.')
     result.add_argument('--cause', required=True, choices=TERMS, metavar='CAUSE',
                         help='the cause or extension term to detect: a cause of the table, '
-                        'or heading_random_walk, periodic_heading, change_point, run_mixture, '
-                        'run_order_drift:stride_frequency, run_order_drift:yaw_rate, '
-                        'run_order_drift:lateral_velocity')
+                        'or ' + ', '.join(family.name for family in FAMILIES))
     result.add_argument('--size', type=finite_float, required=True,
                         help="size of the cause's main parameter in its unit (e.g. "
                         'yaw_rate_std_deg_s for persistent_turning; for change_point the '

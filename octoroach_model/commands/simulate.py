@@ -8,6 +8,7 @@ from pathlib import Path
 from octoroach_model.commands.common import (
     add_setting, finite_float, new_output, nonnegative_int, OneLineParser, positive_int)
 from octoroach_model.errors import ParameterError
+from octoroach_model.model.extensions import FAMILY_NAMES
 from octoroach_model.settings import check_value, settings_of
 
 
@@ -94,8 +95,7 @@ def parser() -> argparse.ArgumentParser:
                         "the table's units (e.g. heading_std_deg=4.5)")
     result.add_argument('--extension', action=OrderedEffectAction, dest='extension',
                         metavar='FAMILY', help='an extension family beyond the table '
-                        '(docs/extensions.md): run_order_drift, heading_random_walk, '
-                        'periodic_heading, change_point, run_mixture; repeatable')
+                        f'(docs/extensions.md): {", ".join(FAMILY_NAMES)}; repeatable')
     result.add_argument('--extension-param', action=OrderedEffectAction,
                         dest='extension_param', metavar='KEY=VALUE', help='a parameter of the '
                         'preceding --extension in its units (e.g. parameter=stride_frequency, '

@@ -243,6 +243,10 @@ FAMILIES: tuple[Cause, ...] = (
     Cause('run_mixture', 'deg/s', EstimateKind.MIXTURE,
           'heading rates across runs (two groups)', None, 8.0, _duration_floor, signed=True,
           family='run_mixture', main='yaw_rate_deg_s'),
+    Cause('yaw_rate_ramp', 'deg/s', EstimateKind.PATH,
+          'average path (joint fit with the geometry)', None, 5.0, _duration_floor,
+          signed=True, bounds=(-30.0, 30.0), signature=_mean_of('heading_rate_change'),
+          family='yaw_rate_ramp'),
 )
 CANDIDATES: tuple[Cause, ...] = CAUSES + FAMILIES
 BY_NAME = {cause.name: cause for cause in CANDIDATES}

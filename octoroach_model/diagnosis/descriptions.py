@@ -93,4 +93,11 @@ def describe(term: str, values: Mapping[str, float], interval: Mapping[str, Sequ
                 f'{number(values["yaw_rate_deg_s"])} deg/s '
                 f'({_range(interval["yaw_rate_deg_s"])}), the others do not: a leg that '
                 f'fails in some runs, or runs started against an obstacle{listed}')
+    if term == 'yaw_rate_ramp':
+        rate = float(values['final_yaw_rate_deg_s'])
+        return (f'every run turns more as it goes on: its yaw rate rises from 0 at the start '
+                f'to {number(rate)} deg/s ({_range(interval["final_yaw_rate_deg_s"])}) at '
+                f'{number(data.paths.t[-1], 3)} s (left positive): a motor that heats, a '
+                'tether or cable that pulls harder as the robot goes, a floor that tilts along '
+                'the track')
     raise KeyError(f'no description for {term}')

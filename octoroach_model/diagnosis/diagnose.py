@@ -44,8 +44,8 @@ from octoroach_model.diagnosis.modelfit import (
     at_geometry, at_size, CausesFit, CHANGE_POINT_BOOTSTRAP, change_point_step,
     distinct_geometries, fit_causes, fit_geometry, fit_mixture, fit_moment, fit_spread,
     fit_trend, FitSettings, FittedModel, GeometryUncertainty, MIXTURE_EVIDENCE_NATS,
-    rival_geometries, RivalGeometry, RunData, scores_under, Simulator, SizeEstimate,
-    spread_error, spread_statistic)
+    rival_geometries, RivalGeometry, RunData, scores_under, signature_estimate, Simulator,
+    SizeEstimate, spread_error, spread_statistic)
 from octoroach_model.diagnosis.records import (
     CandidateResult, DecisionRules, DiagnosisReport, LimitMethod, ModelSummary, named_by_term,
     NamedCause, NamedExtension, PaperValidation, Rival, RunLengths, ScoreSummary, StepResult)
@@ -689,9 +689,12 @@ def quick_fit(train: RunData, current: FittedModel, cause: Cause,
     if cause.kind == EstimateKind.TREND:
         estimate = fit_trend(simulator, model, cause, fit)
         values = at_size(cause, estimate.size, None, train)
-    elif cause.kind == EstimateKind.PATH:
+    elif cause.name == 'change_point':
         values, error = change_point_step(simulator, model, CHANGE_POINT_BOOTSTRAP)
         estimate = SizeEstimate(cause.name, values[cause.parameter], error)
+    elif cause.kind == EstimateKind.PATH:
+        estimate = signature_estimate(simulator, model, cause, fit)
+        values = at_size(cause, estimate.size, None, train)
     elif cause.kind == EstimateKind.MIXTURE:
         estimate, values = fit_mixture(simulator, model, cause, fit)
     else:

@@ -183,7 +183,7 @@ STATISTICS: tuple[Statistic, ...] = (
               0.01, SPREAD),
     Statistic('heading rate excess kurtosis across runs', '', _kurtosis('heading_rate'), 1e-3,
               ABSOLUTE, material=0.5),
-    # what no term moves: a turn that grows within each run (features.py, note (5))
+    # a turn that grows within each run (features.py, note (5)), yaw_rate_ramp's size or less
     Statistic('heading rate change, 2nd half - 1st half', 'deg/s',
               _mean('heading_rate_change', DEG), 0.01, MEAN, feature='heading_rate_change'),
 )

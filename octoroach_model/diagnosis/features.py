@@ -44,13 +44,14 @@ heading change (increment_var) cannot. Successive differences: a slow trend of t
 (4) Linear trend removed, Hann window, at the frequency the diagnosis chose for the runs
 (`wobble_hz`, the largest excess of the data's heading spectrum over the baseline's, away from
 the stride frequency); without one the column is 0.
-(5) Checked, not scored (`CHECKED_ONLY`): only the adequacy check reads it (a statistic of
-discrepancies.py). A turn the same in every run that grows as each run goes on (a yaw rate
-rising from 0 to 3-8 deg/s, say a motor that heats) bends each run's heading like a parabola;
-the baseline bends its geometry to the mean turn, and on a robot of 3.3 s runs nothing else
-showed it: the extended model was called adequate (`benchmarks/bench_out_of_library.py`).
-Scoring it too would move every decision the studies measured, for an effect no term of the
-table or the library describes.
+(5) Checked, not scored (`CHECKED_ONLY`): the adequacy check reads it (a statistic of
+discrepancies.py), and the family yaw_rate_ramp starts its fit from its mean (its signature).
+A turn the same in every run that grows as each run goes on (a yaw rate rising from 0 to 3-8
+deg/s, say a motor that heats) bends each run's heading like a parabola; the baseline bends
+its geometry to the mean turn, and on a robot of 3.3 s runs nothing else showed it: the
+extended model was called adequate (`benchmarks/bench_out_of_library.py`). Scoring it too
+would move every decision the studies measured; the ramp's family is decided on the scored
+features as every term is (the quarter and end displacements see the parabola).
 
 Runs that end early (NaN tails, see `Paths`) give their features over their own samples; the
 diagnosis gives simulated runs the same lengths, so the two stay comparable.

@@ -241,7 +241,7 @@ def _extension_plot(report: DiagnosisReport, measured: Paths, path: Path) -> boo
     fig, axes = plt.subplots(1, len(named), figsize=(6.5 * len(named), 4.8), squeeze=False)
     panels = {'run_order_drift': _drift_panel, 'heading_random_walk': _walk_panel,
               'periodic_heading': _spectrum_panel, 'change_point': _speed_panel,
-              'run_mixture': _groups_panel}
+              'run_mixture': _groups_panel, 'yaw_rate_ramp': _turn_panel}
     for ax, extension in zip(axes[0], named):
         panels[extension.family](ax, report, measured, extension)
         ax.set_title(f'{extension.family}: ' + ', '.join(
@@ -348,6 +348,29 @@ def _speed_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                label='fitted change')
     ax.set_xlabel('time in the run [s]')
     ax.set_ylabel('mean speed over a stride cycle [cm/s]')
+
+
+def _turn_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
+                extension: NamedExtension) -> None:
+    frequency = report.nominal['stride_frequency_hz']
+    dt = float(measured.t[1] - measured.t[0])
+    cycle = stride_samples(frequency, dt)
+
+    def rate(paths: Paths) -> FloatArray:
+        heading = paths.poses[:, :, 2]
+        turned = (heading[:, cycle:] - heading[:, :-cycle] + math.pi) % (2 * math.pi) - math.pi
+        with np.errstate(invalid='ignore'):
+            rate_deg_s: FloatArray = np.nanmean(turned, axis=0) / (cycle * dt) * DEG
+        return rate_deg_s
+
+    middle = measured.t[:-cycle] + 0.5 * cycle * dt
+    ax.plot(middle, rate(measured), 'k', lw=1.5, label='measured runs')
+    ax.plot(middle, rate(_simulate(report.baseline_model, measured, MODEL_RUNS)),
+            color='tab:blue', lw=2, label='baseline (paper model)')
+    ax.plot(middle, rate(_simulate(report.extended_model, measured, MODEL_RUNS)),
+            color='tab:orange', ls='--', lw=2, label='extended model (yaw rate ramp)')
+    ax.set_xlabel('time in the run [s]')
+    ax.set_ylabel('mean heading rate over a stride cycle [deg/s] (left positive)')
 
 
 def _groups_panel(ax: Axes, report: DiagnosisReport, measured: Paths,

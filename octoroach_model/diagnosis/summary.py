@@ -47,8 +47,9 @@ def conclusion(report: DiagnosisReport) -> str:
     """
     added = [c.cause for c in report.causes] + [e.family for e in report.extensions]
     if not added and not report.adequate:
-        # no term helps, yet statistics stay off: a turn that grows within each run shows so
-        # (benchmarks/bench_out_of_library.py); "explains these runs" would contradict below
+        # no term helps, yet statistics stay off: a turn that grows within each run, too small
+        # for its family, shows so (benchmarks/bench_out_of_library.py); "explains these
+        # runs" would contradict below
         count = len(report.unexplained)
         left = '1 statistic stays' if count == 1 else f'{count} statistics stay'
         return ("**Conclusion:** The paper's model does not explain these runs, and no cause "

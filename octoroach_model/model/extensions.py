@@ -18,6 +18,8 @@ p'(t) = p(0) + integral_0^t R(a(s)) p_dot(s) ds.
   time_s on.
 - run_mixture (fraction, yaw_rate_deg_s): a share `fraction` of the runs (drawn
   independently) turns at yaw_rate: a(t) = w t.
+- yaw_rate_ramp (final_yaw_rate_deg_s): every run turns at a yaw rate that rises linearly
+  from 0 at t = 0 to w at t = T (the runs' full duration): a(t) = w t^2 / (2 T).
 
 In an effects mapping a family is a *term*: `run_order_drift` is three terms, one per parameter
 it moves (`run_order_drift:stride_frequency`, ...), each with the single parameter `change`,
@@ -181,6 +183,13 @@ def _mixture(values: Mapping[str, float], context: TermContext) -> FloatArray:
     return heading
 
 
+def _ramp(values: Mapping[str, float], context: TermContext) -> FloatArray:
+    rise = math.radians(values['final_yaw_rate_deg_s']) / max(context.duration, 1e-9)
+    heading: FloatArray = np.broadcast_to(0.5 * rise * context.t ** 2,
+                                          (len(context.positions), len(context.t)))
+    return heading
+
+
 TERMS: tuple[ExtensionTerm, ...] = (
     ExtensionTerm(drift_term('stride_frequency'), DRIFT, ('change',), ('',), ((-0.9, 0.9),),
                   'stretch', _drift_stretch),
@@ -197,6 +206,8 @@ TERMS: tuple[ExtensionTerm, ...] = (
                   ((0.0, 1e4), (0.05, 5.0)), 'clock', _change_point, {'speed_factor': 1.0}),
     ExtensionTerm('run_mixture', 'run_mixture', ('fraction', 'yaw_rate_deg_s'), ('', 'deg/s'),
                   ((0.0, 1.0), (-90.0, 90.0)), 'heading', _mixture),
+    ExtensionTerm('yaw_rate_ramp', 'yaw_rate_ramp', ('final_yaw_rate_deg_s',), ('deg/s',),
+                  ((-90.0, 90.0),), 'heading', _ramp),
 )
 TERM_BY_NAME = {term.name: term for term in TERMS}
 TERM_NAMES = tuple(TERM_BY_NAME)

@@ -1,10 +1,13 @@
 """
-Effects no table cause and no extension family describes: data for testing the instrument.
+Effects made outside the model: data for testing the instrument on what it was not built from.
 
-The diagnosis must report such effects as what it cannot explain (not adequate), and the
-terms it names beside them as possible stand-ins. These make runs that carry them, the same
-in every run, for the suite's tests (test_extensions.py) and for
-benchmarks/bench_out_of_library.py, which measures what the reports say over robots.
+A swinging gait speed is described by no table cause and no extension family: the diagnosis
+must report it as what it cannot explain (not adequate), and the terms it names beside it as
+possible stand-ins. A yaw ramp was such an effect until the family yaw_rate_ramp described
+it; made here, by turning the runs after they are simulated, it checks the family on data the
+family's own code did not make. Both are the same in every run, for the suite's tests
+(test_extensions.py) and for benchmarks/bench_out_of_library.py, which measures what the
+reports say over robots.
 """
 from __future__ import annotations
 
