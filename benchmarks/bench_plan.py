@@ -40,7 +40,7 @@ CALIBRATION_SIZES = {
     'speed_decay': 0.04, 'lateral_slip': 0.4, 'persistent_turning': 3.0,
     'run_order_drift:stride_frequency': 0.012, 'run_order_drift:yaw_rate': 4.0,
     'run_order_drift:lateral_velocity': 0.6, 'heading_random_walk': 1.5,
-    'periodic_heading': 1.5, 'change_point': 0.05, 'run_mixture': 8.0}
+    'periodic_heading': 1.5, 'change_point': 0.05, 'run_mixture': 8.0, 'yaw_rate_ramp': 5.0}
 
 
 def package_fingerprint() -> str:
@@ -185,6 +185,7 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
     while the package's code, the size and the number of checks stay the same
     (`kept_answer`). `terms`: those measured, in this order.
     """
+    from octoroach_model.diagnosis.causes import CANDIDATES
     from octoroach_model.diagnosis.decide import decision_z
     from octoroach_model.workers import executor_for
     from octoroach_model.diagnosis.live import Question
@@ -194,7 +195,8 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
     from octoroach_model.studies.summary import wilson
     from scipy import stats
 
-    levels = (decision_z(0.05, 13), float(stats.norm.isf(0.01 / 13)))
+    everyone = len(CANDIDATES)          # the race's first step, as the diagnosis's levels
+    levels = (decision_z(0.05, everyone), float(stats.norm.isf(0.01 / everyone)))
     groups: dict[str, list[bool]] = {}
     folder = OUT / 'calibration'
     folder.mkdir(parents=True, exist_ok=True)

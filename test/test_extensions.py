@@ -364,7 +364,8 @@ def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path
 
 
 @pytest.mark.long
-def test_a_turn_that_grows_within_each_run_is_named_or_reported_by_the_statistic_showing_it():
+def test_a_turn_that_grows_within_each_run_is_named_or_reported_by_the_statistic_showing_it(
+        tmp_path):
     """
     A yaw ramp from outside the model (studies/outside.py) is never missed in silence.
 
@@ -385,6 +386,8 @@ def test_a_turn_that_grows_within_each_run_is_named_or_reported_by_the_statistic
     if named:
         estimate = named[0].parameters['final_yaw_rate_deg_s']
         assert abs(estimate - final) <= 0.4 * abs(final), message
+        written = write_report(report, tmp_path, measured=measured)   # the ramp's panel too
+        assert written['extension_plot'].stat().st_size > 0, message
         return
     assert not report.adequate, message
     shown = [row for row in report.unexplained if row.statistic.startswith('heading rate change,')]

@@ -61,7 +61,7 @@ CALIBRATION_COUNTS: dict[str, tuple[int, int]] = {
     'periodic_heading': (14, 16),
     'change_point': (16, 16),
     'run_mixture': (15, 16),
-    'yaw_rate_ramp': (0, 0),        # not measured yet: the prior alone
+    'yaw_rate_ramp': (12, 16),      # at commit 7358d86: 5 deg/s, 172 runs predicted
 }
 GAIN_REPEATS = 2                               # simulations pooled in gain_sample
 RESAMPLES = 1000                               # samples of the gains per run count
@@ -94,10 +94,8 @@ class Calibration:
         named, total = CALIBRATION_COUNTS[group]
         prior = stats.norm.logpdf(SHIFTS, 0.0, PRIOR_SD)
         counts = _binomial(named, total, np.full_like(SHIFTS, POWER))
-        said = (f'calibration: {group} named in {named} of {total} data sets where 80 % was '
-                'predicted' if total else f'calibration: none measured for {group} yet (the '
-                'prior alone: the predictor right within two probit units)')
-        return cls(tuple(prior + counts), (said,))
+        return cls(tuple(prior + counts), (f'calibration: {group} named in {named} of '
+                                           f'{total} data sets where 80 % was predicted',))
 
     def updated(self, predicted: Sequence[float], named: Sequence[bool], what: str
                 ) -> Calibration:

@@ -8,7 +8,7 @@ How it decides (docs/studies.md, "How plan decides"):
    selection is taken on each (diagnosis/live.py, `pilot_model`). The errors of its size and
    the expected t of its held-out test at the requested size give the power at any run
    count (diagnosis/power.py): P(size bound clears the floor) x P(held-out test
-   significant), at the diagnosis's levels (thirteen candidates in the race). The pilots'
+   significant), at the diagnosis's levels (every candidate in the race). The pilots'
    powers are averaged.
 2. **Calibration.** The predicted power is shifted on the probit scale by what the studies
    measured at the reported limits (power.Calibration: the six causes named in 102 of 120
