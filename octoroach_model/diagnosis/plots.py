@@ -11,6 +11,7 @@ reason and costs nothing else.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -326,50 +327,44 @@ def _spectrum_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
     ax.set_ylabel('rms amplitude of the heading (trend removed) [deg]')
 
 
+def _over_the_run(ax: Axes, report: DiagnosisReport, measured: Paths,
+                  per_cycle: Callable[[Paths, int, float], FloatArray], extended: str) -> None:
+    """Plot `per_cycle` (runs, samples per stride, dt) against time: data and both models."""
+    dt = float(measured.t[1] - measured.t[0])
+    cycle = stride_samples(report.nominal['stride_frequency_hz'], dt)
+    middle = measured.t[:-cycle] + 0.5 * cycle * dt
+    ax.plot(middle, per_cycle(measured, cycle, dt), 'k', lw=1.5, label='measured runs')
+    ax.plot(middle, per_cycle(_simulate(report.baseline_model, measured, MODEL_RUNS), cycle, dt),
+            color='tab:blue', lw=2, label='baseline (paper model)')
+    ax.plot(middle, per_cycle(_simulate(report.extended_model, measured, MODEL_RUNS), cycle, dt),
+            color='tab:orange', ls='--', lw=2, label=extended)
+    ax.set_xlabel('time in the run [s]')
+
+
 def _speed_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                  extension: NamedExtension) -> None:
-    frequency = report.nominal['stride_frequency_hz']
-    dt = float(measured.t[1] - measured.t[0])
-    cycle = stride_samples(frequency, dt)
-
-    def speed(paths: Paths) -> FloatArray:
+    def speed(paths: Paths, cycle: int, dt: float) -> FloatArray:
         with np.errstate(invalid='ignore'):
             speed_cm_s: FloatArray = np.nanmean(cycle_distances(paths.positions, cycle),
                                                 axis=0) / (cycle * dt) * 100
         return speed_cm_s
 
-    middle = measured.t[:-cycle] + 0.5 * cycle * dt
-    ax.plot(middle, speed(measured), 'k', lw=1.5, label='measured runs')
-    ax.plot(middle, speed(_simulate(report.baseline_model, measured, MODEL_RUNS)),
-            color='tab:blue', lw=2, label='baseline (paper model)')
-    ax.plot(middle, speed(_simulate(report.extended_model, measured, MODEL_RUNS)),
-            color='tab:orange', ls='--', lw=2, label='extended model')
+    _over_the_run(ax, report, measured, speed, 'extended model')
     ax.axvline(float(extension.parameters['time_s']), color='tab:red', ls=':',
                label='fitted change')
-    ax.set_xlabel('time in the run [s]')
     ax.set_ylabel('mean speed over a stride cycle [cm/s]')
 
 
 def _turn_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                 extension: NamedExtension) -> None:
-    frequency = report.nominal['stride_frequency_hz']
-    dt = float(measured.t[1] - measured.t[0])
-    cycle = stride_samples(frequency, dt)
-
-    def rate(paths: Paths) -> FloatArray:
+    def rate(paths: Paths, cycle: int, dt: float) -> FloatArray:
         heading = paths.poses[:, :, 2]
         turned = (heading[:, cycle:] - heading[:, :-cycle] + math.pi) % (2 * math.pi) - math.pi
         with np.errstate(invalid='ignore'):
             rate_deg_s: FloatArray = np.nanmean(turned, axis=0) / (cycle * dt) * DEG
         return rate_deg_s
 
-    middle = measured.t[:-cycle] + 0.5 * cycle * dt
-    ax.plot(middle, rate(measured), 'k', lw=1.5, label='measured runs')
-    ax.plot(middle, rate(_simulate(report.baseline_model, measured, MODEL_RUNS)),
-            color='tab:blue', lw=2, label='baseline (paper model)')
-    ax.plot(middle, rate(_simulate(report.extended_model, measured, MODEL_RUNS)),
-            color='tab:orange', ls='--', lw=2, label='extended model (yaw rate ramp)')
-    ax.set_xlabel('time in the run [s]')
+    _over_the_run(ax, report, measured, rate, 'extended model (yaw rate ramp)')
     ax.set_ylabel('mean heading rate over a stride cycle [deg/s] (left positive)')
 
 
