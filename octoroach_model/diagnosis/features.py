@@ -78,10 +78,18 @@ CHECKED_ONLY = ('heading_rate_change',)      # read by the adequacy check alone 
 # the columns a model is scored on: every feature but the covariates and the checked-only
 OUTCOMES = np.array([name not in COVARIATES + CHECKED_ONLY for name in FEATURES])
 
-# Resolution of each feature: differences below it are not told apart, and the smallest
-# spread a feature is taken to have when scores are standardised.
-RESOLUTION = np.array([1e-4, 1e-5, 1e-5, 1e-2, 1e-4, 1e-3, 1e-4, 1e-4, 1e-8, 1e-5, 1e-5, 1e-5,
-                       1e-6, 1e-6, 1e-5, 1e-3, 1e-3, 1e-4, 1e-4, 1e-10, 1e-2, 1e-4])
+# Resolution of each feature, in its unit: differences below it are not told apart, and the
+# smallest spread a feature is taken to have when scores are standardised. By name, so that a
+# new feature cannot take another's place; RESOLUTION is the same in FEATURES' order.
+RESOLUTION_BY_FEATURE = {
+    'start_heading': 1e-4, 'start_x': 1e-5, 'start_y': 1e-5, 'log_noise': 1e-2, 'slip_angle': 1e-4,
+    'stride_frequency': 1e-3, 'progress_ratio': 1e-4, 'heading_rate': 1e-4, 'increment_var': 1e-8,
+    'end_lateral': 1e-5, 'end_progress': 1e-5, 'sway_amplitude': 1e-5, 'lateral_sway_1': 1e-6,
+    'lateral_sway_2': 1e-6, 'quarter_lateral': 1e-5, 'increment_autocorr': 1e-3, 'position': 1e-3,
+    'progress_early': 1e-4, 'progress_late': 1e-4, 'stride_length_var': 1e-10,
+    'heading_wobble': 1e-2, 'heading_rate_change': 1e-4}
+assert tuple(RESOLUTION_BY_FEATURE) == FEATURES, 'one resolution per feature, in their order'
+RESOLUTION = np.array([RESOLUTION_BY_FEATURE[name] for name in FEATURES])
 WOBBLE_FLOOR_RAD2 = 1e-12      # keeps heading_wobble finite for a heading without that tone
 MEDIAN_CHI2_1 = 0.454936        # median of a chi-square with 1 degree of freedom
 POSITION_RESOLUTION_M = 1e-4     # what motion capture resolves; no size below it is claimed
