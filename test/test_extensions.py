@@ -23,6 +23,7 @@ import pytest
 
 import octoroach_model as om
 from octoroach_model.diagnosis import diagnose, write_report
+from octoroach_model.diagnosis.discrepancies import HEADING_RATE_CHANGE
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.summary import summary_text
 from octoroach_model.studies.outside import speed_wobble, yaw_ramp
@@ -392,7 +393,7 @@ def test_a_turn_that_grows_within_each_run_is_named_or_reported_by_the_statistic
         assert written['extension_plot'].stat().st_size > 0, message
         return
     assert not report.adequate, message
-    shown = [row for row in report.unexplained if row.statistic.startswith('heading rate change,')]
+    shown = [row for row in report.unexplained if row.statistic == HEADING_RATE_CHANGE]
     assert len(shown) == 1 and shown[0].material, message
     # the rate rises by `final` over the run: its halves differ by half of it
     assert shown[0].data == pytest.approx(final / 2, rel=0.4), message

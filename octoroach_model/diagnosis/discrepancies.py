@@ -132,6 +132,8 @@ def _growth_exponent(f: FloatArray) -> float:
     return float(math.log(max(late, 1e-12) / max(early, 1e-12)) / math.log(4.0))
 
 
+# the name of the statistic a turn growing within each run moves (read by name elsewhere)
+HEADING_RATE_CHANGE = 'heading rate change, 2nd half - 1st half'
 STATISTICS: tuple[Statistic, ...] = (
     Statistic('start heading spread', 'deg', _std('start_heading', DEG), 0.01, SPREAD,
               feature='start_heading'),
@@ -184,7 +186,7 @@ STATISTICS: tuple[Statistic, ...] = (
     Statistic('heading rate excess kurtosis across runs', '', _kurtosis('heading_rate'), 1e-3,
               ABSOLUTE, material=0.5),
     # a turn that grows within each run (features.py, note (5)), yaw_rate_ramp's size or less
-    Statistic('heading rate change, 2nd half - 1st half', 'deg/s',
+    Statistic(HEADING_RATE_CHANGE, 'deg/s',
               _mean('heading_rate_change', DEG), 0.01, MEAN, feature='heading_rate_change'),
 )
 
