@@ -206,14 +206,14 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     rows = read_rows(args.out)
     if not args.report_only:
+        from octoroach_model.fileio import appended_lines
         from octoroach_model.workers import executor_for
 
         done = {(row['effect'], row['replicate']) for row in rows}
         todo = [(effect, replicate) for replicate in range(args.replicates)
                 for effect in args.effects if (effect, replicate) not in done]
-        args.out.parent.mkdir(parents=True, exist_ok=True)
         started = time.perf_counter()
-        with executor_for(None, args.workers) as pool, open(args.out, 'a') as stream:
+        with appended_lines(args.out) as stream, executor_for(None, args.workers) as pool:
             futures = [pool.submit(diagnose_one, *job) for job in todo]
             for count, future in enumerate(futures, 1):
                 row = future.result()

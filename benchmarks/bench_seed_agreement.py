@@ -114,7 +114,9 @@ def read_results(path: Path) -> dict[Job, Diagnosed]:
 
 def append_result(path: Path, result: Diagnosed) -> None:
     """Append one diagnosis to the results file as a line of JSON, flushed at once."""
-    with open(path, 'a', encoding='utf-8') as stream:
+    from octoroach_model.fileio import appended_lines
+
+    with appended_lines(path) as stream:
         stream.write(json.dumps({**result.job._asdict(), 'named': list(result.named),
                                  'cpu_s': result.cpu_s, 'commit': result.commit}) + '\n')
         stream.flush()

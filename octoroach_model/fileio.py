@@ -11,6 +11,10 @@ when the name exists (whatever it is), so two writers cannot both win.
 
 `check_writable` is what every program runs before long work: it creates (and removes) a
 temporary file where the output will go.
+
+A log of results that grows as work goes on (a resumable benchmark's JSON lines) is the one
+output not written whole: `appended_lines` opens it for appending, never through a link, and
+starts on a line of its own after a line an interruption cut short.
 """
 from __future__ import annotations
 
@@ -22,11 +26,11 @@ import os
 from pathlib import Path
 import shutil
 import tempfile
-from typing import BinaryIO, Union
+from typing import BinaryIO, TextIO, Union
 
 from octoroach_model.errors import OutputError
 
-__all__ = ['atomic_directory', 'atomic_file', 'check_writable', 'folder_lock',
+__all__ = ['appended_lines', 'atomic_directory', 'atomic_file', 'check_writable', 'folder_lock',
            'is_empty_directory', 'write_bytes_atomic', 'write_text_atomic', 'LOCK_NAME',
            'PARTIAL_SUFFIX']
 
@@ -172,6 +176,31 @@ def atomic_directory(path: PathLike, *, what: str = 'output') -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(temporary, ignore_errors=True)
         raise
+
+
+@contextmanager
+def appended_lines(path: PathLike, *, what: str = 'results file') -> Iterator[TextIO]:
+    """
+    Open `path` to append lines of text (created if absent, its folder too), never via a link.
+
+    O_APPEND | O_NOFOLLOW: a symbolic link at `path` is an OutputError, not a write to its
+    target. A file whose last line an interruption cut short gets a line break first, so the
+    next line is whole (a reader skips the cut one).
+    """
+    target = Path(path)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        descriptor = os.open(target, os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW
+                             | os.O_CLOEXEC, FILE_MODE)
+    except OSError as error:
+        reason = ('it is a symbolic link' if error.errno == errno.ELOOP
+                  else error.strerror or str(error))
+        raise OutputError(f'{what} {target}: cannot append to it ({reason})') from None
+    size = os.fstat(descriptor).st_size
+    if size and os.pread(descriptor, 1, size - 1) != b'\n':
+        os.write(descriptor, b'\n')
+    with os.fdopen(descriptor, 'a', encoding='utf-8') as stream:
+        yield stream
 
 
 LOCK_NAME = '.lock'

@@ -25,7 +25,7 @@ import pytest
 import yaml
 
 from octoroach_model.errors import OutputError, ParameterError
-from octoroach_model.fileio import folder_lock
+from octoroach_model.fileio import appended_lines, folder_lock
 from octoroach_model.studies import run_study
 from octoroach_model.workers import dask_client
 
@@ -160,6 +160,24 @@ def test_one_study_folder_has_one_writer_and_a_killed_one_leaves_no_stale_lock(t
     assert resumed.rows == 1 and resumed.computed == 0
     with folder_lock(out):
         pass
+
+
+def test_a_results_log_appends_whole_lines_and_never_writes_through_a_link(tmp_path):
+    """A resumable benchmark's log: a line cut by a kill stays apart from the next one."""
+    log = tmp_path / 'new' / 'rows.jsonl'
+    with appended_lines(log) as stream:
+        stream.write('{"a": 1}\n{"b": ')             # the second line cut by an interruption
+    with appended_lines(log) as stream:
+        stream.write('{"c": 3}\n')
+    assert log.read_text().splitlines() == ['{"a": 1}', '{"b": ', '{"c": 3}']
+    target = tmp_path / 'elsewhere.txt'
+    target.write_text('kept\n')
+    link = tmp_path / 'link.jsonl'
+    link.symlink_to(target)
+    with pytest.raises(OutputError, match='symbolic link'):
+        with appended_lines(link) as stream:
+            stream.write('lost\n')
+    assert target.read_text() == 'kept\n'
 
 
 def test_a_study_of_absurd_size_is_refused_before_its_tasks_are_built(tmp_path):
