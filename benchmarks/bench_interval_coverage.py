@@ -17,8 +17,10 @@ can find"); whether their errors are too small or those were two unlucky draws w
 
 With `--tables`, it reads studies' tables instead (out/studies/*/table.csv) and prints, per
 study and term, how many named terms' intervals held the truth and the mean and spread of their
-standardised errors, then all of them together (rows of one replicate share its runs' noise:
-the count of independent checks is nearer the robots' than the rows').
+standardised errors; then, over all of them, the calibration line (expected coverage): at
+nominal levels of 50 to 99 %, the share of intervals of that level that would have held, with
+intervals from resampling robots (rows of one replicate share its runs' noise: the count of
+independent checks is nearer the robots' than the rows').
 
 Run: .venv/bin/python benchmarks/bench_interval_coverage.py studies/ramp_limits.yaml
          --replicate 7 --term yaw_rate_ramp --size 3.0473 --draws 12
@@ -80,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         _, terms = read_report(diagnose(measured, settings), effects)
         outcome = terms[args.term]
         covered = bool(outcome.low <= args.size <= outcome.high)
-        z = (outcome.estimate - args.size) / ((outcome.high - outcome.low) / (2 * 1.959964))
+        z = (outcome.estimate - args.size) / ((outcome.high - outcome.low) / (2 * Z_95))
         if outcome.named:
             held += covered
             z_values.append(z)
@@ -103,43 +105,81 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def from_tables(paths: list[Path]) -> int:
-    """Print the named terms' interval coverage and standardised errors in study tables."""
+Z_95 = float(stats.norm.ppf(0.975))
+LEVELS = (0.5, 0.8, 0.9, 0.95, 0.99)     # nominal coverages the calibration line checks
+CLUSTER_BOOTSTRAP = 2000
+
+
+def standardised_errors(path: Path) -> dict[str, list[tuple[int, float]]]:
+    """
+    Return per term the (replicate, z) of every named size in a study's table.
+
+    z = (estimate - truth) / the reported standard error (the 95 % interval's half width
+    over 1.96); N(0, 1) where the reported errors are right.
+    """
     import csv
 
+    with open(path, newline='') as stream:
+        rows = list(csv.DictReader(stream))
+    by_term: dict[str, list[tuple[int, float]]] = {}
+    for row in rows:
+        for column, value in row.items():
+            if not column.startswith('named_') or value not in ('True', 'true', '1'):
+                continue
+            term = column[len('named_'):]
+            try:
+                truth, estimate, low, high = (float(row[prefix + term]) for prefix in (
+                    'true_', 'estimate_', 'low_', 'high_'))
+                replicate = int(row['replicate'])
+            except (KeyError, ValueError):
+                continue
+            if math.isfinite(truth) and math.isfinite(low) and high > low:
+                by_term.setdefault(term, []).append(
+                    (replicate, (estimate - truth) / ((high - low) / (2 * Z_95))))
+    return by_term
+
+
+def from_tables(paths: list[Path]) -> int:
+    """
+    Print the named terms' interval coverage and standardised errors in study tables.
+
+    Then the calibration line over all of them: at each nominal level, the share of |z|
+    within that level's normal quantile, with a 95 % interval from resampling whole robots
+    (a study's replicate: its data sets share their runs' noise, so rows are not independent).
+    """
     pooled: list[float] = []
+    clusters: list[str] = []
     print('| study | term | named | intervals that held | mean z | sd z | largest abs z |')
     print('| --- | --- | --- | --- | --- | --- | --- |')
     for path in paths:
-        with open(path, newline='') as stream:
-            rows = list(csv.DictReader(stream))
-        by_term: dict[str, list[float]] = {}
-        for row in rows:
-            for column, value in row.items():
-                if not column.startswith('named_') or value not in ('True', 'true', '1'):
-                    continue
-                term = column[len('named_'):]
-                try:
-                    truth, estimate, low, high = (float(row[prefix + term]) for prefix in (
-                        'true_', 'estimate_', 'low_', 'high_'))
-                except (KeyError, ValueError):
-                    continue
-                if math.isfinite(truth) and math.isfinite(low) and high > low:
-                    by_term.setdefault(term, []).append(
-                        (estimate - truth) / ((high - low) / (2 * 1.959964)))
-        for term, values in by_term.items():
-            z = np.array(values)
-            pooled += values
+        for term, entries in standardised_errors(path).items():
+            z = np.array([value for _, value in entries])
+            pooled += list(z)
+            clusters += [f'{path}#{replicate}' for replicate, _ in entries]
+            spread = z.std(ddof=1) if len(z) > 1 else math.nan
             print(f'| {path.parent.name} | {term} | {len(z)} | '
-                  f'{int(np.sum(np.abs(z) <= 1.959964))} | {z.mean():+.2f} | '
-                  f'{z.std(ddof=1) if len(z) > 1 else math.nan:.2f} | {np.abs(z).max():.1f} |')
-    z = np.array(pooled)
-    if len(z):
-        held = int(np.sum(np.abs(z) <= 1.959964))
-        print(f'\nall: {held} of {len(z)} intervals held the truth ({100 * held / len(z):.1f} %); '
-              f'standardised errors mean {z.mean():+.2f}, sd {z.std(ddof=1):.2f}; 95th '
-              f'percentile of |z| {np.quantile(np.abs(z), 0.95):.2f} (1.96 where the intervals '
-              f'are right)')
+                  f'{int(np.sum(np.abs(z) <= Z_95))} | {z.mean():+.2f} | {spread:.2f} | '
+                  f'{np.abs(z).max():.1f} |')
+    if not pooled:
+        return 0
+    z = np.abs(np.array(pooled))
+    _, cluster = np.unique(clusters, return_inverse=True)
+    quantiles = stats.norm.ppf(0.5 + 0.5 * np.array(LEVELS))
+    within = (z[:, None] <= quantiles[None, :]).astype(float)        # (rows, levels)
+    sums = np.zeros((cluster.max() + 1, len(LEVELS)))
+    np.add.at(sums, cluster, within)
+    sizes = np.bincount(cluster).astype(float)
+    rng = np.random.default_rng(0)
+    picks = rng.integers(0, len(sizes), (CLUSTER_BOOTSTRAP, len(sizes)))
+    resampled = sums[picks].sum(axis=1) / sizes[picks].sum(axis=1)[:, None]
+    low, high = np.quantile(resampled, [0.025, 0.975], axis=0)
+    print(f'\nall: {len(z)} named sizes on {len(sizes)} robots (study replicates); standardised '
+          f'errors mean {np.mean(pooled):+.2f}, sd {np.std(pooled, ddof=1):.2f}')
+    print('| nominal coverage | intervals that held | 95 % interval (robots resampled) |')
+    print('| --- | --- | --- |')
+    for index, level in enumerate(LEVELS):
+        print(f'| {100 * level:g} % | {100 * within[:, index].mean():.1f} % | '
+              f'{100 * low[index]:.1f}-{100 * high[index]:.1f} % |')
     return 0
 
 
