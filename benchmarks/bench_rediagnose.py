@@ -13,7 +13,8 @@ keeps them.
 docs/diagnosis.md section 3 quotes it on the partial limits rerun at commit 38647f2:
     .venv/bin/python benchmarks/bench_rediagnose.py --spec studies/limits.yaml \
         --table out/studies/limits_38647f2/table.csv --out /tmp/rediagnosed.csv
-(105 data sets, about an hour on the two cores; `--keys` picks some.)
+(105 data sets, about an hour on the two cores; `--keys` picks some.) Whether the new rows'
+intervals hold the truth (and the old table's): `bench_interval_coverage.py --tables OUT`.
 """
 from __future__ import annotations
 
