@@ -25,6 +25,7 @@ import octoroach_model as om
 from octoroach_model.diagnosis import diagnose, write_report
 from octoroach_model.diagnosis.discrepancies import HEADING_RATE_CHANGE
 from octoroach_model.diagnosis.features import INDEX, run_features
+from octoroach_model.diagnosis.misfit import Misfit, where_in_a_run
 from octoroach_model.diagnosis.summary import summary_text
 from octoroach_model.studies.outside import speed_wobble, yaw_ramp
 
@@ -360,8 +361,32 @@ def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path
     if report.causes or report.extensions:    # what was named is said to stand in, in part
         assert 'may stand in for part of it' in summary.splitlines()[2], message
     assert 'Where to look' in summary and misfit.part.quantity in summary, message
-    assert json.loads(written['report'].read_text())['misfit']['part']['quantity'] == \
+    assert json.loads(written['report'].read_text())['misfit']['parts'][0]['quantity'] == \
         misfit.part.quantity
+
+
+def test_where_to_look_points_at_the_mean_that_every_run_moves_alike():
+    """
+    A speed that swings shows in the mean progress, a turn that grows in the heading change.
+
+    Every run moves alike, which the spreads across runs do not show. Data made outside the
+    model (studies/outside.py) against runs of the same robot without the effect.
+    """
+    rng = random.Random(SEED * 10 + 47)
+    grid = om.simulate(300, seed=SEED + 47)
+    model = om.simulate(300, seed=SEED + 48)
+    amplitude, period = rng.uniform(0.2, 0.4), rng.uniform(1.2, 2.0)
+    final = rng.choice([-1, 1]) * rng.uniform(3, 6)
+    for measured, quantity, what in (
+            (speed_wobble(grid.t, 300, amplitude, period, seed=SEED + 47), 'progress',
+             f'speed wobble +-{amplitude:.2f} every {period:.2f} s'),
+            (yaw_ramp(grid, final), 'heading change', f'yaw ramp to {final:.2f} deg/s')):
+        parts = where_in_a_run(measured, model, np.random.default_rng(SEED))
+        assert [part.statistic for part in parts] == ['mean', 'spread'], replay(f'{what}: {parts}')
+        assert parts[0].quantity == quantity and abs(parts[0].z) > 5, replay(f'{what}: {parts}')
+        words = Misfit((), 0.0, 0.0, 1.0, parts).words()
+        assert f'the mean over the runs differs most in the {quantity}' in words[-2]
+        assert 'spread across runs differs most' in words[-1]
 
 
 @pytest.mark.long

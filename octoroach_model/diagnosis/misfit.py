@@ -8,10 +8,13 @@ says which statistics are off (discrepancies.py) and, here, where to look:
   of scoring.py, runs simulated at each run's length and place); the runs it predicts worst,
   numbered in recording order, and whether badly predicted runs gather at one end of the
   recording (Spearman's rank correlation of the score with the run's place, and its p-value);
-- **which part of a run**: at each tenth of the run's duration, the spread across runs of the
-  position across and along the start heading and of the heading change since the start, in
-  the data and the model (each with its bootstrap error); the tenth and quantity where the
-  two differ most, in standard errors.
+- **which part of a run**: at each tenth of the run's duration, the position across and along
+  the start heading and the heading change since the start: their mean over runs (with its
+  standard error) and their spread across runs (with its bootstrap error), in the data and the
+  model; for each statistic, the tenth and quantity where the two differ most, in standard
+  errors. The mean points at what every run does and the model does not (a speed that swings
+  over the run shows in the progress, a turn that grows in the heading change); the spread at
+  what varies from run to run (a stand-in term that spreads the runs too much shows there).
 """
 from __future__ import annotations
 
@@ -43,11 +46,12 @@ class RunMisfit:
 
 @dataclass(frozen=True)
 class PartMisfit:
-    """The part of the runs where data and model differ most: a spread at a tenth of a run."""
+    """Where data and model differ most: a quantity's mean or spread at a tenth of a run."""
 
     from_fraction: float
     to_fraction: float
     quantity: str
+    statistic: str        # 'mean' over the runs or 'spread' across them
     unit: str
     data: float
     model: float
@@ -62,7 +66,12 @@ class Misfit:
     median_log_score: float
     order_correlation: float          # Spearman's rho of the per-run score with run order
     order_p_value: float
-    part: PartMisfit | None
+    parts: tuple[PartMisfit, ...]      # per statistic where it differs most; largest |z| first
+
+    @property
+    def part(self) -> PartMisfit | None:
+        """Return where data and model differ most of all (the first of `parts`)."""
+        return self.parts[0] if self.parts else None
 
     def words(self) -> list[str]:
         """Return summary.md's lines on it."""
@@ -78,13 +87,13 @@ class Misfit:
             lines.append(f'- Badly predicted runs do not gather at one end of the recording '
                          f'(Spearman rho = {self.order_correlation:+.2f}, p = '
                          f'{self.order_p_value:.2g}).')
-        part = self.part
-        if part is not None:
-            lines.append(f'- Within the runs, the {part.quantity} is where data and model '
-                         f'differ most, from {100 * part.from_fraction:.0f} to '
-                         f'{100 * part.to_fraction:.0f} % of the run: its spread across runs '
-                         f'is {part.data:.3g} {part.unit} in the data, {part.model:.3g} '
-                         f'{part.unit} in the model (z = {part.z:+.1f}).')
+        for part in self.parts:
+            what = 'mean over the runs' if part.statistic == 'mean' else 'spread across runs'
+            lines.append(f'- Within the runs, the {what} differs most in the {part.quantity}, '
+                         f'from {100 * part.from_fraction:.0f} to '
+                         f'{100 * part.to_fraction:.0f} % of the run: {part.data:.3g} '
+                         f'{part.unit} in the data, {part.model:.3g} {part.unit} in the model '
+                         f'(z = {part.z:+.1f}).')
         return lines
 
 
@@ -104,30 +113,35 @@ def locate(data: Paths, data_features: FloatArray, places: FloatArray, model: Pa
     rho = float(rho) if np.isfinite(rho) else 0.0
     p_value = float(p_value) if np.isfinite(p_value) else 1.0
     return Misfit(tuple(RunMisfit(int(order[i]), float(scores[i])) for i in worst),
-                  float(np.median(scores)), rho, p_value, _part(data, model, rng))
+                  float(np.median(scores)), rho, p_value, where_in_a_run(data, model, rng))
 
 
-def _part(data: Paths, model: Paths, rng: np.random.Generator) -> PartMisfit | None:
-    """Return the tenth of a run and quantity where the spreads across runs differ most."""
+def where_in_a_run(data: Paths, model: Paths, rng: np.random.Generator
+                   ) -> tuple[PartMisfit, ...]:
+    """Return per statistic the tenth and quantity where data and model differ most."""
     data_values, model_values = _at_parts(data), _at_parts(model)
-    best: PartMisfit | None = None
+    best: dict[str, PartMisfit] = {}
     for quantity in range(len(QUANTITIES)):
         for part in range(PARTS):
             ours, theirs = data_values[:, part, quantity], model_values[:, part, quantity]
             ours, theirs = ours[np.isfinite(ours)], theirs[np.isfinite(theirs)]
             if len(ours) < 3 or len(theirs) < 3:
                 continue
-            spread_data, spread_model = float(np.std(ours, ddof=1)), float(np.std(theirs,
-                                                                                  ddof=1))
-            error = math.hypot(_spread_se(ours, rng), _spread_se(theirs, rng))
-            if error <= 0:
-                continue
-            z = (spread_data - spread_model) / error
-            if best is None or abs(z) > abs(best.z):
-                name = QUANTITIES[quantity]
-                best = PartMisfit(part / PARTS, (part + 1) / PARTS, name, UNITS[name],
-                                  spread_data, spread_model, float(z))
-    return best
+            name = QUANTITIES[quantity]
+            compared = {
+                'mean': (float(np.mean(ours)), float(np.mean(theirs)), math.sqrt(
+                    np.var(ours, ddof=1) / len(ours) + np.var(theirs, ddof=1) / len(theirs))),
+                'spread': (float(np.std(ours, ddof=1)), float(np.std(theirs, ddof=1)),
+                           math.hypot(_spread_se(ours, rng), _spread_se(theirs, rng)))}
+            for statistic, (in_data, in_model, error) in compared.items():
+                if error <= 0:
+                    continue
+                z = (in_data - in_model) / error
+                if statistic not in best or abs(z) > abs(best[statistic].z):
+                    best[statistic] = PartMisfit(part / PARTS, (part + 1) / PARTS, name,
+                                                 statistic, UNITS[name], in_data, in_model,
+                                                 float(z))
+    return tuple(sorted(best.values(), key=lambda found: -abs(found.z)))
 
 
 def _at_parts(paths: Paths) -> FloatArray:
