@@ -26,6 +26,8 @@ from octoroach_model.diagnosis import diagnose, write_report
 from octoroach_model.diagnosis.discrepancies import HEADING_RATE_CHANGE
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.misfit import Misfit, where_in_a_run
+from octoroach_model.diagnosis.modelfit import FittedModel
+from octoroach_model.diagnosis.plots import stride_windows
 from octoroach_model.diagnosis.summary import summary_text
 from octoroach_model.studies.outside import speed_wobble, yaw_ramp
 
@@ -363,6 +365,24 @@ def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path
     assert 'Where to look' in summary and misfit.part.quantity in summary, message
     assert json.loads(written['report'].read_text())['misfit']['parts'][0]['quantity'] == \
         misfit.part.quantity
+
+
+@pytest.mark.parametrize('factor', [0.75, 1.3])
+def test_the_per_stride_panels_span_one_stride_of_the_fitted_clock_either_side_of_a_change(
+        factor):
+    """extensions.png's speed and heading-rate curves: a window one stride long throughout."""
+    parameters = om.ModelParameters.nominal()
+    t = np.arange(0.0, 5.0, 0.01)
+    model = FittedModel(parameters, (0.0, 0.0, 0.0), 1.0,
+                        {'change_point': {'time_s': 2.0, 'speed_factor': factor}})
+    starts, ends = stride_windows(model, t)
+    span = np.interp(ends, np.arange(len(t)), t) - t[starts]
+    stride = 1.0 / parameters.stride_frequency
+    assert np.allclose(span[t[starts] + span <= 2.0], stride)           # before the change
+    assert np.allclose(span[t[starts] >= 2.0], stride / factor)          # after it
+    assert len(starts) and t[starts[-1]] + span[-1] <= t[-1]
+    plain_starts, plain_ends = stride_windows(replace(model, effects={}), t)
+    assert np.allclose(np.interp(plain_ends, np.arange(len(t)), t) - t[plain_starts], stride)
 
 
 def test_where_to_look_points_at_the_mean_that_every_run_moves_alike():

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Any, TYPE_CHECKING
 
 import matplotlib
 
@@ -22,11 +22,11 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from octoroach_model.arrays import FloatArray  # noqa: E402
+from octoroach_model.arrays import FloatArray, IntArray  # noqa: E402
 from octoroach_model.diagnosis.discrepancies import Discrepancy  # noqa: E402
 from octoroach_model.diagnosis.features import (  # noqa: E402
     heading_amplitudes, INDEX, run_features)
-from octoroach_model.fitting.gait import cycle_distances, stride_samples  # noqa: E402
+from octoroach_model.model.effects import shared_clock  # noqa: E402
 from octoroach_model.paths import Paths  # noqa: E402
 from octoroach_model.validation.region import t_multiplier  # noqa: E402
 
@@ -327,45 +327,95 @@ def _spectrum_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
     ax.set_ylabel('rms amplitude of the heading (trend removed) [deg]')
 
 
+def stride_windows(model: FittedModel, t: FloatArray) -> tuple[IntArray, FloatArray]:
+    """
+    Return where each window one stride of `model`'s gait clock long starts and ends.
+
+    A stride is two stances of the model's clock (speed_decay and the clock terms, as fitted),
+    so a window spans one stride before and after a change point, where a fixed number of
+    samples would span more or less than one and let the sway within a stride into the curve.
+    Starts are samples; ends are fractional sample positions (the clock interpolated), so the
+    windows do not jitter by a sample; windows that would end past the grid are left out.
+    """
+    phase = 2.0 * model.parameters.stride_frequency * shared_clock(model.effects, t)
+    after = np.searchsorted(phase, phase + 2.0)
+    starts = np.flatnonzero(after < len(t))
+    right = after[starts]
+    left = right - 1
+    fraction = (phase[starts] + 2.0 - phase[left]) / (phase[right] - phase[left])
+    return starts, left + fraction
+
+
+def _at(values: FloatArray, positions: FloatArray, angle: bool = False) -> FloatArray:
+    """Return (runs, ...) `values` at fractional sample `positions`, linearly interpolated."""
+    left = np.floor(positions).astype(int)
+    right = np.minimum(left + 1, values.shape[1] - 1)
+    step = values[:, right] - values[:, left]
+    if angle:
+        step = (step + math.pi) % (2 * math.pi) - math.pi
+    fraction = (positions - left).reshape((1, -1) + (1,) * (values.ndim - 2))
+    interpolated: FloatArray = values[:, left] + fraction * step
+    return interpolated
+
+
 def _over_the_run(ax: Axes, report: DiagnosisReport, measured: Paths,
-                  per_cycle: Callable[[Paths, int, float], FloatArray], extended: str) -> None:
-    """Plot `per_cycle` (runs, samples per stride, dt) against time: data and both models."""
-    dt = float(measured.t[1] - measured.t[0])
-    cycle = stride_samples(report.nominal['stride_frequency_hz'], dt)
-    middle = measured.t[:-cycle] + 0.5 * cycle * dt
-    ax.plot(middle, per_cycle(measured, cycle, dt), 'k', lw=1.5, label='measured runs')
-    ax.plot(middle, per_cycle(_simulate(report.baseline_model, measured, MODEL_RUNS), cycle, dt),
-            color='tab:blue', lw=2, label='baseline (paper model)')
-    ax.plot(middle, per_cycle(_simulate(report.extended_model, measured, MODEL_RUNS), cycle, dt),
-            color='tab:orange', ls='--', lw=2, label=extended)
-    ax.set_xlabel('time in the run [s]')
+                  per_stride: Callable[[Paths, IntArray, FloatArray], FloatArray],
+                  extended: str) -> None:
+    """
+    Plot `per_stride` (runs, window starts, window ends) against time: data and both models.
+
+    Each model's runs are measured over its own strides (`stride_windows`), the data over the
+    extended model's (the strides it reads in the data).
+    """
+    curves: tuple[tuple[Paths, FittedModel, dict[str, Any]], ...] = (
+        (measured, report.extended_model, {'color': 'k', 'lw': 1.5, 'label': 'measured runs'}),
+        (_simulate(report.baseline_model, measured, MODEL_RUNS), report.baseline_model,
+         {'color': 'tab:blue', 'lw': 2, 'label': 'baseline (paper model)'}),
+        (_simulate(report.extended_model, measured, MODEL_RUNS), report.extended_model,
+         {'color': 'tab:orange', 'ls': '--', 'lw': 2, 'label': extended}))
+    for paths, model, style in curves:
+        starts, ends = stride_windows(model, measured.t)
+        middle = 0.5 * (measured.t[starts] + np.interp(ends, np.arange(len(measured.t)),
+                                                       measured.t))
+        ax.plot(middle, per_stride(paths, starts, ends), **style)
+    ax.set_xlabel('time in the run [s] (the middle of a stride)')
+
+
+def _span_s(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
+    """Return each window's duration, s."""
+    span: FloatArray = np.interp(ends, np.arange(len(paths.t)), paths.t) - paths.t[starts]
+    return span
 
 
 def _speed_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                  extension: NamedExtension) -> None:
-    def speed(paths: Paths, cycle: int, dt: float) -> FloatArray:
+    def speed(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
+        covered = np.linalg.norm(_at(paths.positions, ends) - paths.positions[:, starts],
+                                 axis=-1)
         with np.errstate(invalid='ignore'):
-            speed_cm_s: FloatArray = np.nanmean(cycle_distances(paths.positions, cycle),
-                                                axis=0) / (cycle * dt) * 100
+            speed_cm_s: FloatArray = np.nanmean(covered, axis=0) / _span_s(paths, starts,
+                                                                           ends) * 100
         return speed_cm_s
 
     _over_the_run(ax, report, measured, speed, 'extended model')
     ax.axvline(float(extension.parameters['time_s']), color='tab:red', ls=':',
                label='fitted change')
-    ax.set_ylabel('mean speed over a stride cycle [cm/s]')
+    ax.set_ylabel('mean speed over a stride [cm/s]')
 
 
 def _turn_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                 extension: NamedExtension) -> None:
-    def rate(paths: Paths, cycle: int, dt: float) -> FloatArray:
+    def rate(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
         heading = paths.poses[:, :, 2]
-        turned = (heading[:, cycle:] - heading[:, :-cycle] + math.pi) % (2 * math.pi) - math.pi
+        turned = (_at(heading, ends, angle=True) - heading[:, starts] + math.pi) % (
+            2 * math.pi) - math.pi
         with np.errstate(invalid='ignore'):
-            rate_deg_s: FloatArray = np.nanmean(turned, axis=0) / (cycle * dt) * DEG
+            rate_deg_s: FloatArray = np.nanmean(turned, axis=0) / _span_s(paths, starts,
+                                                                          ends) * DEG
         return rate_deg_s
 
     _over_the_run(ax, report, measured, rate, 'extended model (yaw rate ramp)')
-    ax.set_ylabel('mean heading rate over a stride cycle [deg/s] (left positive)')
+    ax.set_ylabel('mean heading rate over a stride [deg/s] (left positive)')
 
 
 def _groups_panel(ax: Axes, report: DiagnosisReport, measured: Paths,

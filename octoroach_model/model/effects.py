@@ -112,17 +112,8 @@ def warped_time(effects: Effects, t: FloatArray, n_runs: int,
 
     """
     duration = float(t[-1]) if len(t) else 0.0
-
-    def decayed(times: FloatArray) -> FloatArray:
-        if 'speed_decay' in effects and duration > 0:
-            return times - effects['speed_decay']['fraction'] * times ** 2 / (2.0 * duration)
-        return times
-
     context = _context(t, n_runs, positions, duration)
-    shared = decayed(np.asarray(t, dtype=float))
-    for name, values in _terms(effects, 'clock'):
-        shared = TERM_BY_NAME[name].function(values, replace(
-            context, source=rngs[name], clock_of=decayed))
+    shared = shared_clock(effects, t, rngs, context)
     clock = np.broadcast_to(shared, (n_runs, len(t))).astype(float)
     if 'gait_frequency_variation' in effects:
         std = effects['gait_frequency_variation']['relative_std']
@@ -132,6 +123,32 @@ def warped_time(effects: Effects, t: FloatArray, n_runs: int,
         clock = clock * TERM_BY_NAME[name].function(values, replace(
             context, source=rngs[name]))[:, None]
     return clock
+
+
+def shared_clock(effects: Effects, t: FloatArray,
+                 rngs: Mapping[str, NormalSource] | None = None,
+                 context: TermContext | None = None) -> FloatArray:
+    """
+    Give the (T,) gait clock every run shares: speed_decay's, then the extensions' clock terms.
+
+    What `warped_time` scales run by run (gait_frequency_variation, run-order stretches); on
+    its own, where a stride begins and ends in a model whose strides lengthen or shorten over
+    the run (the per-stride panels of extensions.png). `rngs` and `context` as warped_time's
+    (a clock term draws nothing: None is enough for each).
+    """
+    duration = float(t[-1]) if len(t) else 0.0
+
+    def decayed(times: FloatArray) -> FloatArray:
+        if 'speed_decay' in effects and duration > 0:
+            return times - effects['speed_decay']['fraction'] * times ** 2 / (2.0 * duration)
+        return times
+
+    context = context or _context(t, 1, None, duration)
+    shared = decayed(np.asarray(t, dtype=float))
+    for name, values in _terms(effects, 'clock'):
+        shared = TERM_BY_NAME[name].function(values, replace(
+            context, source=rngs[name] if rngs is not None else None, clock_of=decayed))
+    return shared
 
 
 def _terms(effects: Effects, stage: str) -> list[tuple[str, Mapping[str, float]]]:
