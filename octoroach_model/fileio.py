@@ -25,6 +25,7 @@ import fcntl
 import os
 from pathlib import Path
 import shutil
+import stat
 import tempfile
 from typing import BinaryIO, TextIO, Union
 
@@ -184,8 +185,9 @@ def appended_lines(path: PathLike, *, what: str = 'results file') -> Iterator[Te
     Open `path` to append lines of text (created if absent, its folder too), never via a link.
 
     O_APPEND | O_NOFOLLOW: a symbolic link at `path` is an OutputError, not a write to its
-    target. A file whose last line an interruption cut short gets a line break first, so the
-    next line is whole (a reader skips the cut one).
+    target; so is anything else but a regular file (a pipe, a device). A file whose last line
+    an interruption cut short gets a line break first, so the next line is whole (a reader
+    skips the cut one).
     """
     target = Path(path)
     try:
@@ -196,10 +198,17 @@ def appended_lines(path: PathLike, *, what: str = 'results file') -> Iterator[Te
         reason = ('it is a symbolic link' if error.errno == errno.ELOOP
                   else error.strerror or str(error))
         raise OutputError(f'{what} {target}: cannot append to it ({reason})') from None
-    size = os.fstat(descriptor).st_size
-    if size and os.pread(descriptor, 1, size - 1) != b'\n':
-        os.write(descriptor, b'\n')
-    with os.fdopen(descriptor, 'a', encoding='utf-8') as stream:
+    try:
+        status = os.fstat(descriptor)
+        if not stat.S_ISREG(status.st_mode):
+            raise OutputError(f'{what} {target}: cannot append to it (not a regular file)')
+        if status.st_size and os.pread(descriptor, 1, status.st_size - 1) != b'\n':
+            os.write(descriptor, b'\n')
+        stream = os.fdopen(descriptor, 'a', encoding='utf-8')
+    except BaseException:
+        os.close(descriptor)
+        raise
+    with stream:
         yield stream
 
 

@@ -178,6 +178,11 @@ def test_a_results_log_appends_whole_lines_and_never_writes_through_a_link(tmp_p
         with appended_lines(link) as stream:
             stream.write('lost\n')
     assert target.read_text() == 'kept\n'
+    pipe = tmp_path / 'pipe.jsonl'
+    os.mkfifo(pipe)
+    with pytest.raises(OutputError, match='not a regular file'):
+        with appended_lines(pipe) as stream:
+            stream.write('lost\n')
 
 
 def test_a_study_of_absurd_size_is_refused_before_its_tasks_are_built(tmp_path):
