@@ -38,6 +38,10 @@ import time
 import numpy as np
 from scipy import stats
 
+Z_95 = float(stats.norm.ppf(0.975))
+LEVELS = (0.5, 0.8, 0.9, 0.95, 0.99)     # nominal coverages the calibration line checks
+CLUSTER_BOOTSTRAP = 2000
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -72,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
           f'{args.draws} draws of the runs (data seeds {robot.data_seed}+1..{args.draws})')
     print('| draw | named | estimate | 95 % interval | held | z |')
     print('| --- | --- | --- | --- | --- | --- |')
-    held, z_values = 0, []
+    held, z_values, errors = 0, [], []
     started = time.perf_counter()
     for draw in range(1, args.draws + 1):
         seed = robot.data_seed + draw
@@ -81,14 +85,16 @@ def main(argv: list[str] | None = None) -> int:
         settings = replace(spec.diagnosis_settings(seed), detection_limits=False)
         _, terms = read_report(diagnose(measured, settings), effects)
         outcome = terms[args.term]
+        if not outcome.named:           # no interval is reported for a term not named
+            print(f'| {draw} | no | {outcome.estimate:.3f} | - | - | - |', flush=True)
+            continue
         covered = bool(outcome.low <= args.size <= outcome.high)
         z = (outcome.estimate - args.size) / ((outcome.high - outcome.low) / (2 * Z_95))
-        if outcome.named:
-            held += covered
-            z_values.append(z)
-        print(f'| {draw} | {"yes" if outcome.named else "no"} | {outcome.estimate:.3f} | '
-              f'{outcome.low:.3f} to {outcome.high:.3f} | {"yes" if covered else "no"} | '
-              f'{z:+.2f} |', flush=True)
+        held += covered
+        z_values.append(z)
+        errors.append(outcome.estimate - args.size)
+        print(f'| {draw} | yes | {outcome.estimate:.3f} | {outcome.low:.3f} to '
+              f'{outcome.high:.3f} | {"yes" if covered else "no"} | {z:+.2f} |', flush=True)
     named = len(z_values)
     print(f'\nnamed {named} of {args.draws}; intervals held the truth in {held} of {named}',
           end='')
@@ -98,16 +104,13 @@ def main(argv: list[str] | None = None) -> int:
         spread = z.std(ddof=1) if named > 1 else math.nan
         print(f' ({100 * held / named:.0f} %, 95 % CI {100 * low:.0f}-{100 * high:.0f} %); '
               f'standardised errors: mean {z.mean():+.2f}, sd {spread:.2f} '
-              f'(1 where the reported errors are right)')
+              f'(1 where the reported errors are right); mean estimate - truth '
+              f'{np.mean(errors):+.3g} ({100 * np.mean(errors) / abs(args.size):+.1f} % of '
+              f'the size)')
     else:
         print()
     print(f'{time.perf_counter() - started:.0f} s')
     return 0
-
-
-Z_95 = float(stats.norm.ppf(0.975))
-LEVELS = (0.5, 0.8, 0.9, 0.95, 0.99)     # nominal coverages the calibration line checks
-CLUSTER_BOOTSTRAP = 2000
 
 
 def standardised_errors(path: Path) -> dict[str, list[tuple[int, float]]]:

@@ -157,10 +157,10 @@ def test_a_close_call_is_decided_on_runs_scored_again(monkeypatch):
     the t the same diagnosis without scoring again gives, and the t's scoring error falls: on
     four times the runs to 0.44-0.73 of itself over 16 seeds of this test (median 0.52 with
     400 resamples, benchmarks/bench_close_call_error.py; 1/sqrt(4) would be 0.5). The bound
-    0.85 leaves room for that spread, and a
-    rescoring that kept the first runs alone would stay near 1. With the diagnosis's 50
-    resamples the error estimate itself spreads by a tenth: a bound of 0.75 failed at suite
-    seed 227396 (0.90; 0.73 with 400), so the test resamples 400 times.
+    0.85 leaves room for that spread, and a rescoring that kept the first runs alone would
+    stay near 1. With the diagnosis's 50 resamples the error estimate itself spreads by a
+    tenth: a bound of 0.75 failed at suite seed 227396 (0.90; 0.73 with 400), so the test
+    resamples 400 times.
     """
     import importlib
 

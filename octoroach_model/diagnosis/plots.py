@@ -375,14 +375,13 @@ def _over_the_run(ax: Axes, report: DiagnosisReport, measured: Paths,
          {'color': 'tab:orange', 'ls': '--', 'lw': 2, 'label': extended}))
     for paths, model, style in curves:
         starts, ends = stride_windows(model, measured.t)
-        middle = 0.5 * (measured.t[starts] + np.interp(ends, np.arange(len(measured.t)),
-                                                       measured.t))
+        middle = measured.t[starts] + 0.5 * _span_s(measured, starts, ends)
         ax.plot(middle, per_stride(paths, starts, ends), **style)
     ax.set_xlabel('time in the run [s] (the middle of a stride)')
 
 
 def _span_s(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
-    """Return each window's duration, s."""
+    """Return each window's duration, s (its end a fractional sample on the runs' times)."""
     span: FloatArray = np.interp(ends, np.arange(len(paths.t)), paths.t) - paths.t[starts]
     return span
 

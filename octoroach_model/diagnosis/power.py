@@ -94,8 +94,10 @@ class Calibration:
         named, total = CALIBRATION_COUNTS[group]
         prior = stats.norm.logpdf(SHIFTS, 0.0, PRIOR_SD)
         counts = _binomial(named, total, np.full_like(SHIFTS, POWER))
-        return cls(tuple(prior + counts), (f'calibration: {group} named in {named} of '
-                                           f'{total} data sets where 80 % was predicted',))
+        said = (f'calibration: {group} named in {named} of {total} data sets where 80 % was '
+                'predicted' if total else f'calibration: none measured for {group} yet (the '
+                'prior alone: the predictor right within two probit units)')
+        return cls(tuple(prior + counts), (said,))
 
     def updated(self, predicted: Sequence[float], named: Sequence[bool], what: str
                 ) -> Calibration:
