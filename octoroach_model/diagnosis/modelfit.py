@@ -117,7 +117,10 @@ class FitSettings:
     heading_weight_m: float = 0.13
     rounds: int = 2
     seed: int = 0
-    tolerance: float = 1e-5     # least squares stops at this relative change (MC noise: 1e-4)
+    # least squares stops at this relative change: the Monte Carlo noise of a mean path is
+    # about 1e-4, and 1e-5 cost 10-20 % more evaluations for the same decisions
+    # (benchmarks/bench_decisions.py; docs/diagnosis.md, "Speed")
+    tolerance: float = 1e-4
     score_runs: int = 1200      # simulated runs that score the calibration runs (`best_valley`)
 
 

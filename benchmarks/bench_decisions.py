@@ -1,0 +1,169 @@
+"""
+The suite's hidden-effect cases diagnosed by another commit and by this tree: decisions and time.
+
+A change meant to make the diagnosis faster must not change what it decides. This runs the
+tests that hide effects in data (test_diagnosis.py, test_extensions.py, test_redraws.py, or
+the files given) twice at each suite seed given: once on a copy of commit `--base` (`git
+archive`, in a temporary folder) and once on this working tree, one after the other on the
+same machine, with the pytest plugin `suite_decisions.py` recording every diagnosis a test
+runs. Both draw the same hidden cases where the tests that draw them are the same. Printed
+per test: each tree's diagnosis seconds, whether every diagnosis named the same terms and
+reached the same adequacy, and the largest change of a named value relative to itself; then
+the totals, each tree's pytest outcome and its wall time.
+
+Why it is here: issue 26 asks for a faster diagnosis "with identical decisions on the suite's
+hidden cases"; this is that check as a command, for any speed change.
+
+Run: .venv/bin/python benchmarks/bench_decisions.py --base REV [--seed N ...] [--files F ...]
+(about twice the hidden-effect files' time per seed: 8 minutes on the two cores).
+"""
+from __future__ import annotations
+
+import argparse
+from collections import defaultdict
+import json
+import math
+import os
+from pathlib import Path
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from typing import Any
+
+from suite_decisions import FOLDER_VARIABLE
+
+REPO = Path(__file__).resolve().parents[1]
+FILES = ('test/test_diagnosis.py', 'test/test_extensions.py', 'test/test_redraws.py')
+OUTCOME = re.compile(r'(\d+ (passed|failed|error)[^\n]*)')
+
+
+def commit_of(revision: str) -> str | None:
+    """Return the commit `revision` names, or None where it names none."""
+    found = subprocess.run(['git', 'rev-parse', '--verify', '--quiet', f'{revision}^{{commit}}'],
+                           cwd=REPO, capture_output=True, text=True)
+    return found.stdout.strip() or None
+
+
+def exported(revision: str, folder: Path) -> Path:
+    """Write commit `revision`'s files into a new `folder` (no git metadata); return it."""
+    folder.mkdir()
+    archive = subprocess.run(['git', 'archive', '--format=tar', revision], cwd=REPO,
+                             capture_output=True, check=True).stdout
+    subprocess.run(['tar', '-x', '-C', str(folder)], input=archive, check=True)
+    return folder
+
+
+def run_tests(tree: Path, seed: int, files: list[str], folder: Path) -> tuple[str, float]:
+    """Run `files` of `tree` at suite seed `seed`, recording into `folder`; outcome, wall s."""
+    folder.mkdir()
+    env = {**os.environ, 'OCTOROACH_TEST_SEED': str(seed), FOLDER_VARIABLE: str(folder),
+           'PYTHONPATH': os.pathsep.join([str(tree), str(REPO / 'benchmarks')])}
+    started = time.perf_counter()
+    finished = subprocess.run(
+        [sys.executable, '-m', 'pytest', '-n', '2', '--maxschedchunk=2', '-q',
+         '-p', 'no:cacheprovider', '-p', 'suite_decisions', '--rootdir', str(tree), *files],
+        cwd=tree, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - started
+    found = OUTCOME.findall(finished.stdout)
+    return (found[-1][0] if found else f'pytest exit {finished.returncode}'), wall
+
+
+def records(folder: Path) -> dict[str, list[dict[str, Any]]]:
+    """Return each test's diagnoses, in the order its process ran them."""
+    by_test: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for path in sorted(folder.glob('*.jsonl')):
+        for line in path.read_text().splitlines():
+            record = json.loads(line)
+            by_test[record['test']].append(record)
+    return by_test
+
+
+def largest_change(before: dict[str, Any], after: dict[str, Any]) -> tuple[float, str]:
+    """Largest |after - before| / |before| over the named values both have, and its name."""
+    largest = (0.0, '')
+    for table in ('causes', 'extensions'):
+        for term, values in before[table].items():
+            for name, value in values.items():
+                other = after[table].get(term, {}).get(name)
+                if isinstance(value, float) and isinstance(other, float):
+                    change = abs(other - value) / max(abs(value), 1e-12)
+                    if change > largest[0]:
+                        largest = (change, f'{term} {name} {value:.4g} -> {other:.4g}')
+    return largest
+
+
+def same_decision(before: dict[str, Any], after: dict[str, Any]) -> bool:
+    return (set(before['causes']) == set(after['causes'])
+            and set(before['extensions']) == set(after['extensions'])
+            and before['adequate'] == after['adequate'])
+
+
+def compare(base: dict[str, list[dict]], head: dict[str, list[dict]]) -> list[dict[str, str]]:
+    rows = []
+    for test in sorted(set(base) | set(head)):
+        before, after = base.get(test, []), head.get(test, [])
+        row = {'test': test.split('::', 1)[-1][:90],
+               'base s': f'{sum(r["seconds"] for r in before):.1f}' if before else '-',
+               'this tree s': f'{sum(r["seconds"] for r in after):.1f}' if after else '-'}
+        if len(before) == len(after) and before:
+            same = all(same_decision(b, a) for b, a in zip(before, after))
+            change, which = max(largest_change(b, a) for b, a in zip(before, after))
+            row['same decisions'] = f'{"yes" if same else "NO"} ({len(before)})'
+            row['largest value change'] = f'{change:.1e}' + (f' ({which})' if which else '')
+        else:
+            row['same decisions'] = f'not compared ({len(before)} and {len(after)} diagnoses)'
+            row['largest value change'] = '-'
+        rows.append(row)
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--base', required=True, help='the commit to compare with')
+    parser.add_argument('--seed', type=int, nargs='+', default=[4242])
+    parser.add_argument('--files', nargs='+', default=list(FILES))
+    arguments = parser.parse_args(argv)
+    base = commit_of(arguments.base)
+    if base is None:
+        print(f'error: --base {arguments.base!r} names no commit of {REPO}', file=sys.stderr)
+        return 2
+    with tempfile.TemporaryDirectory(prefix='bench-decisions-') as scratch:
+        base_tree = exported(base, Path(scratch) / 'base_tree')
+        for seed in arguments.seed:
+            outcomes = {}
+            for name, tree in (('base', base_tree), ('this tree', REPO)):
+                print(f'seed {seed}: running the tests of {name} ...', file=sys.stderr,
+                      flush=True)
+                outcomes[name] = run_tests(tree, seed, arguments.files,
+                                           Path(scratch) / f'{name}-{seed}')
+            before = records(Path(scratch) / f'base-{seed}')
+            after = records(Path(scratch) / f'this tree-{seed}')
+            rows = compare(before, after)
+            print(f'\nsuite seed {seed}: base {base[:7]}, this tree {_described()}')
+            print('| ' + ' | '.join(rows[0]) + ' |')
+            print('|' + ' --- |' * len(rows[0]))
+            for row in rows:
+                print('| ' + ' | '.join(row.values()) + ' |')
+            compared = [row for row in rows if row['same decisions'].startswith(('yes', 'NO'))]
+            differing = [row['test'] for row in compared if row['same decisions'].startswith('NO')]
+            total = {key: sum(r['seconds'] for found in found_by.values() for r in found)
+                     for key, found_by in (('base', before), ('head', after))}
+            ratio = total['head'] / total['base'] if total['base'] else math.nan
+            print(f'diagnoses: base {total["base"]:.0f} s, this tree {total["head"]:.0f} s '
+                  f'({ratio:.2f} of base); tests compared {len(compared)}, with a different '
+                  f'decision {len(differing)}{": " + ", ".join(differing) if differing else ""}')
+            for name, (outcome, wall) in outcomes.items():
+                print(f'{name}: {outcome}; {wall:.0f} s wall')
+    return 0
+
+
+def _described() -> str:
+    found = subprocess.run(['git', 'describe', '--always', '--dirty'], cwd=REPO,
+                           capture_output=True, text=True)
+    return found.stdout.strip() or 'unknown'
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,55 @@
+"""
+A pytest plugin for `bench_decisions.py`: what every diagnosis a test ran decided, and its time.
+
+Loaded with `-p suite_decisions` (benchmarks/ on PYTHONPATH). With OCTOROACH_SUITE_DECISIONS
+naming a folder, every call of `octoroach_model.diagnosis.diagnose` made through the package's
+public name (`from octoroach_model.diagnosis import diagnose`, `om.diagnose`: the tests' ways)
+appends one JSON line to its process's file there: the test, the terms named with their
+parameters, whether the model is adequate, and the call's wall time. The package's own calls
+(studies, nodes) bind the function inside the package and are not recorded. Without the
+variable the plugin changes nothing.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import os
+from pathlib import Path
+import time
+from typing import Any
+
+FOLDER_VARIABLE = 'OCTOROACH_SUITE_DECISIONS'
+
+
+def decision_of(report: Any) -> dict[str, Any]:
+    """Return what `report` decided: the causes and extensions named, with their values."""
+    def values(parameters: dict[str, Any]) -> dict[str, Any]:
+        return {name: float(value) if isinstance(value, (int, float)) else value
+                for name, value in parameters.items()}
+
+    return {'causes': {cause.cause: values(cause.parameters) for cause in report.causes},
+            'extensions': {term.family: values(term.parameters) for term in report.extensions},
+            'adequate': bool(report.adequate)}
+
+
+def pytest_configure(config) -> None:
+    folder = os.environ.get(FOLDER_VARIABLE)
+    if not folder:
+        return
+    import octoroach_model.diagnosis as package
+
+    original = package.diagnose
+    name = os.environ.get('PYTEST_XDIST_WORKER', 'controller')
+    path = Path(folder) / f'{name}.jsonl'
+
+    @functools.wraps(original)
+    def recorded(*args: Any, **kwargs: Any) -> Any:
+        started = time.perf_counter()
+        report = original(*args, **kwargs)
+        line = {'test': os.environ.get('PYTEST_CURRENT_TEST', '').rsplit(' ', 1)[0],
+                'seconds': time.perf_counter() - started, **decision_of(report)}
+        with path.open('a') as stream:
+            stream.write(json.dumps(line) + '\n')
+        return report
+
+    package.diagnose = recorded
