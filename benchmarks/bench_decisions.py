@@ -32,10 +32,11 @@ import tempfile
 import time
 from typing import Any
 
+from bench_suite import HIDDEN_EFFECT_FILES
 from suite_decisions import FOLDER_VARIABLE
 
 REPO = Path(__file__).resolve().parents[1]
-FILES = ('test/test_diagnosis.py', 'test/test_extensions.py', 'test/test_redraws.py')
+FILES = tuple(f'test/{name}' for name in HIDDEN_EFFECT_FILES)
 OUTCOME = re.compile(r'(\d+ (passed|failed|error)[^\n]*)')
 
 

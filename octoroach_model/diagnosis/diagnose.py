@@ -684,9 +684,9 @@ def screened_first(cause: Cause) -> bool:
     fits the terms already in first, with this one at zero, as the estimate before it does,
     and its geometry refit moves the moments little; the screen costs one moment fit where
     a refit costs a geometry fit and a scoring (bench_decisions: the hidden-effect tests
-    decide alike with it and without). The table's path causes
-    (lateral_slip, speed_decay) are not: before the refit the geometry has bent to mimic
-    them, and their signature reads too small (`restarted_geometry`).
+    decide alike with it and without). The table's path causes (lateral_slip, speed_decay)
+    are not: before their refit the geometry has bent to mimic them, and their size read
+    off it is too small (`restarted_geometry`).
     """
     return cause.is_extension or cause.kind == EstimateKind.MOMENTS
 

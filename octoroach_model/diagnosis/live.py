@@ -48,7 +48,8 @@ from octoroach_model.diagnosis.causes import (
 from octoroach_model.diagnosis.decide import judge
 from octoroach_model.diagnosis.diagnose import (
     check_runs, choose_wobble_hz, DiagnosisSettings, evaluate_candidate, Evaluation,
-    fit_baseline, Halves, quick_fit, score_held_out, SCORE_PURPOSE, with_wobble)
+    fit_baseline, Halves, quick_fit, score_held_out, SCORE_PURPOSE, screened_first,
+    with_wobble)
 from octoroach_model.diagnosis.features import INDEX
 from octoroach_model.diagnosis.modelfit import FittedModel, RunData, SizeEstimate
 from octoroach_model.diagnosis.power import Calibration, gain_sample, PowerModel
@@ -370,8 +371,9 @@ def evaluate(halves: Halves, baseline: FittedModel, base_scores: Scores, term: s
     model of an earlier look on the same baseline), from there alone: the diagnosis's
     second start (touchdown angles made equal, against a geometry bent to mimic the term)
     is what the first look took, and a look goes on from where that one ended, in a
-    quarter of the time. An extension family whose bound is out of reach is screened first,
-    as in the diagnosis.
+    quarter of the time. A term the diagnosis screens before its refit (`screened_first`:
+    the families, the table's causes sized by their moments) is screened here too where
+    its bound is out of reach.
     """
     from octoroach_model.diagnosis.modelfit import fit_causes, Simulator
 
@@ -379,7 +381,7 @@ def evaluate(halves: Halves, baseline: FittedModel, base_scores: Scores, term: s
     if warm is None or term not in warm.effects or cause.kind == EstimateKind.MOMENTS:
         return evaluate_candidate(halves, baseline, base_scores, term, settings, z)
     screened = evaluate_candidate(halves, baseline, base_scores, term, settings, z) \
-        if cause.is_extension else None
+        if screened_first(cause) else None
     if screened is not None and screened.screened:
         return screened
     start = replace(baseline, parameters=warm.parameters,
