@@ -130,34 +130,48 @@ def main(argv: list[str] | None = None) -> int:
     if base is None:
         print(f'error: --base {arguments.base!r} names no commit of {REPO}', file=sys.stderr)
         return 2
-    with tempfile.TemporaryDirectory(prefix='bench-decisions-') as scratch:
-        base_tree = exported(base, Path(scratch) / 'base_tree')
-        for seed in arguments.seed:
-            outcomes = {}
-            for name, tree in (('base', base_tree), ('this tree', REPO)):
-                print(f'seed {seed}: running the tests of {name} ...', file=sys.stderr,
-                      flush=True)
-                outcomes[name] = run_tests(tree, seed, arguments.files,
-                                           Path(scratch) / f'{name}-{seed}')
-            before = records(Path(scratch) / f'base-{seed}')
-            after = records(Path(scratch) / f'this tree-{seed}')
-            rows = compare(before, after)
-            print(f'\nsuite seed {seed}: base {base[:7]}, this tree {_described()}')
-            print('| ' + ' | '.join(rows[0]) + ' |')
-            print('|' + ' --- |' * len(rows[0]))
-            for row in rows:
-                print('| ' + ' | '.join(row.values()) + ' |')
-            compared = [row for row in rows if row['same decisions'].startswith(('yes', 'NO'))]
-            differing = [row['test'] for row in compared if row['same decisions'].startswith('NO')]
-            total = {key: sum(r['seconds'] for found in found_by.values() for r in found)
-                     for key, found_by in (('base', before), ('head', after))}
-            ratio = total['head'] / total['base'] if total['base'] else math.nan
-            print(f'diagnoses: base {total["base"]:.0f} s, this tree {total["head"]:.0f} s '
-                  f'({ratio:.2f} of base); tests compared {len(compared)}, with a different '
-                  f'decision {len(differing)}{": " + ", ".join(differing) if differing else ""}')
-            for name, (outcome, wall) in outcomes.items():
-                print(f'{name}: {outcome}; {wall:.0f} s wall')
+    try:
+        with tempfile.TemporaryDirectory(prefix='bench-decisions-') as scratch:
+            base_tree = exported(base, Path(scratch) / 'base_tree')
+            for seed in arguments.seed:
+                if not compared_at(seed, base, base_tree, arguments.files, Path(scratch)):
+                    return 1
+    except KeyboardInterrupt:
+        print('interrupted: nothing kept (the copies and records were temporary)',
+              file=sys.stderr)
+        return 130
     return 0
+
+
+def compared_at(seed: int, base: str, base_tree: Path, files: list[str], scratch: Path
+                ) -> bool:
+    """Run both trees at `seed` and print the comparison; False where nothing was recorded."""
+    outcomes = {}
+    for name, tree, folder in (('base', base_tree, 'base'), ('this tree', REPO, 'head')):
+        print(f'seed {seed}: running the tests of {name} ...', file=sys.stderr, flush=True)
+        outcomes[name] = run_tests(tree, seed, files, scratch / f'{folder}-{seed}')
+    before, after = records(scratch / f'base-{seed}'), records(scratch / f'head-{seed}')
+    rows = compare(before, after)
+    if not rows:
+        print(f'error: seed {seed}: no diagnosis recorded (base: {outcomes["base"][0]}; this '
+              f'tree: {outcomes["this tree"][0]})', file=sys.stderr)
+        return False
+    print(f'\nsuite seed {seed}: base {base[:7]}, this tree {_described()}')
+    print('| ' + ' | '.join(rows[0]) + ' |')
+    print('|' + ' --- |' * len(rows[0]))
+    for row in rows:
+        print('| ' + ' | '.join(row.values()) + ' |')
+    compared = [row for row in rows if row['same decisions'].startswith(('yes', 'NO'))]
+    differing = [row['test'] for row in compared if row['same decisions'].startswith('NO')]
+    total = {key: sum(r['seconds'] for found in found_by.values() for r in found)
+             for key, found_by in (('base', before), ('head', after))}
+    ratio = total['head'] / total['base'] if total['base'] else math.nan
+    print(f'diagnoses: base {total["base"]:.0f} s, this tree {total["head"]:.0f} s '
+          f'({ratio:.2f} of base); tests compared {len(compared)}, with a different '
+          f'decision {len(differing)}{": " + ", ".join(differing) if differing else ""}')
+    for name, (outcome, wall) in outcomes.items():
+        print(f'{name}: {outcome}; {wall:.0f} s wall')
+    return True
 
 
 def _described() -> str:
