@@ -102,7 +102,7 @@ def model_of(kind: str, gains: np.ndarray) -> PowerModel:
 def test_the_power_model_scales_the_data_s_errors_and_keeps_the_simulation_s(kind):
     # skewed as a variance effect's gains are (skewness 3.6); many, so that resampling
     # them is close to drawing from their distribution (2000 are 0.06 off in power)
-    gains = np.random.default_rng([SEED, 2]).gamma(0.3, 4.0, 20000) - 0.6
+    gains = np.random.default_rng([SEED, 2]).gamma(0.3, 4.0, 200_000) - 0.6
     model = model_of(kind, gains)
     if kind == 'moments':
         scaled = model.estimate_at(800)
@@ -122,12 +122,14 @@ def test_the_power_model_scales_the_data_s_errors_and_keeps_the_simulation_s(kin
     assert model.runs_for(0.8, z_bound, z_test, shift=0.5) <= needed
     # the test's power is that of the t-test on skewed gains: drawn from their distribution
     held_out = 100
-    samples = np.random.default_rng([SEED, 3]).gamma(0.3, 4.0, (4000, held_out)) - 0.6
+    samples = np.random.default_rng([SEED, 3]).gamma(0.3, 4.0, (20_000, held_out)) - 0.6
     t = samples.mean(axis=1) / (samples.std(axis=1, ddof=1) / math.sqrt(held_out))
     direct = float(np.mean(stats.t.sf(t, held_out - 1) < stats.norm.sf(3.17)))
-    # resampling 20000 gains this skewed is not drawing from their law: seed 357566 put the
-    # two 0.063 apart (a sample's far tail decides the t's), so 0.08, not 0.05
-    assert model.test_power(2 * held_out, 3.17) == pytest.approx(direct, abs=0.08), SEED
+    # the two differ by noise: the model's 1000 resamples, the far tail of the gains it
+    # resamples (a sample's far tail decides the t's) and the direct draws. With 20000 gains
+    # and 4000 draws the difference had sd 0.026 over 300 seeds, and seed 291129 put it at
+    # 0.088; with 200000 and 20000, sd 0.016 over 300 seeds (largest 0.050): 0.07 is 4.4 sd
+    assert model.test_power(2 * held_out, 3.17) == pytest.approx(direct, abs=0.07), SEED
 
 
 def test_the_calibration_moves_with_the_studies_and_with_checks():
