@@ -25,6 +25,8 @@ import sys
 import tempfile
 import time
 
+from revisions import commit_of
+
 REPO = Path(__file__).resolve().parents[1]
 BASELINE = '3d46d39'     # the last release whose diagnosis raced the six causes alone
 
@@ -41,16 +43,6 @@ def timed_diagnosis(source: Path, out: Path) -> float:
                     '--out', str(out), '--seed', '1'], env=env, check=True, cwd=source,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     return time.perf_counter() - started
-
-
-def commit_of(revision: str) -> str:
-    """Return the commit a revision names; anything else (an option, say) stops the bench."""
-    found = subprocess.run(['git', '-C', str(REPO), 'rev-parse', '--verify', '--quiet',
-                            '--end-of-options', f'{revision}^{{commit}}'],
-                           capture_output=True, text=True, check=False)
-    if revision.startswith('-') or found.returncode != 0:
-        raise SystemExit(f'error: {revision!r} names no commit of this repository')
-    return found.stdout.strip()
 
 
 def main(argv: list[str] | None = None) -> int:

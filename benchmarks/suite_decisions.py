@@ -23,13 +23,12 @@ FOLDER_VARIABLE = 'OCTOROACH_SUITE_DECISIONS'
 
 def decision_of(report: Any) -> dict[str, Any]:
     """Return what `report` decided: the causes and extensions named, with their values."""
-    def values(parameters: dict[str, Any]) -> dict[str, Any]:
-        return {name: float(value) if isinstance(value, (int, float)) else value
-                for name, value in parameters.items()}
+    from octoroach_model.jsonio import jsonable
 
-    return {'causes': {cause.cause: values(cause.parameters) for cause in report.causes},
-            'extensions': {term.family: values(term.parameters) for term in report.extensions},
-            'adequate': bool(report.adequate)}
+    return jsonable({'causes': {cause.cause: cause.parameters for cause in report.causes},
+                     'extensions': {term.family: term.parameters
+                                    for term in report.extensions},
+                     'adequate': report.adequate})
 
 
 def pytest_configure(config) -> None:

@@ -356,15 +356,16 @@ def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path
     assert misfit is not None and len(misfit.worst_runs) == 5, message
     assert all(0 <= entry.run < 300 for entry in misfit.worst_runs), message
     assert all(entry.log_score <= misfit.median_log_score for entry in misfit.worst_runs)
-    assert misfit.part is not None and abs(misfit.part.z) > 3, message
+    assert misfit.parts and abs(misfit.parts[0].z) > 3, message
+    worst = misfit.parts[0]
     written = write_report(report, tmp_path, plots=False)
     summary = written['summary'].read_text()
     assert 'not adequate' in summary and report.unexplained[0].statistic in summary, message
     if report.causes or report.extensions:    # what was named is said to stand in, in part
         assert 'may stand in for part of it' in summary.splitlines()[2], message
-    assert 'Where to look' in summary and misfit.part.quantity in summary, message
+    assert 'Where to look' in summary and worst.quantity in summary, message
     assert json.loads(written['report'].read_text())['misfit']['parts'][0]['quantity'] == \
-        misfit.part.quantity
+        worst.quantity
 
 
 @pytest.mark.parametrize('factor', [0.75, 1.3])

@@ -651,15 +651,9 @@ def evaluate_candidate(halves: Halves, current: FittedModel, current_scores: Sco
     """
     causes = (*current.causes, cause)
     candidate = BY_NAME[cause]
-    if screened_first(candidate):
-        quick = quick_fit(halves.train, current, candidate, settings)
-        estimate = quick.estimates[cause]
-        if out_of_reach(estimate, candidate.floor(halves.run_scale),
-                        z_decision - SCREEN_ALLOWANCE) or (
-                candidate.kind == EstimateKind.MIXTURE
-                and estimate.detail['log_likelihood_ratio'] < MIXTURE_EVIDENCE_NATS):
-            return Evaluation(cause, quick.model, quick.estimates, current_scores,
-                              PairedGain(0.0, 0.0, 1.0), 0.0, screened=True)
+    screened = screen(halves, current, current_scores, cause, settings, z_decision)
+    if screened is not None:
+        return screened
     geometry = candidate.kind in (EstimateKind.PATH, EstimateKind.MIXTURE, EstimateKind.TREND)
     fitted = fit_causes(halves.train, current, causes, settings.fit(), geometry=geometry,
                         rounds=1)
@@ -674,6 +668,28 @@ def evaluate_candidate(halves: Halves, current: FittedModel, current_scores: Sco
     return Evaluation(cause, model, estimates, scores,
                       PairedGain.of(scores.log - current_scores.log),
                       float(np.mean(current_scores.energy_cm - scores.energy_cm)))
+
+
+def screen(halves: Halves, current: FittedModel, current_scores: Scores, cause: str,
+           settings: DiagnosisSettings, z_decision: float = 0.0) -> Evaluation | None:
+    """
+    Return the candidate's screened Evaluation where it cannot qualify, else None.
+
+    Only for a term screened first (`screened_first`); the rule is `evaluate_candidate`'s.
+    The live guidance's warm looks ask it alone before refitting from their own start.
+    """
+    candidate = BY_NAME[cause]
+    if not screened_first(candidate):
+        return None
+    quick = quick_fit(halves.train, current, candidate, settings)
+    estimate = quick.estimates[cause]
+    if out_of_reach(estimate, candidate.floor(halves.run_scale),
+                    z_decision - SCREEN_ALLOWANCE) or (
+            candidate.kind == EstimateKind.MIXTURE
+            and estimate.detail['log_likelihood_ratio'] < MIXTURE_EVIDENCE_NATS):
+        return Evaluation(cause, quick.model, quick.estimates, current_scores,
+                          PairedGain(0.0, 0.0, 1.0), 0.0, screened=True)
+    return None
 
 
 def screened_first(cause: Cause) -> bool:

@@ -48,8 +48,7 @@ from octoroach_model.diagnosis.causes import (
 from octoroach_model.diagnosis.decide import judge
 from octoroach_model.diagnosis.diagnose import (
     check_runs, choose_wobble_hz, DiagnosisSettings, evaluate_candidate, Evaluation,
-    fit_baseline, Halves, quick_fit, score_held_out, SCORE_PURPOSE, screened_first,
-    with_wobble)
+    fit_baseline, Halves, quick_fit, score_held_out, SCORE_PURPOSE, screen, with_wobble)
 from octoroach_model.diagnosis.features import INDEX
 from octoroach_model.diagnosis.modelfit import FittedModel, RunData, SizeEstimate
 from octoroach_model.diagnosis.power import Calibration, gain_sample, PowerModel
@@ -370,19 +369,19 @@ def evaluate(halves: Halves, baseline: FittedModel, base_scores: Scores, term: s
     A term fitted with the geometry (path, trend, mixture) starts, given `warm` (the extended
     model of an earlier look on the same baseline), from there alone: the diagnosis's
     second start (touchdown angles made equal, against a geometry bent to mimic the term)
-    is what the first look took, and a look goes on from where that one ended, in a
-    quarter of the time. A term the diagnosis screens before its refit (`screened_first`:
-    the families, the table's causes sized by their moments) is screened here too where
-    its bound is out of reach.
+    is what the first look took, and a look goes on from where that one ended. A term the
+    diagnosis screens before its refit (`screened_first`: the families, the table's causes
+    sized by their moments) is screened here too where its bound is out of reach: the screen
+    alone (`screen`), not the diagnosis's whole step, whose refit from all starts a warm look
+    would throw away.
     """
     from octoroach_model.diagnosis.modelfit import fit_causes, Simulator
 
     cause = BY_NAME[term]
     if warm is None or term not in warm.effects or cause.kind == EstimateKind.MOMENTS:
         return evaluate_candidate(halves, baseline, base_scores, term, settings, z)
-    screened = evaluate_candidate(halves, baseline, base_scores, term, settings, z) \
-        if screened_first(cause) else None
-    if screened is not None and screened.screened:
+    screened = screen(halves, baseline, base_scores, term, settings, z)
+    if screened is not None:
         return screened
     start = replace(baseline, parameters=warm.parameters,
                     effects={**baseline.effects, term: dict(warm.effects[term])})

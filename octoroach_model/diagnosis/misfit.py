@@ -68,11 +68,6 @@ class Misfit:
     order_p_value: float
     parts: tuple[PartMisfit, ...]      # per statistic where it differs most; largest |z| first
 
-    @property
-    def part(self) -> PartMisfit | None:
-        """Return where data and model differ most of all (the first of `parts`)."""
-        return self.parts[0] if self.parts else None
-
     def words(self) -> list[str]:
         """Return summary.md's lines on it."""
         runs = ', '.join(f'{entry.run} ({entry.log_score:.1f} nats)' for entry in self.worst_runs)
