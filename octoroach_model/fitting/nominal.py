@@ -54,6 +54,8 @@ from octoroach_model.model.kinematics import integrate_stances
 from octoroach_model.model.parameters import ParameterTable, StartPoseTable
 from octoroach_model.paths import Paths
 
+VECTOR_NAMES = ('leg_length', 'touchdown_angle_1', 'touchdown_angle_2', 'touchdown_angle_3',
+                'touchdown_angle_4', 'stride_frequency')
 LOWER = [0.003, 0.05, 0.05, 0.05, 0.05, 0.2]
 UPPER = [0.08, 1.45, 1.45, 1.45, 1.45, 20.0]
 X_SCALE = [0.005, 0.1, 0.1, 0.1, 0.1, 0.1]
@@ -99,6 +101,9 @@ class NominalFit:
     jacobian: FloatArray | None = None
     free: tuple[FreeEffect, ...] = ()
     heading_weight_m: float = 0.0
+    # the entries of the vector the solution ended on a bound of (VECTOR_NAMES, then the free
+    # effects as cause.parameter): the fit found no interior optimum there
+    at_bounds: tuple[str, ...] = ()
 
     def report(self) -> NominalTable:
         return {**self.parameters.table(),
@@ -410,7 +415,20 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None,
     rms = float(np.sqrt(np.mean(np.sum((path[:, :2] - problem.average) ** 2, axis=1))))
     return NominalFit(parameters, start_pose, rms, problem.average, model_effects,
                       float(best.cost), np.asarray(best.jac), tuple(settings.free),
-                      settings.heading_weight_m)
+                      settings.heading_weight_m, on_bounds(problem, best.x))
+
+
+# a solution within this share of an entry's range of a bound is on it
+ON_BOUND_SHARE = 1e-6
+
+
+def on_bounds(problem: NominalProblem, vector: FloatArray) -> tuple[str, ...]:
+    """Return the names of the entries of `vector` that lie on a bound of `problem`'s."""
+    lower, upper, _ = problem.bounds()
+    names = VECTOR_NAMES + tuple(f'{item.cause}.{item.parameter}'
+                                 for item in problem.settings.free)
+    return tuple(name for name, value, low, high in zip(names, vector, lower, upper)
+                 if min(value - low, high - value) <= ON_BOUND_SHARE * (high - low))
 
 
 def two_stage_least_squares(residuals: Callable[[FloatArray], FloatArray], start: FloatArray,

@@ -319,14 +319,22 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
         raise DataError(f'{measured.n_paths} runs are too few: n x k = {settings.n} x '
                         f'{settings.k} needs {settings.runs_needed} runs (lower k, or raise '
                         f'epsilon/delta to lower n){left_out}')
+    bound_note = None
     if nominal == 'fit':
         fit = fit_nominal(measured)
         model = FourBarModel(fit.parameters, fit.start_pose, draws)
         table: Mapping[str, object] = fit.report()
+        if fit.at_bounds:
+            bound_note = (f'the nominal fit (eq. 9) ended on the bound of '
+                          f'{", ".join(fit.at_bounds)}: its geometry is the edge of the range, '
+                          f'not the robot, and the validation against it says little '
+                          f'(docs/validation.md, "Where eq. (9) fails"); --nominal table2 '
+                          f'validates Table II instead')
     else:
         model = FourBarModel(ModelParameters.nominal(), mean_start_pose(measured), draws)
         table = {**ModelParameters.nominal().table(), 'source': 'Table II'}
     result = validate(measured, settings, model, sigmas, progress)
-    notes = tuple(measured.info.get('notes', ())) + ((duration_note,) if duration_note else ())
+    notes = tuple(measured.info.get('notes', ())) + tuple(
+        note for note in (duration_note, bound_note) if note)
     return replace(result, nominal=table, draws=draws, sources=tuple(map(str, sources)),
                    notes=notes)
