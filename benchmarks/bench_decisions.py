@@ -33,21 +33,12 @@ import time
 from typing import Any
 
 from bench_suite import HIDDEN_EFFECT_FILES
-from revisions import commit_of
+from revisions import commit_of, export
 from suite_decisions import FOLDER_VARIABLE
 
 REPO = Path(__file__).resolve().parents[1]
 FILES = tuple(f'test/{name}' for name in HIDDEN_EFFECT_FILES)
 OUTCOME = re.compile(r'(\d+ (passed|failed|error)[^\n]*)')
-
-
-def exported(revision: str, folder: Path) -> Path:
-    """Write commit `revision`'s files into a new `folder` (no git metadata); return it."""
-    folder.mkdir()
-    archive = subprocess.run(['git', 'archive', '--format=tar', revision], cwd=REPO,
-                             capture_output=True, check=True).stdout
-    subprocess.run(['tar', '-x', '-C', str(folder)], input=archive, check=True)
-    return folder
 
 
 def run_tests(tree: Path, seed: int, files: list[str], folder: Path) -> tuple[str, float]:
@@ -127,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     base = commit_of(arguments.base)
     try:
         with tempfile.TemporaryDirectory(prefix='bench-decisions-') as scratch:
-            base_tree = exported(base, Path(scratch) / 'base_tree')
+            base_tree = export(base, Path(scratch) / 'base_tree')
             for seed in arguments.seed:
                 if not compared_at(seed, base, base_tree, arguments.files, Path(scratch)):
                     return 1

@@ -4,12 +4,13 @@ What the library of extension families costs: `diagnose` of bags/ with and witho
 The 500 runs in bags/, end to end, with this checkout and with the release before the
 families joined the race, in one run.
 
-The earlier release is checked out from this repository's history into a temporary folder
-(`git worktree add --detach`, removed at the end) and run with the same environment; the two
-programs alternate, REPEATS times each, so that a busy machine slows both alike. Prints the
-median wall time of each and their ratio (issue 23 asks for at most 1.5). `--candidate REV`
-times another commit in place of this checkout (checked out the same way), so that a figure
-about two past commits can be measured again (README, "Speed": c5602ef against 878b61e).
+The earlier release is copied out of this repository's history into a temporary folder
+(`revisions.export`: nothing registered in the repository) and run with the same
+environment; the two programs alternate, REPEATS times each, so that a busy machine slows
+both alike. Prints the median wall time of each and their ratio (issue 23 asks for at most
+1.5). `--candidate REV` times another commit in place of this checkout (copied out the same
+way), so that a figure about two past commits can be measured again (README, "Speed":
+c5602ef against 878b61e).
 
 Run: .venv/bin/python benchmarks/bench_extension_cost.py [--baseline REV] [--candidate REV]
      [--repeats N]
@@ -25,7 +26,7 @@ import sys
 import tempfile
 import time
 
-from revisions import commit_of
+from revisions import commit_of, export
 
 REPO = Path(__file__).resolve().parents[1]
 BASELINE = '3d46d39'     # the last release whose diagnosis raced the six causes alone
@@ -54,26 +55,14 @@ def main(argv: list[str] | None = None) -> int:
     revisions = {'baseline': commit_of(args.baseline),
                  'current': commit_of(args.candidate) if args.candidate else None}
     with tempfile.TemporaryDirectory() as scratch:
-        sources = {'baseline': Path(scratch) / 'baseline', 'current': REPO}
-        if args.candidate:
-            sources['current'] = Path(scratch) / 'candidate'
-        added = []
-        try:
-            for name, rev in revisions.items():
-                if rev:
-                    subprocess.run(['git', '-C', str(REPO), 'worktree', 'add', '--detach',
-                                    str(sources[name]), rev], check=True, capture_output=True)
-                    added.append(sources[name])
-            times: dict[str, list[float]] = {'baseline': [], 'current': []}
-            for repeat in range(args.repeats):
-                for name, source in sources.items():
-                    seconds = timed_diagnosis(source, Path(scratch) / f'{name}_{repeat}')
-                    times[name].append(seconds)
-                    print(f'{name} run {repeat + 1}: {seconds:.1f} s', file=sys.stderr)
-        finally:
-            for folder in added:
-                subprocess.run(['git', '-C', str(REPO), 'worktree', 'remove', '--force',
-                                str(folder)], check=False, capture_output=True)
+        sources = {name: export(rev, Path(scratch) / name) if rev else REPO
+                   for name, rev in revisions.items()}
+        times: dict[str, list[float]] = {'baseline': [], 'current': []}
+        for repeat in range(args.repeats):
+            for name, source in sources.items():
+                seconds = timed_diagnosis(source, Path(scratch) / f'{name}_{repeat}')
+                times[name].append(seconds)
+                print(f'{name} run {repeat + 1}: {seconds:.1f} s', file=sys.stderr)
     before, after = (statistics.median(times[name]) for name in ('baseline', 'current'))
     ratios = sorted(late / early for early, late in zip(times['baseline'], times['current']))
     print('| diagnose bags/ (500 runs, 2 workers, report and plots) | median wall time |')

@@ -25,17 +25,16 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-import io
 import json
 from pathlib import Path
 import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 from typing import Any
 
 import numpy as np
+from revisions import commit_of, export
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -112,17 +111,14 @@ def _same_streams(new: list, old: list) -> bool:
     return True
 
 
-def _release_before(ref: str, bag: Path, repeat: int) -> list[float]:
-    """CPU seconds of the three stages with the package of git commit `ref`."""
-    archive = subprocess.run(['git', 'archive', ref, 'octoroach_model', 'config'], cwd=REPO,
-                             capture_output=True, check=True).stdout
-    with tempfile.TemporaryDirectory() as folder:
-        with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
-            tar.extractall(folder, filter='data')
+def _release_before(commit: str, bag: Path, repeat: int) -> list[float]:
+    """CPU seconds of the three stages with the package of git commit `commit`."""
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = str(export(commit, Path(scratch) / 'release', ('octoroach_model', 'config')))
         ran = subprocess.run([sys.executable, '-c', BEFORE, folder, str(bag), str(repeat)],
                              cwd=folder, capture_output=True, text=True)
     if ran.returncode != 0:
-        raise SystemExit(f'the release of {ref} did not read the bag: '
+        raise SystemExit(f'the release of {commit} did not read the bag: '
                          f'{(ran.stderr.strip().splitlines() or ["?"])[-1]}')
     found = json.loads(ran.stdout.strip().splitlines()[-1])
     assert found['file'].startswith(folder), found['file']  # that release's files, not ours
@@ -138,6 +134,7 @@ def main() -> int:
                         help='also time the package as it was at this git commit')
     args = parser.parse_args()
     repeat = max(1, args.repeat)
+    release = commit_of(args.before) if args.before else None    # before the long work
     with tempfile.TemporaryDirectory() as folder:
         tiny = Path(folder) / 'tiny'
         write_paths_bag(tiny, om.simulate(3, seed=1, cycles=2))
@@ -157,7 +154,7 @@ def main() -> int:
             assert _same_streams(new, old), 'the two ways read different pose streams'
         rows.append((label, new_s, old_s))
 
-    before = _release_before(args.before, args.bag.resolve(), repeat) if args.before else None
+    before = _release_before(release, args.bag.resolve(), repeat) if release else None
     print(f'{args.bag}: {poses:,} poses; CPU seconds of this process, best of {repeat}')
     header = '| stage | in blocks | poses/s | message by message | poses/s | speed-up |'
     print(header + (f' {args.before} | poses/s |' if before else ''))

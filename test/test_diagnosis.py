@@ -138,6 +138,54 @@ def test_data_from_the_paper_model_name_no_cause():
     assert all(c.scored_runs > 0 for c in first if not screened_first(BY_NAME[c.cause]))
 
 
+def test_the_screen_stops_only_terms_whose_bound_cannot_reach_their_floor():
+    """
+    `diagnose.screen` alone: what a race step and a live look ask before any refit.
+
+    A term is stopped exactly where its size estimated at the current geometry has a bound
+    below its floor even SCREEN_ALLOWANCE standard errors up (or a mixture lacks evidence of
+    two groups); a measurement noise at many times its floor passes; the table's path causes
+    are never screened; a screened term was not refit nor scored (the current geometry and
+    scores, no gain), and `evaluate_candidate` answers the same for it.
+    """
+    from octoroach_model.diagnosis.causes import CANDIDATES, EstimateKind
+    from octoroach_model.diagnosis.decide import decision_z
+    from octoroach_model.diagnosis.diagnose import (
+        evaluate_candidate, fit_baseline, halves_as_diagnosed, MIXTURE_EVIDENCE_NATS,
+        out_of_reach, quick_fit, score_held_out, screen, SCREEN_ALLOWANCE, Simulator)
+
+    measured = om.simulate(120, seed=SEED + 61, cycles=8, effects={
+        'measurement_noise': {'position_std_cm': 0.2}})
+    quick = replace(FAST, seed=SEED + 61, **FEW_SIMULATED_RUNS)
+    halves = halves_as_diagnosed(measured, quick)
+    baseline = fit_baseline(halves, quick).model
+    scores = score_held_out(Simulator(halves.test, quick.seed), baseline, halves, quick)
+    z = decision_z(quick.decision_alpha, len(CANDIDATES))
+    answers = {cause.name: screen(halves, baseline, scores, cause.name, quick, z)
+               for cause in CANDIDATES}
+    message = replay(f'screened {[name for name, answer in answers.items() if answer]}')
+    assert answers['measurement_noise'] is None, message
+    for cause in CANDIDATES:
+        answer = answers[cause.name]
+        if not cause.is_extension and cause.kind == EstimateKind.PATH:
+            assert answer is None, message
+            continue
+        estimate = quick_fit(halves.train, baseline, cause, quick).estimates[cause.name]
+        stopped = out_of_reach(estimate, cause.floor(halves.run_scale), z - SCREEN_ALLOWANCE) \
+            or (cause.kind == EstimateKind.MIXTURE
+                and estimate.detail['log_likelihood_ratio'] < MIXTURE_EVIDENCE_NATS)
+        assert (answer is not None) == stopped, f'{cause.name}: {message}'
+        if answer is not None:
+            assert answer.screened and answer.scores is scores, message
+            assert (answer.gain.mean, answer.gain.p_value, answer.gain_cm) == (0.0, 1.0, 0.0)
+            assert answer.model.parameters == baseline.parameters, message
+            assert answer.estimates[cause.name] == estimate, message
+    screened = [name for name, answer in answers.items() if answer is not None]
+    assert screened, message
+    evaluated = evaluate_candidate(halves, baseline, scores, screened[0], quick, z)
+    assert evaluated.screened and evaluated.estimates == answers[screened[0]].estimates
+
+
 @pytest.mark.long
 def test_a_null_from_a_randomly_drawn_robot_names_no_cause():
     rng = random.Random(SEED * 10 + 8)
