@@ -41,15 +41,21 @@ FILES = tuple(f'test/{name}' for name in HIDDEN_EFFECT_FILES)
 OUTCOME = re.compile(r'(\d+ (passed|failed|error)[^\n]*)')
 
 
-def run_tests(tree: Path, seed: int, files: list[str], folder: Path) -> tuple[str, float]:
-    """Run `files` of `tree` at suite seed `seed`, recording into `folder`; outcome, wall s."""
+def run_tests(tree: Path, seed: int, files: list[str], folder: Path,
+              plugin: str = 'suite_decisions', variable: str = FOLDER_VARIABLE
+              ) -> tuple[str, float]:
+    """
+    Run `files` of `tree` at suite seed `seed`, recording into `folder`; outcome, wall s.
+
+    `plugin` (a module of benchmarks/) records, told the folder by the environment `variable`.
+    """
     folder.mkdir()
-    env = {**os.environ, 'OCTOROACH_TEST_SEED': str(seed), FOLDER_VARIABLE: str(folder),
+    env = {**os.environ, 'OCTOROACH_TEST_SEED': str(seed), variable: str(folder),
            'PYTHONPATH': os.pathsep.join([str(tree), str(REPO / 'benchmarks')])}
     started = time.perf_counter()
     finished = subprocess.run(
         [sys.executable, '-m', 'pytest', '-n', '2', '--maxschedchunk=2', '-q',
-         '-p', 'no:cacheprovider', '-p', 'suite_decisions', '--rootdir', str(tree), *files],
+         '-p', 'no:cacheprovider', '-p', plugin, '--rootdir', str(tree), *files],
         cwd=tree, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - started
     found = OUTCOME.findall(finished.stdout)
