@@ -21,54 +21,27 @@ from __future__ import annotations
 
 import argparse
 from collections import defaultdict
-import json
 import math
-import os
 from pathlib import Path
-import re
 import subprocess
 import sys
 import tempfile
-import time
 from typing import Any
 
 from bench_suite import HIDDEN_EFFECT_FILES
 from revisions import commit_of, export
 from suite_decisions import FOLDER_VARIABLE
+from suite_records import read_lines, run_tests
 
 REPO = Path(__file__).resolve().parents[1]
 FILES = tuple(f'test/{name}' for name in HIDDEN_EFFECT_FILES)
-OUTCOME = re.compile(r'(\d+ (passed|failed|error)[^\n]*)')
-
-
-def run_tests(tree: Path, seed: int, files: list[str], folder: Path,
-              plugin: str = 'suite_decisions', variable: str = FOLDER_VARIABLE
-              ) -> tuple[str, float]:
-    """
-    Run `files` of `tree` at suite seed `seed`, recording into `folder`; outcome, wall s.
-
-    `plugin` (a module of benchmarks/) records, told the folder by the environment `variable`.
-    """
-    folder.mkdir()
-    env = {**os.environ, 'OCTOROACH_TEST_SEED': str(seed), variable: str(folder),
-           'PYTHONPATH': os.pathsep.join([str(tree), str(REPO / 'benchmarks')])}
-    started = time.perf_counter()
-    finished = subprocess.run(
-        [sys.executable, '-m', 'pytest', '-n', '2', '--maxschedchunk=2', '-q',
-         '-p', 'no:cacheprovider', '-p', plugin, '--rootdir', str(tree), *files],
-        cwd=tree, env=env, capture_output=True, text=True)
-    wall = time.perf_counter() - started
-    found = OUTCOME.findall(finished.stdout)
-    return (found[-1][0] if found else f'pytest exit {finished.returncode}'), wall
 
 
 def records(folder: Path) -> dict[str, list[dict[str, Any]]]:
     """Return each test's diagnoses, in the order its process ran them."""
     by_test: dict[str, list[dict[str, Any]]] = defaultdict(list)
-    for path in sorted(folder.glob('*.jsonl')):
-        for line in path.read_text().splitlines():
-            record = json.loads(line)
-            by_test[record['test']].append(record)
+    for record in read_lines(folder):
+        by_test[record['test']].append(record)
     return by_test
 
 
@@ -141,7 +114,8 @@ def compared_at(seed: int, base: str, base_tree: Path, files: list[str], scratch
     outcomes = {}
     for name, tree, folder in (('base', base_tree, 'base'), ('this tree', REPO, 'head')):
         print(f'seed {seed}: running the tests of {name} ...', file=sys.stderr, flush=True)
-        outcomes[name] = run_tests(tree, seed, files, scratch / f'{folder}-{seed}')
+        outcomes[name] = run_tests(tree, seed, files, scratch / f'{folder}-{seed}',
+                                   'suite_decisions', FOLDER_VARIABLE)
     before, after = records(scratch / f'base-{seed}'), records(scratch / f'head-{seed}')
     rows = compare(before, after)
     if not rows:

@@ -19,24 +19,25 @@ from __future__ import annotations
 
 import argparse
 from collections import Counter
-import json
-import math
 from pathlib import Path
 import sys
 import tempfile
 from typing import Any
 
-from bench_decisions import FILES, run_tests
+from bench_decisions import FILES
 from suite_path_refits import VARIABLE
+from suite_records import read_lines, run_tests
 
 REPO = Path(__file__).resolve().parents[1]
 START_NAMES = ('current geometry', 'equal angles', "Table II's angles")
 
 
-def out_of_reach(size_se: list[float], floor: float, z: float) -> bool:
-    """Whether |size| - z se stays at or below `floor` (the screen's rule for a path size)."""
-    size, se = size_se
-    return not math.isfinite(se) or abs(size) - z * se <= floor
+def out_of_reach(cause: str, size_se: list[float], floor: float, z: float) -> bool:
+    """Apply the screen's rule (`diagnose.out_of_reach`) to a [size, standard error]."""
+    from octoroach_model.diagnosis.diagnose import out_of_reach as rule
+    from octoroach_model.diagnosis.modelfit import SizeEstimate
+
+    return rule(SizeEstimate(cause, *size_se), floor, z)
 
 
 def summary(rows: list[dict[str, Any]], allowance: float) -> list[str]:
@@ -48,8 +49,8 @@ def summary(rows: list[dict[str, Any]], allowance: float) -> list[str]:
         mine = [row for row in rows if row['cause'] == cause]
         cells = [cause, str(len(mine)), f'{sum(row["seconds"] for row in mine):.0f}',
                  str(sum(row['cleared'] for row in mine))]
-        for rule in (lambda row, z: out_of_reach(row['starts'][0], row['floor'], z),
-                     lambda row, z: all(out_of_reach(start, row['floor'], z)
+        for rule in (lambda row, z: out_of_reach(row['cause'], row['starts'][0], row['floor'], z),
+                     lambda row, z: all(out_of_reach(row['cause'], start, row['floor'], z)
                                         for start in row['starts'])):
             stopped = [row for row in mine if rule(row, row['z'] - allowance)]
             cells.append(f'{len(stopped)} ({sum(row["seconds"] for row in stopped):.0f} s), '
@@ -79,8 +80,7 @@ def main(argv: list[str] | None = None) -> int:
                 outcome, wall = run_tests(REPO, seed, list(FILES), folder,
                                           'suite_path_refits', VARIABLE)
                 print(f'seed {seed}: {outcome}; {wall:.0f} s wall', file=sys.stderr)
-                rows += [json.loads(line) for path in sorted(folder.glob('*.jsonl'))
-                         for line in path.read_text().splitlines()]
+                rows += read_lines(folder)
     except KeyboardInterrupt:
         print('interrupted: nothing kept (the records were temporary)', file=sys.stderr)
         return 130

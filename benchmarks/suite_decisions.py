@@ -12,11 +12,11 @@ variable the plugin changes nothing.
 from __future__ import annotations
 
 import functools
-import json
 import os
-from pathlib import Path
 import time
 from typing import Any
+
+from suite_records import append, current_test
 
 FOLDER_VARIABLE = 'OCTOROACH_SUITE_DECISIONS'
 
@@ -38,17 +38,13 @@ def pytest_configure(config) -> None:
     import octoroach_model.diagnosis as package
 
     original = package.diagnose
-    name = os.environ.get('PYTEST_XDIST_WORKER', 'controller')
-    path = Path(folder) / f'{name}.jsonl'
 
     @functools.wraps(original)
     def recorded(*args: Any, **kwargs: Any) -> Any:
         started = time.perf_counter()
         report = original(*args, **kwargs)
-        line = {'test': os.environ.get('PYTEST_CURRENT_TEST', '').rsplit(' ', 1)[0],
-                'seconds': time.perf_counter() - started, **decision_of(report)}
-        with path.open('a') as stream:
-            stream.write(json.dumps(line) + '\n')
+        append(folder, {'test': current_test(), 'seconds': time.perf_counter() - started,
+                        **decision_of(report)})
         return report
 
     package.diagnose = recorded

@@ -13,11 +13,11 @@ refit's seconds. Without the variable the plugin changes nothing.
 from __future__ import annotations
 
 import importlib
-import json
 import os
-from pathlib import Path
 import time
 from typing import Any
+
+from suite_records import append, current_test
 
 VARIABLE = 'OCTOROACH_PATH_REFITS'
 
@@ -31,7 +31,6 @@ def pytest_configure(config) -> None:
     from octoroach_model.diagnosis.causes import BY_NAME, EstimateKind
     from octoroach_model.diagnosis.decide import judge
 
-    path = Path(folder) / f'{os.environ.get("PYTEST_XDIST_WORKER", "controller")}.jsonl'
     evaluate, best_valley = diagnose.evaluate_candidate, modelfit.best_valley
     kept: list[int] = []
 
@@ -59,14 +58,13 @@ def pytest_configure(config) -> None:
         seconds = time.perf_counter() - started
         estimate = evaluation.estimates[cause]
         floor = candidate.floor(halves.run_scale)
-        line = {'test': os.environ.get('PYTEST_CURRENT_TEST', '').rsplit(' ', 1)[0],
-                'cause': cause, 'terms_in': len(current.causes), 'z': z_decision,
-                'floor': floor, 'starts': [[start.size, start.se] for start in starts],
-                'size': estimate.size, 'se': estimate.se,
-                'cleared': judge(estimate, floor, z_decision).clears_floor,
-                'kept': list(kept), 'seconds': seconds}
-        with path.open('a') as stream:
-            stream.write(json.dumps(line) + '\n')
+        append(folder, {
+            'test': current_test(), 'cause': cause, 'terms_in': len(current.causes),
+            'z': z_decision, 'floor': floor,
+            'starts': [[start.size, start.se] for start in starts],
+            'size': estimate.size, 'se': estimate.se,
+            'cleared': judge(estimate, floor, z_decision).clears_floor,
+            'kept': list(kept), 'seconds': seconds})
         return evaluation
 
     modelfit.best_valley = keeping
