@@ -28,10 +28,11 @@ to its second) is printed over them. Rows go to --out (one JSON line per data se
 finishes); a stopped run resumes where it stopped.
 
 Run: .venv/bin/python benchmarks/bench_out_of_library.py [--replicates 6] [--workers 2]
-     [--effects none speed_wobble yaw_ramp] [--out out/studies/out_of_library_ramp/rows.jsonl]
+     [--effects none speed_wobble yaw_ramp] [--out out/studies/out_of_library_scored/rows.jsonl]
      [--report-only]
-(README's rows: out/studies/out_of_library_ramp, with the family yaw_rate_ramp; the rows of
-out/studies/out_of_library are from before it.)
+(README's rows: out/studies/out_of_library_scored, with the ramp's signature scored; those of
+out/studies/out_of_library_ramp are from before that, with the family yaw_rate_ramp, and those
+of out/studies/out_of_library from before the family.)
 A data set takes 14-426 s of one core (a null the least, a swinging gait speed the most).
 """
 from __future__ import annotations
@@ -201,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--workers', type=int, default=2,
                         help='local processes (default 2; 1 or 0: all in this process)')
     parser.add_argument('--out', type=Path, default=REPO / 'out' / 'studies'
-                        / 'out_of_library_ramp' / 'rows.jsonl')
+                        / 'out_of_library_scored' / 'rows.jsonl')
     parser.add_argument('--report-only', action='store_true')
     args = parser.parse_args(argv)
     rows = read_rows(args.out)

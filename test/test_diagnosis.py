@@ -29,8 +29,9 @@ import pytest
 
 import octoroach_model as om
 from octoroach_model.diagnosis import diagnose, DiagnosisSettings, write_report
-from octoroach_model.diagnosis.causes import BY_NAME
+from octoroach_model.diagnosis.causes import BY_NAME, CANDIDATES, FeatureStatistic, Reading
 from octoroach_model.diagnosis.diagnose import screened_first
+from octoroach_model.diagnosis.features import FEATURES, INDEX, OUTCOMES
 from octoroach_model.diagnosis.stages import STAGES
 from octoroach_model.validation import ValidationSettings
 
@@ -188,6 +189,34 @@ def test_the_screen_stops_only_terms_whose_bound_cannot_reach_their_floor():
 
 
 @pytest.mark.long
+def test_every_feature_a_term_is_sized_or_started_from_is_scored():
+    """
+    A term whose size the runs show in a feature the held-out test does not read goes unnamed.
+
+    yaw_rate_ramp was started from the heading rate's change between a run's halves while the
+    test scored every feature but that one: at suite seed 1206 a ramp to 7.1 deg/s, its bound
+    at 6.0 for a floor of 0.28, went unnamed (features.py, note (5)).
+    """
+    read = sorted({(cause.name, statistic.feature) for cause in CANDIDATES
+                   for statistic in (cause.statistic, cause.signature) if statistic is not None})
+    assert ('yaw_rate_ramp', 'heading_rate_change') in read
+    unscored = [(name, feature) for name, feature in read if not OUTCOMES[INDEX[feature]]]
+    assert not unscored, f'terms sized from features no held-out test reads: {unscored}'
+    # each reading is the one it names, on a made-up matrix of runs in recording order
+    rng = np.random.default_rng(SEED)
+    features = rng.normal(size=(40, len(FEATURES)))
+    features[:, INDEX['position']] = np.linspace(0.0, 1.0, 40)
+    features[:, INDEX['heading_rate']] += 3.0 * features[:, INDEX['position']]
+    column = features[:, INDEX['heading_rate']]
+    assert FeatureStatistic('heading_rate', Reading.MEAN)(features) == pytest.approx(column.mean())
+    assert FeatureStatistic('heading_rate', Reading.VARIANCE)(features) == pytest.approx(
+        column.var(ddof=1))
+    assert FeatureStatistic('heading_rate', Reading.MEAN_EXP)(features) == pytest.approx(
+        np.exp(column).mean())
+    slope = np.polyfit(features[:, INDEX['position']], column, 1)[0]
+    assert FeatureStatistic('heading_rate', Reading.TREND)(features) == pytest.approx(slope)
+
+
 def test_a_null_from_a_randomly_drawn_robot_names_no_cause():
     rng = random.Random(SEED * 10 + 8)
     robot, cycles, runs, scale = random_robot(rng)

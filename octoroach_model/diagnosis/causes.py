@@ -99,6 +99,46 @@ class RunScale:
     stances: float = 20.0
 
 
+class Reading(StrEnum):
+    """How a `FeatureStatistic` reads its feature's column over runs."""
+
+    MEAN = 'mean'
+    VARIANCE = 'variance'
+    MEAN_EXP = 'mean of exp'                 # a log-power feature read as a power
+    NOISE_VARIANCE = 'noise variance'        # log_noise read as a variance, m^2
+    TREND = 'trend'                          # slope against the run's place in the recording
+
+
+@dataclass(frozen=True)
+class FeatureStatistic:
+    """
+    A number a term is sized or started from: one feature's column over runs, read one way.
+
+    A `Cause`'s `statistic` and `signature`. It names its feature so that a test can check
+    that every feature a term is sized from is also scored (features.OUTCOMES): a term whose
+    size the runs show in a feature the held-out test does not read can clear its floor by
+    far and still go unnamed (features.py, note (5)).
+    """
+
+    feature: str
+    reading: Reading
+
+    def __call__(self, features: FloatArray) -> float:
+        values = features[:, INDEX[self.feature]]
+        if self.reading == Reading.MEAN:
+            return float(np.mean(values))
+        if self.reading == Reading.VARIANCE:
+            return float(np.var(values, ddof=1))
+        if self.reading == Reading.MEAN_EXP:
+            return float(np.mean(np.exp(values)))
+        if self.reading == Reading.NOISE_VARIANCE:
+            return float(np.mean(noise_variance_m2(values)))
+        place = features[:, INDEX['position']]
+        x = place - place.mean()
+        denominator = float(x @ x)
+        return float(x @ values) / denominator if denominator > 0 else 0.0
+
+
 @dataclass(frozen=True)
 class Cause:
     """
@@ -120,12 +160,12 @@ class Cause:
     unit: str
     kind: EstimateKind
     statistic_name: str
-    statistic: Callable[[FloatArray], float] | None
+    statistic: FeatureStatistic | None
     reference: float
     floor: Callable[[RunScale], float]
     signed: bool = False
     bounds: tuple[float, float] = (0.0, 1.0)    # sizes a fit may take (path causes)
-    signature: Callable[[FloatArray], float] | None = None   # path causes: where to start
+    signature: FeatureStatistic | None = None   # path causes: where to start
     family: str = ''
     main: str = ''                              # main parameter (default: the term's first)
     null: float = 0.0
@@ -156,19 +196,25 @@ class Cause:
         return {self.name: {self.parameter: float(size)}}
 
 
-def _variance_of(column: str) -> Callable[[FloatArray], float]:
-    index = INDEX[column]
-    return lambda features: float(np.var(features[:, index], ddof=1))
+def _variance_of(feature: str) -> FeatureStatistic:
+    return FeatureStatistic(feature, Reading.VARIANCE)
 
 
-def _mean_of(column: str) -> Callable[[FloatArray], float]:
-    index = INDEX[column]
-    return lambda features: float(np.mean(features[:, index]))
+def _mean_of(feature: str) -> FeatureStatistic:
+    return FeatureStatistic(feature, Reading.MEAN)
 
 
-def _noise_variance(features: FloatArray) -> float:
-    """Position noise variance (m^2) read from the median 4th differences (module features)."""
-    return float(np.mean(noise_variance_m2(features[:, INDEX['log_noise']])))
+def _mean_exp_of(feature: str) -> FeatureStatistic:
+    return FeatureStatistic(feature, Reading.MEAN_EXP)
+
+
+def _trend_of(feature: str) -> FeatureStatistic:
+    """Return the least-squares slope of a feature against the run's place in the recording."""
+    return FeatureStatistic(feature, Reading.TREND)
+
+
+# position noise variance (m^2) read from the median 4th differences (module features)
+_NOISE_VARIANCE = FeatureStatistic('log_noise', Reading.NOISE_VARIANCE)
 
 
 def _slip_floor(scale: RunScale) -> float:
@@ -184,7 +230,7 @@ CAUSES: tuple[Cause, ...] = (
     Cause('initial_pose_error', 'deg', EstimateKind.MOMENTS, 'start heading variance',
           _variance_of('start_heading'), 4.0, lambda scale: 0.5),
     Cause('measurement_noise', 'cm', EstimateKind.MOMENTS, 'position noise variance (median 4th '
-          'difference)', _noise_variance, 0.05, lambda scale: POSITION_RESOLUTION_M * 100),
+          'difference)', _NOISE_VARIANCE, 0.05, lambda scale: POSITION_RESOLUTION_M * 100),
     Cause('gait_frequency_variation', '', EstimateKind.MOMENTS,
           'stride frequency variance across runs', _variance_of('stride_frequency'), 0.05,
           lambda scale: STRIDE_FREQUENCY_FLOOR),
@@ -198,22 +244,6 @@ CAUSES: tuple[Cause, ...] = (
           'heading rate variance across runs', _variance_of('heading_rate'), 5.0,
           lambda scale: 1.0 / max(scale.duration_s, 1e-3)),
 )
-
-
-def _trend_of(column: str) -> Callable[[FloatArray], float]:
-    """Return the least-squares slope of a feature against the run's place in the recording."""
-    index, place = INDEX[column], INDEX['position']
-
-    def slope(features: FloatArray) -> float:
-        x = features[:, place] - features[:, place].mean()
-        denominator = float(x @ x)
-        return float(x @ features[:, index]) / denominator if denominator > 0 else 0.0
-    return slope
-
-
-def _mean_exp_of(column: str) -> Callable[[FloatArray], float]:
-    index = INDEX[column]
-    return lambda features: float(np.mean(np.exp(features[:, index])))
 
 
 def _duration_floor(scale: RunScale) -> float:
