@@ -10,7 +10,9 @@ Two parts:
 - `--studies` (hours on this machine): runs the README's studies (false_positives, power,
   limits, two_causes, wide_robots in studies/) into out/studies/NAME, resuming any that an
   earlier call left unfinished, and prints the README tables from their summary.json. With
-  `--report-only` it prints the tables of the studies already in out/studies.
+  `--report-only` it prints the tables of the studies already in out/studies, also of a study
+  kept under another name after a change (`--studies ramp_limits_7358d86`: the spec named in
+  its study.json, which must still be the one in studies/).
 
 Run: .venv/bin/python benchmarks/bench_studies.py [--scale] [--studies [NAME ...]]
      [--workers N | --scheduler ADDRESS] [--report-only]
@@ -29,6 +31,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from octoroach_model.studies.rows import StudyRow
+    from octoroach_model.studies.spec import StudySpec
     from octoroach_model.studies.summary_records import (
         Estimation, InadequateOnNulls, Rate, RateByRuns, Recovery, StudySummary)
 
@@ -144,11 +147,10 @@ def table_summary(name: str) -> tuple[StudySummary, str | None, list[StudyRow]]:
     table's rows.
     """
     from octoroach_model.studies.design import build_tasks
-    from octoroach_model.studies.spec import load_spec
     from octoroach_model.studies.summary import summarize
     from octoroach_model.studies.table import read_table
 
-    spec = load_spec(SPECS / f'{name}.yaml')
+    spec = spec_of(name)
     rows, _ = read_table(OUT / name / 'table.csv', earlier=True)
     earlier = OUT / name / 'summary.json'
     wall_time_s = (json.loads(earlier.read_text())['timing'].get('wall_time_s')
@@ -160,6 +162,27 @@ def table_summary(name: str) -> tuple[StudySummary, str | None, list[StudyRow]]:
     return summarize(spec, rows), (
         f'{len(rows)} of the {total} data sets of the spec (replicates {replicates[0]}-'
         f'{replicates[-1]}, not all complete); `--studies {name}` resumes it'), rows
+
+
+def spec_of(name: str) -> StudySpec:
+    """
+    Return the spec of the study in out/studies/NAME: studies/NAME.yaml, or its folder's own.
+
+    A study kept under another name after a change (out/studies/ramp_limits_7358d86, the
+    rows before the ramp's signature was scored) has no spec file of that name: its manifest
+    (study.json) names the spec it was run with, which must still be the one in studies/.
+    """
+    from octoroach_model.studies.spec import load_spec
+    from octoroach_model.studies.table import read_manifest
+
+    if (SPECS / f'{name}.yaml').exists():
+        return load_spec(SPECS / f'{name}.yaml')
+    manifest = read_manifest(OUT / name)
+    spec = load_spec(SPECS / f'{manifest["spec"]["name"]}.yaml')
+    if spec.spec_hash != manifest['spec_hash']:
+        raise SystemExit(f'error: out/studies/{name} was run with another spec than '
+                         f'studies/{spec.name}.yaml holds now')
+    return spec
 
 
 def print_close_calls(rows: list[StudyRow]) -> None:
@@ -220,7 +243,7 @@ def print_tables(names: list[str]) -> None:
             print(f'\n{name}: no table in {OUT / name} (run --studies {name})')
             continue
         summary, partial, rows = table_summary(name)
-        command = (f'python -m octoroach_model study studies/{name}.yaml '
+        command = (f'python -m octoroach_model study studies/{summary.study}.yaml '
                    f'--out out/studies/{name}')
         print(f'\n### {name} (`{command}`, {_wall(name, summary)} on this machine)\n')
         if partial:

@@ -42,7 +42,7 @@ def replay(what: str) -> str:
 
 def evidence(report, family: str) -> str:
     """Say how a family fared where it was last weighed: its size's bound and its test."""
-    weighed = [c for c in report.extension_candidates if c.cause.split(':')[0] == family]
+    weighed = [c for c in report.extension_candidates if c.family == family]
     return '; '.join(
         f'{c.cause} at step {c.step}: {c.parameters}, bound {c.lower_bound:.3g} for a floor '
         f'of {c.floor:.3g}, held-out gain {c.gain:.3g} +- {c.gain_se:.3g} nats a run, '
