@@ -20,16 +20,14 @@ from __future__ import annotations
 import argparse
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
-import os
 from pathlib import Path
-import subprocess
 import sys
 import tempfile
 from typing import Any
 
 from revisions import commit_of, export
 from suite_decisions import FOLDER_VARIABLE
-from suite_records import OUTCOME, read_lines
+from suite_records import read_lines, run_tests
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -51,16 +49,9 @@ def seeds_of(text: str) -> list[int]:
 def run_at(tree: Path, test: list[str], seed: int, folder: Path
            ) -> tuple[str, list[dict[str, Any]]]:
     """Run `test` (pytest's arguments) in `tree` at suite seed `seed`; outcome, diagnoses."""
-    folder.mkdir()
-    env = {**os.environ, 'OCTOROACH_TEST_SEED': str(seed), FOLDER_VARIABLE: str(folder),
-           'PYTHONPATH': os.pathsep.join([str(tree), str(REPO / 'benchmarks')])}
-    finished = subprocess.run(
-        [sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider', '-p', 'no:xdist',
-         '-p', 'suite_decisions', '--rootdir', str(tree), *test],
-        cwd=tree, env=env, capture_output=True, text=True)
-    found = OUTCOME.findall(finished.stdout)
-    return (found[-1][0].split(' in ')[0] if found else f'pytest exit {finished.returncode}',
-            read_lines(folder))
+    outcome, _ = run_tests(tree, seed, test, folder, 'suite_decisions', FOLDER_VARIABLE,
+                           workers=('-p', 'no:xdist'))
+    return outcome.split(' in ')[0], read_lines(folder)
 
 
 def decision(records: list[dict[str, Any]]) -> str:

@@ -44,19 +44,24 @@ def read_lines(folder: Path) -> list[dict[str, Any]]:
             for line in path.read_text().splitlines()]
 
 
+MAKEFILE_WORKERS = ('-n', '2', '--maxschedchunk=2')     # the Makefile's pytest workers
+
+
 def run_tests(tree: Path, seed: int, files: list[str], folder: Path, plugin: str,
-              variable: str) -> tuple[str, float]:
+              variable: str, workers: tuple[str, ...] = MAKEFILE_WORKERS) -> tuple[str, float]:
     """
     Run `files` of `tree` at suite seed `seed`, recording into `folder`; outcome, wall s.
 
-    `plugin` (a module of benchmarks/) records, told the folder by the environment `variable`.
+    `plugin` (a module of benchmarks/) records, told the folder by the environment `variable`;
+    `files` may carry pytest's selection too (`-k EXPRESSION`), and `workers` replaces the
+    Makefile's xdist options (('-p', 'no:xdist'): one process).
     """
     folder.mkdir()
     env = {**os.environ, 'OCTOROACH_TEST_SEED': str(seed), variable: str(folder),
            'PYTHONPATH': os.pathsep.join([str(tree), str(REPO / 'benchmarks')])}
     started = time.perf_counter()
     finished = subprocess.run(
-        [sys.executable, '-m', 'pytest', '-n', '2', '--maxschedchunk=2', '-q',
+        [sys.executable, '-m', 'pytest', *workers, '-q',
          '-p', 'no:cacheprovider', '-p', plugin, '--rootdir', str(tree), *files],
         cwd=tree, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - started
