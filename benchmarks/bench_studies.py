@@ -12,10 +12,12 @@ Two parts:
   earlier call left unfinished, and prints the README tables from their summary.json. With
   `--report-only` it prints the tables of the studies already in out/studies, also of a study
   kept under another name after a change (`--studies ramp_limits_7358d86`: the spec named in
-  its study.json, which must still be the one in studies/).
+  its study.json, which must still be the one in studies/). With `--compare OTHER` it then
+  sets each study's null limits beside OTHER's, data set by data set (the same spec run at
+  another commit, say): how the limits moved, and which data sets were decided otherwise.
 
 Run: .venv/bin/python benchmarks/bench_studies.py [--scale] [--studies [NAME ...]]
-     [--workers N | --scheduler ADDRESS] [--report-only]
+     [--workers N | --scheduler ADDRESS] [--report-only [--compare OTHER]]
 """
 from __future__ import annotations
 
@@ -236,6 +238,87 @@ def print_scoring_error(rows: list[StudyRow]) -> None:
           f'{power(errors[-1])} ({POWER:.2f} without it)\n')
 
 
+def print_limit_parts(rows: list[StudyRow]) -> None:
+    """
+    Print, per term at 1x its limit, what each part of the decision did beside its prediction.
+
+    A limit is where P(size bound clears) x P(held-out test significant) reaches 80 %
+    (docs/diagnosis.md, "Detection limits"); the null data set's report gives the two at the
+    limit (`bound_power_<term>`, `test_power_<term>`), the data set with the term at that
+    limit what came of each (`clears_floor_<term>`; t above `t_critical`, of the data sets
+    whose test was scored). A named-rate near 80 % can hide two parts wrong in opposite
+    directions: this says which part decides the misses.
+    """
+    from octoroach_model.studies.spec import ArmKind
+    from octoroach_model.studies.summary import wilson
+
+    nulls = {(row.replicate, row.runs): row for row in rows if row.ok
+             and row.kind == ArmKind.NULL}
+    parts: dict[str, dict[str, list[tuple[float, bool]]]] = {}
+    for row in rows:
+        null = nulls.get((row.replicate, row.runs))
+        if not (row.ok and row.limit_multiple == 1.0 and null is not None):
+            continue
+        for term in row.true_causes:
+            predicted, outcome = null.terms[term], row.terms[term]
+            mine = parts.setdefault(term, {'bound': [], 'test': []})
+            if math.isfinite(predicted.bound_power) and outcome.clears_floor is not None:
+                mine['bound'].append((predicted.bound_power, outcome.clears_floor))
+            if math.isfinite(predicted.test_power) and math.isfinite(outcome.t) \
+                    and math.isfinite(outcome.t_critical):
+                mine['test'].append((predicted.test_power, outcome.t > outcome.t_critical))
+
+    def said(pairs: list[tuple[float, bool]], what: str) -> str:
+        if not pairs:
+            return f'{what}: no data set'
+        held = sum(outcome for _, outcome in pairs)
+        mean = statistics.mean(power for power, _ in pairs)
+        return f'{what} {_rate(wilson(held, len(pairs)))} where {mean:.2f} was predicted'
+
+    for term, mine in parts.items():
+        if mine['bound'] or mine['test']:
+            print(f'the parts of the decision at 1x, {term}: '
+                  f'{said(mine["bound"], "size bound cleared its floor")}; '
+                  f'{said(mine["test"], "held-out test passed (of those scored)")}\n')
+
+
+def print_comparison(name: str, other: str) -> None:
+    """
+    Print each term's null limits in study `name` beside those in `other`, and the decisions.
+
+    The rows are matched by key (the same spec: the same robots and seeds, common random
+    numbers), so the ratios are the change's, not the draws'; a data set named or not in one
+    and not the other is listed.
+    """
+    from octoroach_model.studies.spec import ArmKind
+    from octoroach_model.studies.table import read_table
+    from octoroach_model.studies.terms import TERMS
+
+    missing = [study for study in (name, other) if not (OUT / study / 'table.csv').is_file()]
+    if missing:
+        print(f'\n{name} beside {other}: no table in {OUT / missing[0]}')
+        return
+    tables = [{row.key: row for row in read_table(OUT / study / 'table.csv', earlier=True)[0]
+               if row.ok} for study in (name, other)]
+    mine, theirs = tables
+    common = [key for key in mine if key in theirs]
+    print(f'\n{name} beside {other} ({len(common)} data sets in both):')
+    for term in TERMS:
+        ratios = [mine[key].terms[term].limit / theirs[key].terms[term].limit
+                  for key in common if mine[key].kind == ArmKind.NULL
+                  and math.isfinite(mine[key].terms[term].limit)
+                  and theirs[key].terms[term].limit > 0]
+        turned = [key for key in common if term in mine[key].true_causes
+                  and mine[key].terms[term].named != theirs[key].terms[term].named]
+        if not ratios:
+            continue
+        print(f'  {term}: null limits {statistics.median(ratios):.3f} times those there '
+              f'(median; {min(ratios):.3f}-{max(ratios):.3f} over {len(ratios)} nulls); '
+              f'decided otherwise: ' + (', '.join(
+                  f'{key} ({"named" if mine[key].terms[term].named else "not named"} here)'
+                  for key in turned) or 'none'))
+
+
 def print_tables(names: list[str]) -> None:
     """Print the README tables of every study of `names` found in out/studies."""
     for name in names:
@@ -310,6 +393,7 @@ def print_tables(names: list[str]) -> None:
                           f'{e.named.trials}, turned {e.turned})' for e in margins) + '\n')
             print_close_calls(rows)
             print_scoring_error(rows)
+            print_limit_parts(rows)
             for multiple in (1.0, 2.0):
                 chosen = [e for e in entries if e.limit_multiple == multiple]
                 missed = sum(e.missed for e in chosen)
@@ -421,10 +505,17 @@ def main(argv: list[str] | None = None) -> int:
                         help='print the tables of the studies in out/studies, run nothing')
     parser.add_argument('--workers', type=int, default=None)
     parser.add_argument('--scheduler', default=None)
+    parser.add_argument('--compare', default=None, metavar='OTHER',
+                        help='with --report-only: each null limit beside the one in '
+                             'out/studies/OTHER, data set by data set')
     args = parser.parse_args(argv)
+    if args.compare and not args.report_only:
+        parser.error('--compare compares tables already run: give it with --report-only')
     names = list(args.studies or README_STUDIES) if args.studies is not None else []
     if args.report_only:
         print_tables(names or list(README_STUDIES))
+        for name in (names or list(README_STUDIES)) if args.compare else []:
+            print_comparison(name, args.compare)
         return 0
     if not args.scale and args.studies is None:
         args.scale = True

@@ -300,7 +300,9 @@ def a_report(causes=(), candidates=(), extensions=(), extension_candidates=(), s
 
     def scored(entries):
         return tuple(SimpleNamespace(**{'held_out_t': None, 't_scoring_se': None,
-                                        'first_t': None, **entry}) for entry in entries)
+                                        'first_t': None, 'clears_floor': False,
+                                        'detectable_power': {}, **entry})
+                     for entry in entries)
 
     return SimpleNamespace(
         causes=records(causes), candidates=scored(candidates),
@@ -320,7 +322,8 @@ def test_the_adapter_reads_a_typed_report_with_several_causes_and_intervals():
                  'interval': {'position_std_cm': [0.08, 0.12]}}],
         candidates=[{'cause': 'lateral_slip', 'parameters': {'velocity_cm_s': 0.01},
                      'detectable': {'velocity_cm_s': 0.2}, 'held_out_t': 1.25,
-                     't_scoring_se': 0.5, 'first_t': 2.5},
+                     't_scoring_se': 0.5, 'first_t': 2.5, 'clears_floor': True,
+                     'detectable_power': {'size_bound': 0.85, 'held_out_test': 0.94}},
                     {'cause': 'persistent_turning', 'parameters': {'yaw_rate_std_deg_s': 0.0},
                      'detectable': {'yaw_rate_std_deg_s': 2.0}}],
         adequate=False, unexplained=[{'statistic': 'heading_rate_spread', 'z': 5.0}],
@@ -339,6 +342,11 @@ def test_the_adapter_reads_a_typed_report_with_several_causes_and_intervals():
     # how far each scored term's held-out test got, against what it had to pass
     slip = terms['lateral_slip']
     assert (slip.t, slip.t_critical, slip.t_scoring_se, slip.first_t) == (1.25, 3.0, 0.5, 2.5)
+    # what its limit predicted of each part of the decision, and what the bound did
+    assert (slip.clears_floor, slip.bound_power, slip.test_power) == (True, 0.85, 0.94)
+    turning = terms['persistent_turning']
+    assert turning.clears_floor is False and math.isnan(turning.bound_power)
+    assert terms['speed_decay'].clears_floor is None    # named, not among the candidates
     assert all(math.isnan(value) for value in (
         terms['persistent_turning'].t, terms['persistent_turning'].t_critical,
         terms['persistent_turning'].first_t, terms['speed_decay'].t))

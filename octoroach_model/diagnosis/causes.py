@@ -150,10 +150,13 @@ class Cause:
     `floor` maps a RunScale to the smallest size claimed; `family` is empty for a cause of the
     table; `null` is the main parameter's value that means no effect (change_point's speed
     factor 1); `order_dependent` terms are predicted run by run at the run's place;
-    `limit_caveat` says in words where studies found the term's detection limit not to hold
-    as computed (the report carries it beside the limit); none does now (periodic_heading's,
-    named in 7 of 12 data sets at 1x in studies/heading_terms.yaml's first run, was named in
-    19 of 24 with studies/periodic_limits.yaml's twelve at commit 33f1294).
+    `geometry_mimics` marks a path term whose mean effect a geometry fitted without it takes
+    up in good part (yaw_rate_ramp's mean turn), so that its limit weighs it against the model
+    refit without it (limits.geometry_absorbed); `limit_caveat` says in words where studies
+    found the term's detection limit not to hold as computed (the report carries it beside
+    the limit); none does now (periodic_heading's, named in 7 of 12 data sets at 1x in
+    studies/heading_terms.yaml's first run, was named in 19 of 24 with
+    studies/periodic_limits.yaml's twelve at commit 33f1294).
     """
 
     name: str
@@ -170,6 +173,7 @@ class Cause:
     main: str = ''                              # main parameter (default: the term's first)
     null: float = 0.0
     order_dependent: bool = False
+    geometry_mimics: bool = False
     limit_caveat: str = ''
 
     @property
@@ -276,7 +280,7 @@ FAMILIES: tuple[Cause, ...] = (
     Cause('yaw_rate_ramp', 'deg/s', EstimateKind.PATH,
           'average path (joint fit with the geometry)', None, 5.0, _duration_floor,
           signed=True, bounds=(-30.0, 30.0), signature=_mean_of('heading_rate_change'),
-          family='yaw_rate_ramp'),
+          family='yaw_rate_ramp', geometry_mimics=True),
 )
 CANDIDATES: tuple[Cause, ...] = CAUSES + FAMILIES
 BY_NAME = {cause.name: cause for cause in CANDIDATES}

@@ -40,6 +40,10 @@ NUMERICAL_ZERO = 1e-9
 # on more runs and decided on those (diagnose._settled), said in summary.md and counted by
 # the studies (close_calls).
 CLOSE_CALL_SE = 2.0
+# A term screened before its refit (diagnose.screened_first) is refit and scored only where
+# its quick estimate's bound, at the decision's z less this many standard errors, could
+# reach its floor (diagnose.screen); its limit counts that step too (limits.bound_power).
+SCREEN_ALLOWANCE = 2.0
 
 
 @dataclass(frozen=True)

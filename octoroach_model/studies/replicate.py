@@ -198,12 +198,23 @@ def read_report(report: DiagnosisReport, effects: Mapping[str, Mapping[str, floa
             rel_error=(estimate - truth) / distance
             if truth is not None and distance and math.isfinite(estimate) else math.nan,
             limit=_number(main_value(candidate.detectable, main))
-            if candidate is not None else math.nan, **_test_columns(report, candidate))
+            if candidate is not None else math.nan, **_test_columns(report, candidate),
+            **_limit_columns(candidate))
     return outcome, terms
 
 
+def _limit_columns(candidate: CandidateResult | None) -> dict[str, Any]:
+    """Return whether a term's size bound cleared, and its limit's predicted powers."""
+    if candidate is None:
+        return {}
+    predicted = candidate.detectable_power
+    return {'clears_floor': candidate.clears_floor,
+            'bound_power': _number(predicted.get('size_bound')),
+            'test_power': _number(predicted.get('held_out_test'))}
+
+
 def _test_columns(report: DiagnosisReport, candidate: CandidateResult | None
-                  ) -> dict[str, float]:
+                  ) -> dict[str, Any]:
     """Return a term's held-out t, the t it had to pass, its scoring error, its first t."""
     t = candidate.held_out_t if candidate is not None else None
     if candidate is None or t is None:

@@ -35,8 +35,12 @@ class TermOutcome:
     true size's distance from the value of no effect; `limit` the detection limit reported;
     `t`, `t_critical` and `t_scoring_se` how far its held-out test got (how far above or below
     its threshold a term at a limit sits, and whether other simulated runs could turn it);
-    `first_t` its t before a close call was scored again on more simulated runs.
-    NaN where there is nothing to say; `named` None where the task was not diagnosed.
+    `first_t` its t before a close call was scored again on more simulated runs;
+    `clears_floor` whether its size bound cleared its floor at that step; `bound_power` and
+    `test_power` what the detection limit predicted at the limit (diagnosis/limits.py: P(the
+    size bound clears), P(the held-out test is significant)), where a whole decision's limit
+    was computed (null data sets). NaN where there is nothing to say; `named` and
+    `clears_floor` None where the task was not diagnosed.
     """
 
     true: float = math.nan
@@ -50,6 +54,9 @@ class TermOutcome:
     t_critical: float = math.nan     # what that t had to pass there
     t_scoring_se: float = math.nan   # that t's error from the scored simulated runs
     first_t: float = math.nan        # a close call's t on its first scored runs (scored again)
+    clears_floor: bool | None = None    # its size bound cleared the floor at that step
+    bound_power: float = math.nan    # the limit's predicted P(size bound clears) at the limit
+    test_power: float = math.nan     # the limit's predicted P(held-out test significant) there
 
 
 NO_TERMS: Mapping[str, TermOutcome] = {term: TermOutcome() for term in TERMS}

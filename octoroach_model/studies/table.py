@@ -52,7 +52,8 @@ _OUTCOME: tuple[tuple[str, type], ...] = (
 _PER_CAUSE: tuple[tuple[str, type], ...] = (
     ('true', float), ('named', bool), ('estimate', float), ('low', float), ('high', float),
     ('rel_error', float), ('limit', float), ('t', float), ('t_critical', float),
-    ('t_scoring_se', float), ('first_t', float),
+    ('t_scoring_se', float), ('first_t', float), ('clears_floor', bool),
+    ('bound_power', float), ('test_power', float),
 )
 _TAIL: tuple[tuple[str, type], ...] = (('status', Status), ('note', str), ('elapsed_s', float))
 COLUMNS: tuple[tuple[str, type], ...] = (
