@@ -642,6 +642,9 @@ def test_a_path_familys_limit_weighs_its_screen_and_its_refits_bound_each_at_its
             screen * bound, rel=1e-12)
     assert limits.bound_power(refit, 2.8, floor, z_bound, quick) > 0.99 > 0.8 > (
         limits.bound_power(quick, 2.8, floor, z_bound))      # the quick error at the full z
+    # a quick estimate without an error (its signature flat) is screened out: never named
+    flat = SizeEstimate('yaw_rate_ramp', size=0.0, se=math.inf)
+    assert limits.bound_power(refit, 5.0, floor, z_bound, flat) == 0.0
 
     def sure(size: float) -> float:                  # the test certain: the bounds decide
         return 1e6

@@ -129,8 +129,10 @@ def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float,
             return 1.0 if u > floor ** 2 else 0.0
         return float(stats.norm.cdf((u - floor ** 2 - z * se) / se))
     se = estimate.se
-    if not (math.isfinite(se) and se > 0):
+    if se == 0:
         return 1.0 if size > floor else 0.0
+    if not (math.isfinite(se) and se > 0):
+        return 0.0          # no error to bound the size with: never clears (out_of_reach)
     return float(stats.norm.cdf((size - floor - z * se) / se))
 
 
