@@ -33,16 +33,6 @@ PARAMETERS = {'yaw_rate_ramp': 'final_yaw_rate_deg_s', 'change_point': 'speed_fa
 RUNS, CYCLES = 500, 10
 
 
-def first_step(measured: Any, settings: Any) -> tuple[Any, Any]:
-    """Return the halves and the baseline fitted to the calibration half, as the race has them."""
-    from octoroach_model.diagnosis.diagnose import (
-        choose_wobble_hz, fit_baseline, halves_as_diagnosed, with_wobble)
-
-    halves = halves_as_diagnosed(measured, settings)
-    baseline = fit_baseline(halves, settings).model
-    return with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings)), baseline
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--term', choices=sorted(PARAMETERS), default='yaw_rate_ramp')
@@ -58,10 +48,9 @@ def main(argv: list[str] | None = None) -> int:
     from octoroach_model.diagnosis.causes import BY_NAME, CANDIDATES
     from octoroach_model.diagnosis.decide import decision_z, judge
     from octoroach_model.diagnosis.diagnose import (
-        DiagnosisSettings, evaluate_candidate, Evaluation, path_family_estimates, quick_fit,
-        score_held_out)
-    from octoroach_model.diagnosis.modelfit import same_strides, Simulator
-    from octoroach_model.diagnosis.scoring import PairedGain
+        DiagnosisSettings, halves_as_diagnosed, path_family_estimates)
+    from octoroach_model.diagnosis.modelfit import same_strides
+    from study_replay import first_step
 
     started = time.perf_counter()
     settings = DiagnosisSettings(seed=args.seed)
@@ -69,18 +58,19 @@ def main(argv: list[str] | None = None) -> int:
     everyone = len(CANDIDATES)
     z_bound = decision_z(settings.decision_alpha, everyone)
     z_test = float(stats.norm.isf(settings.alpha / everyone))
-    halves, baseline = first_step(om.simulate(RUNS, seed=args.seed, cycles=CYCLES), settings)
+
+    def weighed(measured: Any) -> tuple[Any, Any, Any, Any]:
+        return first_step(halves_as_diagnosed(measured, settings), cause.name, settings, z_bound)
+
+    halves, baseline, evaluation, simulator = weighed(
+        om.simulate(RUNS, seed=args.seed, cycles=CYCLES))
     floor = cause.floor(halves.run_scale)
-    quick = quick_fit(halves.train, baseline, cause, settings)
-    screened = Evaluation(cause.name, quick.model, quick.estimates, None, PairedGain(0, 0, 1),
-                          0.0, screened=True)      # as the race leaves it on a null
-    refit, screen = path_family_estimates(halves, baseline, screened, settings)
+    refit, screen = path_family_estimates(halves, baseline, evaluation, settings)
     print(f"{args.term} on Table II's robot, {RUNS} null runs of {CYCLES} strides, seed "
           f'{args.seed}: floor {floor:.4g}, z of the bound {z_bound:.2f}, of the test '
           f'{z_test:.2f}')
     print(f'  quick estimate {screen.size:+.4g} (se {screen.se:.3g}); joint refit '
           f'{refit.size:+.4g} (se {refit.se:.3g})')
-    simulator = Simulator(halves.test, settings.seed)
     base = limits.limit_base(simulator, baseline, halves.scales, settings.score_runs)
     limit = limits.detection_limit(
         simulator, baseline, refit, floor, z_bound, z_test, halves.scales, halves.test.n,
@@ -127,11 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         measured = om.simulate(RUNS, seed=args.seed + 100 + data_set, cycles=CYCLES,
                                **({'extensions': terms} if cause.is_extension else
                                   {'effects': terms}))
-        halves, baseline = first_step(measured, settings)
-        scores = score_held_out(Simulator(halves.test, settings.seed), baseline, halves,
-                                settings)
-        evaluation = evaluate_candidate(halves, baseline, scores, cause.name, settings,
-                                        z_bound)
+        evaluation = weighed(measured)[2]
         estimate = evaluation.estimates[cause.name]
         lower = abs(estimate.size - cause.null) - z_bound * estimate.se
         gain = evaluation.gain

@@ -238,6 +238,34 @@ def print_scoring_error(rows: list[StudyRow]) -> None:
           f'{power(errors[-1])} ({POWER:.2f} without it)\n')
 
 
+def _at_limit(rows: list[StudyRow], multiple: float | None, missed: bool) -> list[str]:
+    """
+    Say each term put in at a limit multiple that was missed, or named with an interval off.
+
+    `missed`: the terms at `multiple` x their limit not named (their robot's spread, their
+    held-out t and what it had to pass); else the terms named at any multiple whose reported
+    95 % interval does not hold the truth.
+    """
+    from octoroach_model.studies.spec import ArmKind
+
+    said = []
+    for row in rows:
+        if not row.ok or row.kind == ArmKind.NULL or (
+                multiple is not None and row.limit_multiple != multiple):
+            continue
+        for term in row.true_causes:
+            o = row.terms[term]
+            if missed and not o.named:
+                test = (f't {o.t:.2f} for {o.t_critical:.2f}' if math.isfinite(o.t)
+                        else 'screened')
+                said.append(f'{term} replicate {row.replicate} (spread x{row.spread_scale:.2f}'
+                            f'): {test}')
+            elif not missed and o.named and not o.low <= o.true <= o.high:
+                said.append(f'{term} replicate {row.replicate} at {row.limit_multiple:g}x: '
+                            f'{o.true:.4g} outside {o.low:.4g} to {o.high:.4g}')
+    return said
+
+
 def print_limit_parts(rows: list[StudyRow]) -> None:
     """
     Print, per term at 1x its limit, what each part of the decision did beside its prediction.
@@ -276,8 +304,11 @@ def print_limit_parts(rows: list[StudyRow]) -> None:
         return f'{what} {_rate(wilson(held, len(pairs)))} where {mean:.2f} was predicted'
 
     for term, mine in parts.items():
+        limits = [row.terms[term].limit for row in nulls.values()
+                  if math.isfinite(row.terms[term].limit)]
         if mine['bound'] or mine['test']:
-            print(f'the parts of the decision at 1x, {term}: '
+            print(f'the parts of the decision at 1x, {term} (limits on the nulls '
+                  f'{min(limits):.4g}-{max(limits):.4g}): '
                   f'{said(mine["bound"], "size bound cleared its floor")}; '
                   f'{said(mine["test"], "held-out test passed (of those scored)")}\n')
 
@@ -400,7 +431,12 @@ def print_tables(names: list[str]) -> None:
                 flagged = sum(e.missed_not_adequate for e in chosen)
                 if missed:
                     print(f'missed at {multiple:g}x the limit: {missed}, of which reported not '
-                          f'adequate (the miss is not silent): {flagged}\n')
+                          f'adequate (the miss is not silent): {flagged}; '
+                          + '; '.join(_at_limit(rows, multiple, missed=True)) + '\n')
+            wide = _at_limit(rows, None, missed=False)
+            if wide:
+                print('named at a limit multiple, the 95 % interval not holding the truth: '
+                      + '; '.join(wide) + '\n')
         if summary.two_cause_recovery:
             by_cause = {(e.arm, e.cause, e.runs): e for e in summary.estimation}
             print('| causes | data sets | both named (95 % interval) | each named (median abs. '

@@ -62,10 +62,7 @@ def race_step(spec_path: Path | Any, replicate: int, term: str, null_row: Any,
     keeps the split of the runs into halves, which the study's seed makes; `moment_runs`
     replaces the study's simulated runs for every statistic matched (the spread scale's too).
     """
-    from octoroach_model.diagnosis.diagnose import (
-        choose_wobble_hz, evaluate_candidate, fit_baseline, halves_as_diagnosed, score_held_out,
-        with_wobble)
-    from octoroach_model.diagnosis.modelfit import Simulator
+    from octoroach_model.diagnosis.diagnose import halves_as_diagnosed
     from octoroach_model.studies.design import build_tasks
     from octoroach_model.studies.spec import load_spec
 
@@ -76,9 +73,26 @@ def race_step(spec_path: Path | Any, replicate: int, term: str, null_row: Any,
     halves = halves_as_diagnosed(measured, settings)
     settings = replace(settings, seed=settings.seed + simulation_shift,
                        moment_runs=moment_runs or settings.moment_runs)
+    halves, baseline, evaluation, simulator = first_step(halves, term, settings)
+    return RaceStep(draw, effects, settings, halves, baseline, evaluation, simulator)
+
+
+def first_step(halves: Any, term: str, settings: Any, z_decision: float = 0.0
+               ) -> tuple[Any, Any, Any, Any]:
+    """
+    Weigh `term` at the race's first step on `halves`, as the race weighs it.
+
+    Returns the halves with the wobble chosen, the baseline fitted to the calibration half,
+    the term's Evaluation and the held-out Simulator; `z_decision` is the step's bound
+    level, which decides the screen (diagnose.screen).
+    """
+    from octoroach_model.diagnosis.diagnose import (
+        choose_wobble_hz, evaluate_candidate, fit_baseline, score_held_out, with_wobble)
+    from octoroach_model.diagnosis.modelfit import Simulator
+
     baseline = fit_baseline(halves, settings).model
     halves = with_wobble(halves, choose_wobble_hz(halves.train, baseline, settings))
     simulator = Simulator(halves.test, settings.seed)
     scores = score_held_out(simulator, baseline, halves, settings)
-    evaluation = evaluate_candidate(halves, baseline, scores, term, settings)
-    return RaceStep(draw, effects, settings, halves, baseline, evaluation, simulator)
+    evaluation = evaluate_candidate(halves, baseline, scores, term, settings, z_decision)
+    return halves, baseline, evaluation, simulator

@@ -1241,8 +1241,8 @@ def test_a_path_familys_test_is_averaged_over_its_refit_size_at_the_runs_strides
 
     The sizes 1.7 standard errors either side of the truth are scored with the rule's weights;
     a clock term moved keeps the strides per run, as a refit matching the runs' gait would:
-    moved alone, change_point's t fell from 7.3 to 3.3 on Table II's robot
-    (`benchmarks/bench_path_limits.py --term change_point`) and its limits rose.
+    moved alone, its runs gained or lost strides, the test scored that too, and
+    change_point's limits rose (a first version, found with benchmarks/bench_path_limits.py).
     """
     from scipy import stats
 

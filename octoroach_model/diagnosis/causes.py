@@ -191,6 +191,11 @@ class Cause:
         return bool(self.family)
 
     @property
+    def is_path_family(self) -> bool:
+        """Whether a family term sized with the geometry: screened on a quick estimate first."""
+        return self.is_extension and self.kind == EstimateKind.PATH
+
+    @property
     def label(self) -> str:
         """Return the name a report gives it: the cause, or the extension family."""
         return self.family or self.name

@@ -1046,7 +1046,7 @@ def _limit(halves: Halves, model: FittedModel, evaluation: Evaluation,
     floor, z_bound = cause.floor(halves.run_scale), decision_z(settings.decision_alpha, everyone)
     estimate = evaluation.estimates[cause.name]
     screen_estimate = None
-    if screened_first(cause) and cause.kind == EstimateKind.PATH:
+    if cause.is_path_family:
         estimate, screen_estimate = path_family_estimates(halves, without, evaluation, settings)
     start = seen.detectable[cause.parameter]
     fitted = dict(evaluation.model.effects.get(cause.name) or {})

@@ -68,7 +68,6 @@ from octoroach_model.diagnosis.modelfit import (
     MIXTURE_EVIDENCE_NATS, RunData, same_strides, Simulator, SizeEstimate, spread_error,
     spread_statistic, two_groups, two_groups_evidence)
 from octoroach_model.diagnosis.scoring import feature_log_score
-from octoroach_model.paths import Paths
 
 PSEUDO_RUNS = 1000
 REFINEMENTS = 2            # at most this many extra sizes at which T is computed
@@ -234,7 +233,8 @@ def size_averaged_t(simulator: Simulator, pair: SimulatedPair, cause: Cause, siz
     duration = float(simulator.data.paths.t[-1])
     for node in SPREAD_NODES[1:]:
         # a clock term moved keeps the strides per run, as the refit that matches the runs'
-        # gait would (`same_strides`): moved alone, change_point's t fell from 7.3 to 3.3
+        # gait would (`same_strides`); moved alone, its runs gain or lose strides, which the
+        # test would score too (a first version did, and change_point's limits rose)
         moved = same_strides(pair.extended.with_effect(cause.name, at_size(
             cause, max(size + node * size_se, 0.0), fitted_values, simulator.data)),
             pair.extended, duration)
@@ -297,8 +297,9 @@ def simulated_pair(simulator: Simulator, without: FittedModel, without_features:
     The model without the cause is as the diagnosis would fit it to those runs: a term that
     slows or speeds the gait clock (speed_decay, change_point) enters with the strides per run
     of the model without it (`same_strides`), as the race's baseline, fitted to runs with the
-    term, matches their stride frequency; a heading term's spread is refit
-    (`spread_absorbed`); `fit` sizes that refit.
+    term, matches their stride frequency; a term a geometry mimics has the geometry refit
+    (`geometry_absorbed`), a heading term the spread (`spread_absorbed`); `fit` sizes these
+    refits.
     """
     values = at_size(cause, size, fitted_values, simulator.data)
     if cause.name == 'initial_pose_error':
@@ -308,10 +309,13 @@ def simulated_pair(simulator: Simulator, without: FittedModel, without_features:
                             float(simulator.data.paths.t[-1]))
     # as many pseudo-data runs as the models are scored with, at most PSEUDO_RUNS
     paths, positions = simulator.runs(extended, min(PSEUDO_RUNS, score_runs), PSEUDO_PURPOSE)
-    runs = simulator.data.features_of(paths, positions)
-    bent = geometry_absorbed(simulator, without, cause, paths, positions, fit or FitSettings())
-    if bent is not None:
-        without, without_features = bent, limit_base(simulator, bent, scales, score_runs)
+    if cause.geometry_mimics:
+        pseudo = simulator.data.with_runs(paths, positions)
+        runs = pseudo.features
+        without = geometry_absorbed(pseudo, without, fit or FitSettings())
+        without_features = limit_base(simulator, without, scales, score_runs)
+    else:
+        runs = simulator.data.features_of(paths, positions)
     absorbing = spread_absorbed(simulator, without, extended, runs, fit or FitSettings())
     if absorbing is not None:
         without, without_features = absorbing, limit_base(simulator, absorbing, scales,
@@ -319,11 +323,9 @@ def simulated_pair(simulator: Simulator, without: FittedModel, without_features:
     return SimulatedPair(extended, without, without_features, runs, absorbing is not None)
 
 
-def geometry_absorbed(simulator: Simulator, without: FittedModel, cause: Cause,
-                      paths: Paths, positions: FloatArray, fit: FitSettings
-                      ) -> FittedModel | None:
+def geometry_absorbed(runs: RunData, without: FittedModel, fit: FitSettings) -> FittedModel:
     """
-    Return `without` with its geometry refit to runs with the term, where a geometry mimics it.
+    Return `without` with its geometry refit to `runs`, runs with a term a geometry mimics.
 
     The race weighs a term against the model fitted to the runs without it, and a geometry
     bends to take up the mean of some path terms (`Cause.geometry_mimics`): yaw_rate_ramp's
@@ -333,13 +335,8 @@ def geometry_absorbed(simulator: Simulator, without: FittedModel, cause: Cause,
     2.82 deg/s, had an expected t of 6.16 against the model as fitted and 3.70 against the
     model refit to runs with it, and four data sets with it there gave t = 2.35, 4.54, 1.64
     and 1.17 for 3.22 where the limit had said 0.999 (`benchmarks/bench_path_limits.py
-    --size 2.82 --data-sets 4`). None for other terms: the model as fitted.
+    --size 2.82 --data-sets 4`). Other terms keep the model as fitted (`simulated_pair`).
     """
-    if not cause.geometry_mimics:
-        return None
-    data = simulator.data
-    runs = RunData(paths, data.stride_frequency, data.reference_heading, positions,
-                   data.wobble_hz, data.wobble_interval)
     path_causes = tuple(name for name in without.causes
                         if BY_NAME[name].kind == EstimateKind.PATH)
     return fit_geometry(runs, without, path_causes, fit)[0]

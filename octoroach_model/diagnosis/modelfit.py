@@ -158,9 +158,12 @@ class RunData:
     def subset(self, index: IntArray) -> RunData:
         """Return the runs picked by `index`, with their places and this ruler."""
         assert self.positions is not None
-        return RunData(self.paths.subset(index), self.stride_frequency,
-                       self.reference_heading, self.positions[index], self.wobble_hz,
-                       self.wobble_interval)
+        return self.with_runs(self.paths.subset(index), self.positions[index])
+
+    def with_runs(self, paths: Paths, positions: FloatArray) -> RunData:
+        """Return other runs (simulated ones, say) at `positions`, measured with this ruler."""
+        return RunData(paths, self.stride_frequency, self.reference_heading, positions,
+                       self.wobble_hz, self.wobble_interval)
 
     def with_wobble(self, wobble_hz: float | None,
                     interval: tuple[float, float] | None = None) -> RunData:
