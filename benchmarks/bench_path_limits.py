@@ -5,14 +5,16 @@ On Table II's robot (500 null runs of 10 strides, `--seed`), for yaw_rate_ramp o
 change_point (`--term`), prints
 
 - the term's quick estimate (what the race screens it on) and its joint refit with the
-  geometry (what sizes it), each with its standard error;
+  geometry (what sizes it), each with its standard error (change_point's at half the runs,
+  where its limit is stated);
 - the detection limit the diagnosis computes (diagnose.path_family_estimates, limits.
   detection_limit) with its two parts, P(size bound clears) and P(held-out test);
 - at `--size` (default: that limit), the held-out test's expected t against the model as
-  fitted to the null runs and against the model refit to runs with the term (its geometry bent
-  to the term's mean: limits.geometry_absorbed, computed for either term, used by the limit
-  for the ramp alone), and t with the extended model at the size 1.7 standard errors of the
-  refit below and above it, with the power they average to (limits.size_averaged_t);
+  fitted to the null runs (a change point then entering at its strides per run) and against
+  the model refit to the robot's runs with the term (its geometry bent to the term's mean:
+  limits.geometry_absorbed, which the limit weighs for both terms), and t with the extended
+  model at the size 1.7 standard errors of the refit below and above it, with the power they
+  average to (limits.size_averaged_t);
 - with `--data-sets K`: K data sets of the robot with the term at that size, the race's first
   step on each (the baseline fitted, the term weighed): the size as refit, its lower bound
   against the floor, the held-out t against the critical one (docs/diagnosis.md, section 8).
@@ -48,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     from octoroach_model.diagnosis.causes import BY_NAME, CANDIDATES
     from octoroach_model.diagnosis.decide import decision_z, judge
     from octoroach_model.diagnosis.diagnose import (
-        DiagnosisSettings, halves_as_diagnosed, path_family_estimates)
+        change_time, DiagnosisSettings, halves_as_diagnosed, path_family_estimates)
     from octoroach_model.diagnosis.modelfit import same_strides
     from study_replay import first_step
 
@@ -72,20 +74,30 @@ def main(argv: list[str] | None = None) -> int:
     print(f'  quick estimate {screen.size:+.4g} (se {screen.se:.3g}); joint refit '
           f'{refit.size:+.4g} (se {refit.se:.3g})')
     base = limits.limit_base(simulator, baseline, halves.scales, settings.score_runs)
+    # the term's other parameters where the diagnosis states its limit (diagnose._limit):
+    # change_point's time at half the runs
+    fitted = ({'time_s': change_time(halves)} if args.term == 'change_point' else None)
     limit = limits.detection_limit(
         simulator, baseline, refit, floor, z_bound, z_test, halves.scales, halves.test.n,
-        settings.score_runs, judge(screen, floor, z_bound).limit, None, base, settings.fit(),
-        screen)
+        settings.score_runs, judge(screen, floor, z_bound).limit, fitted, base,
+        settings.fit(), screen)
     print(f'  detection limit {limit.size:.4g}: P(size bound clears) '
           f'{limit.size_bound_power:.3f}, P(held-out test) {limit.test_power:.3f} '
           f'({time.perf_counter() - started:.0f} s)')
     size = args.size if args.size is not None else limit.size
     if size is None:
         return 0
-    # the model without the term refit to runs with it, whether or not the limit does so
-    pair = limits.simulated_pair(simulator, baseline, base, replace(cause, geometry_mimics=True),
-                                 size, halves.scales, settings.score_runs, None, settings.fit())
-    as_fitted = replace(pair, without=baseline, without_features=base)
+    # the model without the term refit to runs with it, and as fitted to the null runs (a
+    # clock term then entering at their strides per run), whichever the limit weighs
+    values = limits.at_size(cause, size, fitted, simulator.data)
+
+    def pair_of(refit: bool) -> Any:
+        return limits.simulated_pair(simulator, baseline, base,
+                                     replace(cause, geometry_mimics=refit), size,
+                                     halves.scales, settings.score_runs, values,
+                                     settings.fit())
+
+    pair, as_fitted = pair_of(True), pair_of(False)
     used = pair if cause.geometry_mimics else as_fitted      # the pair the limit weighs
 
     def t_of(chosen: Any, extended: Any = None) -> float:
@@ -95,11 +107,11 @@ def main(argv: list[str] | None = None) -> int:
     t_fitted, t_refit = t_of(as_fitted), t_of(pair)
     duration = float(simulator.data.paths.t[-1])
     moved = [t_of(used, same_strides(used.extended.with_effect(cause.name, limits.at_size(
-        cause, max(size + node * refit.se, 0.0), None, simulator.data)), used.extended,
+        cause, max(size + node * refit.se, 0.0), values, simulator.data)), used.extended,
         duration)) for node in limits.SPREAD_NODES[1:]]
     averaged = limits.size_averaged_t(simulator, used, cause, size, refit.se, t_of(used),
                                       halves.scales, halves.test.n, settings.score_runs,
-                                      z_test)
+                                      z_test, values)
 
     def power(t: float) -> str:
         return f'{stats.norm.cdf(t - z_test):.3f}'
@@ -111,7 +123,6 @@ def main(argv: list[str] | None = None) -> int:
           f'{1.7 * refit.se:.3g} below and above: {moved[0]:.2f}, {moved[1]:.2f}; averaged, '
           f'power {power(averaged)} ({time.perf_counter() - started:.0f} s)')
     critical = float(stats.t.isf(settings.alpha / everyone, halves.test.n - 1))
-    values = limits.at_size(cause, size, None, simulator.data)
     for data_set in range(args.data_sets):
         terms = {cause.name: values}
         measured = om.simulate(RUNS, seed=args.seed + 100 + data_set, cycles=CYCLES,

@@ -151,12 +151,17 @@ class Cause:
     table; `null` is the main parameter's value that means no effect (change_point's speed
     factor 1); `order_dependent` terms are predicted run by run at the run's place;
     `geometry_mimics` marks a path term whose mean effect a geometry fitted without it takes
-    up in good part (yaw_rate_ramp's mean turn), so that its limit weighs it against the model
-    refit without it (limits.geometry_absorbed); `limit_caveat` says in words where studies
-    found the term's detection limit not to hold as computed (the report carries it beside
-    the limit); none does now (periodic_heading's, named in 7 of 12 data sets at 1x in
-    studies/heading_terms.yaml's first run, was named in 19 of 24 with
-    studies/periodic_limits.yaml's twelve at commit 33f1294).
+    up in good part (yaw_rate_ramp's mean turn; the mean rate of a term that slows or speeds
+    the gait clock, which the stride frequency takes), so that its limit weighs it against
+    the model refit without it (limits.geometry_absorbed); `limit_stated` says where a limit
+    is stated when it depends on a parameter besides the size (a change's time);
+    `screen_simulated` marks a path family whose screen the limit simulates (change_point:
+    its step's error depends on how well the runs show the change's time, limits.
+    screen_power), where the others take the screen's error off the null data set;
+    `limit_caveat` says in words where studies found the term's detection limit not to hold
+    as computed (the report carries it beside the limit); none does now (periodic_heading's,
+    named in 7 of 12 data sets at 1x in studies/heading_terms.yaml's first run, was named in
+    19 of 24 with studies/periodic_limits.yaml's twelve at commit 33f1294).
     """
 
     name: str
@@ -174,6 +179,8 @@ class Cause:
     null: float = 0.0
     order_dependent: bool = False
     geometry_mimics: bool = False
+    limit_stated: str = ''
+    screen_simulated: bool = False
     limit_caveat: str = ''
 
     @property
@@ -245,7 +252,7 @@ CAUSES: tuple[Cause, ...] = (
           lambda scale: STRIDE_FREQUENCY_FLOOR),
     Cause('speed_decay', '', EstimateKind.PATH, 'average path (joint fit with the geometry)',
           None, 0.2, lambda scale: 0.01, signed=True, bounds=(-0.9, 0.9),
-          signature=_mean_of('progress_ratio')),
+          signature=_mean_of('progress_ratio'), geometry_mimics=True),
     Cause('lateral_slip', 'cm/s', EstimateKind.PATH,
           'average path (joint fit with the geometry)', None, 2.0, _slip_floor, signed=True,
           bounds=(-50.0, 50.0), signature=_mean_of('slip_angle')),
@@ -275,13 +282,17 @@ FAMILIES: tuple[Cause, ...] = (
           family='heading_random_walk'),
     Cause('periodic_heading', 'deg', EstimateKind.MOMENTS,
           'heading power at the wobble frequency', _mean_exp_of('heading_wobble'), 5.0,
-          lambda scale: 0.5, family='periodic_heading'),
+          lambda scale: 0.5, family='periodic_heading',
+          limit_stated=f'at {PERIODIC_LIMIT_PERIODS:g} periods per run, at most half the '
+          'stride frequency'),
     Cause('change_point', '', EstimateKind.PATH, 'average path (joint fit with the geometry)',
           None, 0.7, lambda scale: 0.01, signed=True, bounds=(0.2, 3.0), family='change_point',
-          main='speed_factor', null=1.0),
+          main='speed_factor', null=1.0, geometry_mimics=True,
+          limit_stated='for a change at half the runs', screen_simulated=True),
     Cause('run_mixture', 'deg/s', EstimateKind.MIXTURE,
           'heading rates across runs (two groups)', None, 8.0, _duration_floor, signed=True,
-          family='run_mixture', main='yaw_rate_deg_s'),
+          family='run_mixture', main='yaw_rate_deg_s',
+          limit_stated=f'with {MIXTURE_FRACTION:.0%} of the runs turning'),
     Cause('yaw_rate_ramp', 'deg/s', EstimateKind.PATH,
           'average path (joint fit with the geometry)', None, 5.0, _duration_floor,
           signed=True, bounds=(-30.0, 30.0), signature=_mean_of('heading_rate_change'),

@@ -46,6 +46,16 @@ CLOSE_CALL_SE = 2.0
 SCREEN_ALLOWANCE = 2.0
 
 
+def out_of_reach(estimate: SizeEstimate, floor: float, z: float) -> bool:
+    """Whether the size's lower bound at `z` standard errors stays below `floor`."""
+    cause = BY_NAME[estimate.cause]
+    if cause.kind == EstimateKind.MOMENTS:
+        return bool(not math.isfinite(estimate.se_u)
+                    or estimate.u - z * estimate.se_u <= floor ** 2)
+    return bool(not math.isfinite(estimate.se)
+                or abs(estimate.size - cause.null) - z * estimate.se <= floor)
+
+
 @dataclass(frozen=True)
 class SizeVerdict:
     """What a size estimate supports: interval, lower bound, floor and detection limit."""

@@ -28,7 +28,18 @@ the ramp's size bound seem to decide its limit where the test did. The race scor
 extended model at the size refit on the calibration half, so P2 is averaged over that
 size's error (`size_averaged_t`); and where a geometry fitted without the term mimics its
 mean (yaw_rate_ramp's mean turn, `Cause.geometry_mimics`), the model without it is refit to
-the runs with it (`geometry_absorbed`), as the race's baseline is.
+the runs with it (`geometry_absorbed`), as the race's baseline is. change_point's limit is
+stated for a change at half the runs (diagnose.change_time), its refit made there, and its
+screen simulated (`screen_power`: its step's error depends on how clearly runs show the
+change's time, which a null data set says nothing of).
+
+A term that slows or speeds the gait clock (speed_decay, change_point) is weighed the same
+way: the runs stride as the robot with the term would, and the model without it, refit to
+them, takes their mean rate in its stride frequency (its geometry mimics the term's mean).
+Entered instead at the strides per run of the model without it (`same_strides`), a clock the
+robot does not have, a change at half the runs showed half as much again in the test (t
+5.99 against 4.02 at its limit on Table II's robot; `benchmarks/bench_path_limits.py --term
+change_point`).
 
 A heading term (heading_random_walk, periodic_heading) is weighed at the spread scale the
 race would fit with it, not only at the true one: with the term in it, a model's spread is
@@ -61,13 +72,15 @@ from scipy import stats
 
 from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind
-from octoroach_model.diagnosis.decide import POWER, SCREEN_ALLOWANCE, se_u_if_true
+from octoroach_model.diagnosis.decide import (
+    out_of_reach, POWER, SCREEN_ALLOWANCE, se_u_if_true)
 from octoroach_model.diagnosis.features import INDEX
 from octoroach_model.diagnosis.modelfit import (
-    at_size, fit_geometry, fit_spread, FitSettings, FittedModel, largest_size,
-    MIXTURE_EVIDENCE_NATS, RunData, same_strides, Simulator, SizeEstimate, spread_error,
-    spread_statistic, two_groups, two_groups_evidence)
+    at_size, CHANGE_POINT_BOOTSTRAP, fit_geometry, fit_spread, FitSettings, FittedModel,
+    largest_size, MIXTURE_EVIDENCE_NATS, RunData, same_strides, Simulator, SizeEstimate,
+    speed_ratio, spread_error, spread_statistic, two_groups, two_groups_evidence)
 from octoroach_model.diagnosis.scoring import feature_log_score
+from octoroach_model.fitting.gait import cycle_distances
 
 PSEUDO_RUNS = 1000
 REFINEMENTS = 2            # at most this many extra sizes at which T is computed
@@ -78,6 +91,7 @@ T_CAP = 1e6                # an expected t beyond this is certain detection (a s
 PSEUDO_PURPOSE = 51
 MODEL_PURPOSE = 52
 EVIDENCE_SUBSETS = 40      # calibration halves drawn from the simulated runs for P3
+SCREEN_SUBSETS = 20        # ... for a simulated screen (`screen_power`)
 
 METHOD = ('smallest size named with 80 % power: P(size bound clears the floor) x P(held-out '
           'test significant) (x P(two groups seen), for run_mixture), the first from the '
@@ -91,16 +105,25 @@ class Limit:
 
     cause: str
     size: float | None
-    size_bound_power: float
+    size_bound_power: float                  # P1, the simulated screen's part in it too
     test_power: float
     two_groups_power: float | None = None    # run_mixture only: P3 (module docstring)
+    screen_power: float | None = None        # a simulated screen's part of P1 (Cause)
+
+    @property
+    def simulated_power(self) -> float:
+        """Return the product of the parts of the limit that runs simulated with it give."""
+        parts = (self.test_power, self.two_groups_power, self.screen_power)
+        return math.prod(1.0 if part is None else part for part in parts)
 
 
 class TestPoint(NamedTuple):
     """What runs simulated with a cause of one size show: the test's expected t, and P3."""
 
     t: float
-    identified: float = 1.0     # P(the runs show it as what it is: P3), 1 but for a mixture
+    # P(the runs show it as what it is): P3 for a mixture, P(screen passed) for a simulated
+    # screen (`screen_power`), else 1
+    identified: float = 1.0
 
 
 def bound_power(estimate: SizeEstimate, size: float, floor: float, z: float,
@@ -150,7 +173,8 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: Flo
                cause: Cause, size: float, scales: FloatArray, held_out: int,
                score_runs: int, fitted_values: Mapping[str, float] | None = None,
                fit: FitSettings | None = None, z_test: float | None = None,
-               size_se: float | None = None) -> TestPoint:
+               size_se: float | None = None,
+               screen_floor_z: tuple[float, float] | None = None) -> TestPoint:
     """
     Return the expected t statistic of the held-out test for a cause of `size`, and P3.
 
@@ -159,11 +183,15 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: Flo
     With `z_test`, a term that moves the spread's statistic (a heading term) gets the test's
     power averaged over the error of the spread scale fitted with it (`spread_averaged_t`),
     and with `size_se` too, a path family over the error of its size (`size_averaged_t`).
+    With `screen_floor_z` (floor, z), a term whose screen is simulated (`Cause.
+    screen_simulated`) gets P(screen passed) in P3's place (`screen_power`).
     """
     pair = simulated_pair(simulator, without, without_features, cause, size, scales,
                           score_runs, fitted_values, fit)
     identified = two_groups_power(pair.without_features * scales, pair.runs, held_out) \
         if cause.kind == EstimateKind.MIXTURE else 1.0
+    if cause.screen_simulated and screen_floor_z is not None and pair.pseudo is not None:
+        identified = screen_power(simulator, pair, held_out, *screen_floor_z)
     t = t_statistic(pair.gains(simulator, scales, score_runs), held_out)
     if z_test is not None and size_se is not None:
         return TestPoint(size_averaged_t(simulator, pair, cause, size, size_se, t, scales,
@@ -274,6 +302,7 @@ class SimulatedPair:
     without_features: FloatArray
     runs: FloatArray
     absorbed: bool
+    pseudo: RunData | None = None     # the runs themselves, where the geometry was refit
 
     def gains(self, simulator: Simulator, scales: FloatArray, score_runs: int,
               extended: FittedModel | None = None) -> FloatArray:
@@ -294,19 +323,22 @@ def simulated_pair(simulator: Simulator, without: FittedModel, without_features:
     """
     Return the pair the held-out test weighs, and runs simulated with the cause at `size`.
 
-    The model without the cause is as the diagnosis would fit it to those runs: a term that
-    slows or speeds the gait clock (speed_decay, change_point) enters with the strides per run
-    of the model without it (`same_strides`), as the race's baseline, fitted to runs with the
-    term, matches their stride frequency; a term a geometry mimics has the geometry refit
-    (`geometry_absorbed`), a heading term the spread (`spread_absorbed`); `fit` sizes these
-    refits.
+    The model without the cause is as the diagnosis would fit it to those runs: where a
+    geometry mimics the term (`Cause.geometry_mimics`), the runs are those of the robot
+    without it plus the term (its clock as before, for a term that slows or speeds it) and
+    the model without it has its geometry refit to them (`geometry_absorbed`), as the race's
+    baseline is fitted to the runs; a heading term's has its spread refit
+    (`spread_absorbed`); `fit` sizes these refits. A clock term whose geometry is not refit
+    (none now) would enter with the strides per run of the model without it (`same_strides`),
+    the one part of such a refit that matters most.
     """
     values = at_size(cause, size, fitted_values, simulator.data)
     if cause.name == 'initial_pose_error':
         values['position_std_cm'] = float((without.effects.get(cause.name) or {}).get(
             'position_std_cm', 0.0))
-    extended = same_strides(without.with_effect(cause.name, values), without,
-                            float(simulator.data.paths.t[-1]))
+    extended = without.with_effect(cause.name, values)
+    if not cause.geometry_mimics:
+        extended = same_strides(extended, without, float(simulator.data.paths.t[-1]))
     # as many pseudo-data runs as the models are scored with, at most PSEUDO_RUNS
     paths, positions = simulator.runs(extended, min(PSEUDO_RUNS, score_runs), PSEUDO_PURPOSE)
     if cause.geometry_mimics:
@@ -320,7 +352,8 @@ def simulated_pair(simulator: Simulator, without: FittedModel, without_features:
     if absorbing is not None:
         without, without_features = absorbing, limit_base(simulator, absorbing, scales,
                                                           score_runs)
-    return SimulatedPair(extended, without, without_features, runs, absorbing is not None)
+    return SimulatedPair(extended, without, without_features, runs, absorbing is not None,
+                         pseudo if cause.geometry_mimics else None)
 
 
 def geometry_absorbed(runs: RunData, without: FittedModel, fit: FitSettings) -> FittedModel:
@@ -335,7 +368,8 @@ def geometry_absorbed(runs: RunData, without: FittedModel, fit: FitSettings) -> 
     2.82 deg/s, had an expected t of 6.16 against the model as fitted and 3.70 against the
     model refit to runs with it, and four data sets with it there gave t = 2.35, 4.54, 1.64
     and 1.17 for 3.22 where the limit had said 0.999 (`benchmarks/bench_path_limits.py
-    --size 2.82 --data-sets 4`). Other terms keep the model as fitted (`simulated_pair`).
+    --size 2.82 --data-sets 4`). A clock term's mean rate is taken up by the stride frequency
+    (module docstring). Other terms keep the model as fitted (`simulated_pair`).
     """
     path_causes = tuple(name for name in without.causes
                         if BY_NAME[name].kind == EstimateKind.PATH)
@@ -394,6 +428,36 @@ def two_groups_power(without_runs: FloatArray, runs: FloatArray, half: int) -> f
     return shown / EVIDENCE_SUBSETS
 
 
+def screen_power(simulator: Simulator, pair: SimulatedPair, half: int, floor: float,
+                 z_screen: float) -> float:
+    """
+    Return how often the race's screen lets change_point through on runs like `pair`'s.
+
+    The screen's step (modelfit.change_point_step) seeks the change's time as well as its
+    factor, and its bootstrap error depends on how clearly the runs show that time: on
+    Table II's robot 0.0074 on a null data set (the time where chance peaked), 0.0022-0.0030
+    with a change of 3 % at half the runs, larger again for smaller changes. So the step is
+    taken as the race takes it, against the model without the term, on SCREEN_SUBSETS
+    subsets of the simulated runs as large as a calibration half, and the share whose bound
+    at `z_screen` reaches `floor` is returned (the null's error, taken instead, held the
+    size bound's part of the limit low; a step held at the stated time knows the time the
+    race does not).
+    """
+    assert pair.pseudo is not None, 'a simulated screen needs the simulated runs'
+    ratio = speed_ratio(simulator, pair.without)
+    with np.errstate(invalid='ignore'):
+        rows = cycle_distances(pair.pseudo.paths.positions, ratio.cycle)
+    size = min(half, len(rows))
+    rng = np.random.default_rng([len(rows), 44])
+    passed = 0
+    for _ in range(SCREEN_SUBSETS):
+        subset = rows[rng.permutation(len(rows))[:size]]
+        _, factor, error = ratio.estimate(subset, CHANGE_POINT_BOOTSTRAP, rng)
+        estimate = SizeEstimate('change_point', float(np.clip(factor, 0.25, 2.9)), error)
+        passed += not out_of_reach(estimate, floor, z_screen)
+    return passed / SCREEN_SUBSETS
+
+
 def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEstimate,
                     floor: float, z_bound: float, z_test: float, scales: FloatArray,
                     held_out: int, score_runs: int, start: float | None,
@@ -417,13 +481,17 @@ def detection_limit(simulator: Simulator, without: FittedModel, estimate: SizeEs
 
     # a path family (screened first) is scored at its size as refit (`size_averaged_t`)
     size_se = estimate.se if screen is not None and math.isfinite(estimate.se) else None
+    # a simulated screen (`screen_power`) takes the place of the quick estimate's bound
+    screen_floor_z = (floor, max(z_bound - SCREEN_ALLOWANCE, 0.0)) \
+        if cause.screen_simulated else None
 
     def t_computed(size: float) -> TestPoint:
         point = expected_t(simulator, without, base, cause, size, scales, held_out,
-                           score_runs, fitted_values, fit, z_test, size_se)
+                           score_runs, fitted_values, fit, z_test, size_se, screen_floor_z)
         return TestPoint(min(max(point.t, 1e-9), T_CAP), point.identified)
 
-    return limit_from(t_computed, first, estimate, floor, z_bound, z_test, largest, screen)
+    return limit_from(t_computed, first, estimate, floor, z_bound, z_test, largest,
+                      None if cause.screen_simulated else screen)
 
 
 def limit_from(t_computed: Callable[[float], TestPoint | float], first: float,
@@ -460,8 +528,7 @@ def limit_from(t_computed: Callable[[float], TestPoint | float], first: float,
         points[top] = computed(top)
         limit = _solve(points, estimate, floor, z_bound, z_test, largest, screen)
     for _ in range(REFINEMENTS):
-        if limit is None or limit.size is None or limit.test_power * (
-                limit.two_groups_power or 1.0) >= TEST_DECIDES:
+        if limit is None or limit.size is None or limit.simulated_power >= TEST_DECIDES:
             break
         found = limit.size
         if min(abs(math.log(found / size)) for size in points) < CLOSE:
@@ -519,14 +586,19 @@ def _solve(points: dict[float, float] | dict[float, TestPoint], estimate: SizeEs
 
     None where no size up to `largest` reaches it.
     """
-    mixture = BY_NAME[estimate.cause].kind == EstimateKind.MIXTURE
+    cause = BY_NAME[estimate.cause]
+    mixture = cause.kind == EstimateKind.MIXTURE
 
     def test_power(size: float) -> float:
         return float(stats.norm.cdf(t_interpolated(points, size) - z_test))
 
+    def identified(size: float) -> float:
+        simulated = mixture or cause.screen_simulated
+        return identified_interpolated(points, size) if simulated else 1.0
+
     def power(size: float) -> float:
         return bound_power(estimate, size, floor, z_bound, screen) * test_power(size) * (
-            identified_interpolated(points, size) if mixture else 1.0)
+            identified(size))
 
     low, high = max(floor, 1e-9), min(points)
     for _ in range(60):
@@ -540,5 +612,7 @@ def _solve(points: dict[float, float] | dict[float, TestPoint], estimate: SizeEs
     for _ in range(60):
         middle = math.sqrt(low * high) if low > 0 else 0.5 * high
         low, high = (middle, high) if power(middle) < POWER else (low, middle)
-    return Limit(estimate.cause, high, bound_power(estimate, high, floor, z_bound, screen),
-                 test_power(high), identified_interpolated(points, high) if mixture else None)
+    bound = bound_power(estimate, high, floor, z_bound, screen)
+    screened = identified(high) if cause.screen_simulated else None
+    return Limit(estimate.cause, high, bound * (1.0 if screened is None else screened),
+                 test_power(high), identified(high) if mixture else None, screened)

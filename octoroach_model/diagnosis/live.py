@@ -270,7 +270,7 @@ def question_gains(halves: Halves, baseline: FittedModel, question: Question,
 
     As the detection limit takes it (diagnose._limit): run_mixture at MIXTURE_FRACTION of the
     runs turning, periodic_heading at PERIODIC_LIMIT_PERIODS per run (the runs measured
-    there).
+    there), change_point at half the runs (modelfit.at_size's default time).
     """
     cause = BY_NAME[question.term]
     fitted: dict[str, float] = {}

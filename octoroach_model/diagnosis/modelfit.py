@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy import stats
@@ -122,6 +122,8 @@ class FitSettings:
     # (benchmarks/bench_decisions.py; docs/diagnosis.md, "Speed")
     tolerance: float = 1e-4
     score_runs: int = 1200      # simulated runs that score the calibration runs (`best_valley`)
+    # change_point's time held here, not fitted (s): where a detection limit is stated
+    change_time_s: float | None = None
 
 
 @dataclass
@@ -688,15 +690,19 @@ def geometry_problem(data: RunData, model: FittedModel, path_causes: tuple[str, 
     """
     Return the settings of the geometry fit of `model` on `data` (what `fit_geometry` solves).
 
-    The free parameters are the path causes', within their bounds; every other effect is held;
+    The free parameters are the path causes', within their bounds; every other effect is held
+    (change_point's time too, where `settings.change_time_s` holds it);
     the mean path is of `settings.mean_path_runs` simulated runs on their own seed, the gait
     matched in the data's standard errors.
     """
     free = tuple(FreeEffect(cause, parameter, low, high,
                             start=float(np.clip(model.effects[cause][parameter], low, high)))
                  for cause in path_causes
-                 for parameter, (low, high) in free_parameters(BY_NAME[cause], data))
+                 for parameter, (low, high) in free_parameters(BY_NAME[cause], data,
+                                                               settings.change_time_s))
     held = {name: values for name, values in model.effects.items() if name not in path_causes}
+    if 'change_point' in path_causes and settings.change_time_s is not None:
+        held['change_point'] = {'time_s': settings.change_time_s}    # its factor is free
     mean = MeanPathSettings(model.sigmas, settings.mean_path_runs,
                             int(np.random.SeedSequence([settings.seed, 5]).generate_state(1)[0]),
                             gait=data.gait, scales=data.scales)
@@ -859,15 +865,17 @@ def at_geometry(model: FittedModel, parameters: ModelParameters) -> FittedModel:
         parameters, sample_rate=model.parameters.sample_rate).with_paper_liftoff())
 
 
-def free_parameters(cause: Cause, data: RunData) -> list[tuple[str, tuple[float, float]]]:
+def free_parameters(cause: Cause, data: RunData, change_time_s: float | None = None
+                    ) -> list[tuple[str, tuple[float, float]]]:
     """
     Return the parameters of a path cause fitted with the geometry, each with its bounds.
 
     The main one within the cause's bounds; change_point's time too, within 5-95 % of the
-    runs' duration (a change at either end is not told from a different gait).
+    runs' duration (a change at either end is not told from a different gait), unless it is
+    held at `change_time_s` (`FitSettings`).
     """
     free = [(cause.parameter, cause.bounds)]
-    if cause.name == 'change_point':
+    if cause.name == 'change_point' and change_time_s is None:
         duration = float(data.paths.t[-1])
         free.append(('time_s', (0.05 * duration, 0.95 * duration)))
     return free
@@ -889,13 +897,14 @@ def path_start(simulator: Simulator, model: FittedModel, cause: Cause,
     it at the reference size; change_point's from the runs' speed profile.
     """
     if cause.name == 'change_point':
-        return change_point_start(simulator, model)
+        return change_point_start(simulator, model, settings.change_time_s)
     return {cause.parameter: signature_start(simulator, model, cause, settings)}
 
 
-def change_point_start(simulator: Simulator, model: FittedModel) -> dict[str, float]:
+def change_point_start(simulator: Simulator, model: FittedModel,
+                       time_s: float | None = None) -> dict[str, float]:
     """Return where a change point's joint fit starts (`change_point_step`)."""
-    values, _ = change_point_step(simulator, model)
+    values, _ = change_point_step(simulator, model, time_s=time_s)
     return values
 
 
@@ -903,50 +912,73 @@ CHANGE_POINT_RUNS = 200
 CHANGE_POINT_BOOTSTRAP = 60
 
 
-def change_point_step(simulator: Simulator, model: FittedModel, n_boot: int = 0
-                      ) -> tuple[dict[str, float], float]:
-    """
-    Return the step that best fits the speed ratio data / model, and its factor's error.
+class SpeedRatio(NamedTuple):
+    """What change_point's step divides runs by: the model's mean speed over each cycle."""
 
-    The ratio of the data's mean speed to the model's (without the change), over each
-    stride cycle, is fitted by one level before a time and another after it (least squares
-    over the times of 10-90 % of the run; the factor is their ratio); with `n_boot`, the
-    factor's standard error from as many resamples of the runs (else 0).
-    """
+    model_speed: FloatArray     # (T',) m per cycle, the model without the change
+    middle: FloatArray          # (T',) s, the middle of each cycle-long window
+    cycle: int                  # samples of a cycle
+    duration: float             # s
+
+    def step(self, rows: FloatArray, time_s: float | None = None) -> tuple[float, float]:
+        """Return (time, factor) of the step that fits the rows' mean speed ratio best."""
+        with np.errstate(invalid='ignore'):
+            ratio = np.nanmean(rows, axis=0) / np.maximum(self.model_speed, 1e-12)
+        usable = np.isfinite(ratio)
+        return _best_step(ratio[usable], self.middle[usable], self.duration, time_s)
+
+    def estimate(self, rows: FloatArray, n_boot: int, rng: np.random.Generator,
+                 time_s: float | None = None) -> tuple[float, float, float]:
+        """Return (time, factor, the factor's bootstrap error over the rows: 0 if n_boot < 2)."""
+        time, factor = self.step(rows, time_s)
+        factors = [self.step(rows[rng.integers(0, len(rows), len(rows))], time_s)[1]
+                   for _ in range(n_boot)]
+        return time, factor, float(np.std(factors, ddof=1)) if n_boot > 1 else 0.0
+
+
+def speed_ratio(simulator: Simulator, model: FittedModel) -> SpeedRatio:
+    """Return the speed ratio's denominator: `model` without its change point, simulated."""
     data = simulator.data
     without = {name: values for name, values in model.effects.items() if name != 'change_point'}
     t = data.paths.t
     simulated = simulator.paths(model, CHANGE_POINT_RUNS, MOMENTS, without)
     cycle = stride_samples(data.stride_frequency, float(t[1] - t[0]))
-
     with np.errstate(invalid='ignore'):
         model_speed = np.nanmean(cycle_distances(simulated.positions, cycle), axis=0)
-        runs = cycle_distances(data.paths.positions, cycle)
     middle = t[:len(model_speed)] + 0.5 * cycle * float(t[1] - t[0])
-    duration = float(t[-1])
+    return SpeedRatio(model_speed, middle, cycle, float(t[-1]))
 
-    def step(rows: FloatArray) -> tuple[float, float]:
-        with np.errstate(invalid='ignore'):
-            ratio = np.nanmean(rows, axis=0) / np.maximum(model_speed, 1e-12)
-        usable = np.isfinite(ratio)
-        return _best_step(ratio[usable], middle[usable], duration)
 
-    time, factor = step(runs)
-    rng = np.random.default_rng([simulator.seed, 43])
-    factors = [step(runs[rng.integers(0, len(runs), len(runs))])[1] for _ in range(n_boot)]
-    error = float(np.std(factors, ddof=1)) if n_boot > 1 else 0.0
+def change_point_step(simulator: Simulator, model: FittedModel, n_boot: int = 0,
+                      time_s: float | None = None) -> tuple[dict[str, float], float]:
+    """
+    Return the step that best fits the speed ratio data / model, and its factor's error.
+
+    The ratio of the data's mean speed to the model's (without the change), over each
+    stride cycle, is fitted by one level before a time and another after it (least squares
+    over the times of 10-90 % of the run, or at `time_s` alone; the factor is their ratio);
+    with `n_boot`, the factor's standard error from as many resamples of the runs (else 0).
+    """
+    ratio = speed_ratio(simulator, model)
+    with np.errstate(invalid='ignore'):
+        runs = cycle_distances(simulator.data.paths.positions, ratio.cycle)
+    time, factor, error = ratio.estimate(runs, n_boot, np.random.default_rng([simulator.seed, 43]),
+                                         time_s)
     return {'time_s': time, 'speed_factor': float(np.clip(factor, 0.25, 2.9))}, error
 
 
-def _best_step(ratio: FloatArray, middle: FloatArray, duration: float) -> tuple[float, float]:
+def _best_step(ratio: FloatArray, middle: FloatArray, duration: float,
+               time_s: float | None = None) -> tuple[float, float]:
     """
     Return (time, factor) of the step that fits `ratio` best: a level before, another after.
 
     The factor is the level after over the level before (a model whose speed is off by a
-    constant, as a baseline that mimicked the change may be, still gives the change's factor).
+    constant, as a baseline that mimicked the change may be, still gives the change's factor);
+    the time is sought on a grid over 10-90 % of the runs, or is `time_s`.
     """
-    best = (math.inf, 0.5 * duration, 1.0)
-    for time in np.linspace(0.1, 0.9, 33) * duration:
+    best = (math.inf, 0.5 * duration if time_s is None else time_s, 1.0)
+    times = np.linspace(0.1, 0.9, 33) * duration if time_s is None else [time_s]
+    for time in times:
         after = middle >= time
         if after.sum() < 2 or (~after).sum() < 2:
             continue

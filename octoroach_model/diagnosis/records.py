@@ -112,7 +112,9 @@ class CandidateResult:
                        detectable_power={'size_bound': limit.size_bound_power,
                                          'held_out_test': limit.test_power,
                                          **({} if limit.two_groups_power is None else
-                                            {'two_groups': limit.two_groups_power})})
+                                            {'two_groups': limit.two_groups_power}),
+                                         **({} if limit.screen_power is None else
+                                            {'screen': limit.screen_power})})
 
 
 @dataclass(frozen=True)

@@ -269,6 +269,8 @@ def _unseen_line(candidate: CandidateResult, paths: int) -> str:
     words = [_number(limit), cause.unit, 'from 1' if cause.null != 0 else '']
     text = ('below ' + ' '.join(word for word in words if word) if limit is not None
             else 'of any size on the grid')
+    if cause.limit_stated:
+        text += f' ({cause.limit_stated})'
     label = cause.label + (f' ({cause.name.split(":", 1)[1]})' if ':' in cause.name else '')
     name = label.replace('_', ' ')
     article = 'an' if name[0] in 'aeiou' else 'a'
