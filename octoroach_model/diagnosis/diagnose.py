@@ -1046,7 +1046,8 @@ def _limit(halves: Halves, model: FittedModel, evaluation: Evaluation,
         # stated for a change at half the runs (`change_time`): the time a null data set
         # fitted is where chance peaked, and the test's power depends on it
         fitted['time_s'] = change_time(halves)
-        start = judge(screen_estimate, floor, z_bound).limit if screen_estimate else start
+        if screen_estimate is not None:
+            start = judge(screen_estimate, floor, z_bound).limit
     if cause.kind == EstimateKind.MIXTURE:
         fitted['fraction'] = MIXTURE_FRACTION
     if cause.name == 'periodic_heading':
@@ -1077,6 +1078,8 @@ def path_family_estimates(halves: Halves, without: FittedModel, evaluation: Eval
     Table II's robot, 500 null runs: yaw_rate_ramp 0.74 and 0.37 deg/s, change_point's
     factor 0.007 and 0.003); its limit weighs each at its own step (limits.bound_power).
     Where the race screened it (a null), the refit is made here, as the race would make it.
+    change_point's are both made at the time its limit is stated (`change_time`), the step's
+    only to start the limit's search: its screen is simulated (limits.screen_power).
     """
     cause = BY_NAME[evaluation.cause]
     if cause.name == 'change_point':
