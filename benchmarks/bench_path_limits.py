@@ -47,10 +47,10 @@ def main(argv: list[str] | None = None) -> int:
 
     import octoroach_model as om
     from octoroach_model.diagnosis import limits
-    from octoroach_model.diagnosis.causes import BY_NAME, CANDIDATES
+    from octoroach_model.diagnosis.causes import BY_NAME, CANDIDATES, change_point_limit_s
     from octoroach_model.diagnosis.decide import decision_z, judge
     from octoroach_model.diagnosis.diagnose import (
-        change_time, DiagnosisSettings, halves_as_diagnosed, path_family_estimates)
+        DiagnosisSettings, halves_as_diagnosed, path_family_estimates)
     from octoroach_model.diagnosis.modelfit import same_strides
     from study_replay import first_step
 
@@ -76,7 +76,8 @@ def main(argv: list[str] | None = None) -> int:
     base = limits.limit_base(simulator, baseline, halves.scales, settings.score_runs)
     # the term's other parameters where the diagnosis states its limit (diagnose._limit):
     # change_point's time at half the runs
-    fitted = ({'time_s': change_time(halves)} if args.term == 'change_point' else None)
+    fitted = ({'time_s': change_point_limit_s(float(halves.train.paths.t[-1]))}
+              if args.term == 'change_point' else None)
     limit = limits.detection_limit(
         simulator, baseline, refit, floor, z_bound, z_test, halves.scales, halves.test.n,
         settings.score_runs, judge(screen, floor, z_bound).limit, fitted, base,

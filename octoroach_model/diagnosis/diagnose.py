@@ -31,8 +31,8 @@ from scipy import stats
 
 from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.causes import (
-    BY_NAME, CANDIDATES, Cause, CAUSES, EstimateKind, FAMILIES, MIXTURE_FRACTION,
-    periodic_limit_hz, RunScale)
+    BY_NAME, CANDIDATES, Cause, CAUSES, change_point_limit_s, EstimateKind, FAMILIES,
+    MIXTURE_FRACTION, periodic_limit_hz, RunScale)
 from octoroach_model.diagnosis.decide import (
     close_call, decision_z, judge, out_of_reach, SCREEN_ALLOWANCE, SizeVerdict)
 from octoroach_model.diagnosis.descriptions import describe
@@ -1043,9 +1043,9 @@ def _limit(halves: Halves, model: FittedModel, evaluation: Evaluation,
     start = seen.detectable[cause.parameter]
     fitted = dict(evaluation.model.effects.get(cause.name) or {})
     if cause.name == 'change_point':
-        # stated for a change at half the runs (`change_time`): the time a null data set
-        # fitted is where chance peaked, and the test's power depends on it
-        fitted['time_s'] = change_time(halves)
+        # stated for a change at half the runs (causes.change_point_limit_s): the time a
+        # null data set fitted is where chance peaked, and the test's power depends on it
+        fitted['time_s'] = change_point_limit_s(float(halves.train.paths.t[-1]))
         if screen_estimate is not None:
             start = judge(screen_estimate, floor, z_bound).limit
     if cause.kind == EstimateKind.MIXTURE:
@@ -1078,37 +1078,22 @@ def path_family_estimates(halves: Halves, without: FittedModel, evaluation: Eval
     Table II's robot, 500 null runs: yaw_rate_ramp 0.74 and 0.37 deg/s, change_point's
     factor 0.007 and 0.003); its limit weighs each at its own step (limits.bound_power).
     Where the race screened it (a null), the refit is made here, as the race would make it.
-    change_point's are both made at the time its limit is stated (`change_time`), the step's
-    only to start the limit's search: its screen is simulated (limits.screen_power).
+    change_point's are both made at the time its limit is stated (causes.
+    change_point_limit_s), the race's own at the time it fitted; the step only starts the
+    limit's search (its screen is simulated: limits.screen_power).
     """
     cause = BY_NAME[evaluation.cause]
-    if cause.name == 'change_point':
-        # both at the time the limit is stated (`change_time`), not where the null peaked
-        reference = change_time(halves)
-        fit = replace(settings.fit(), change_time_s=reference)
-        refit = fit_causes(halves.train, without, (*without.causes, cause.name), fit, rounds=1)
-        quick = quick_fit(halves.train, without, cause, settings, reference)
-        return refit.estimates[cause.name], quick.estimates[cause.name]
-    if evaluation.screened:
-        refit = fit_causes(halves.train, without, (*without.causes, cause.name), settings.fit(),
-                           rounds=1)
-        return refit.estimates[cause.name], evaluation.estimates[cause.name]
-    quick = quick_fit(halves.train, without, cause, settings)
-    return evaluation.estimates[cause.name], quick.estimates[cause.name]
-
-
-def change_time(halves: Halves) -> float:
-    """
-    Return where change_point's detection limit is stated: half the runs (s).
-
-    Where a study puts a change too (studies.terms.term_values). A null data set's step
-    peaks where chance puts it (0.5, 2.0 and 3.4 s of 5 s runs on three of Table II's null
-    data sets), and the held-out test's power depends on the time: on Table II's robot a
-    change of 3 % at 3.4 s had an expected t of 15.5, at 2.5 s 6.1, at 1.25 s 14.2 (the
-    quarters' progress features see a change within a half; a probe, script not kept), so
-    the limit, computed at the time fitted, said nothing of a change elsewhere.
-    """
-    return 0.5 * float(halves.train.paths.t[-1])
+    duration = float(halves.train.paths.t[-1])
+    held = change_point_limit_s(duration) if cause.name == 'change_point' else None
+    refit = evaluation.estimates[cause.name]
+    if evaluation.screened or held is not None:
+        refit = fit_causes(halves.train, without, (*without.causes, cause.name),
+                           replace(settings.fit(), change_time_s=held),
+                           rounds=1).estimates[cause.name]
+    screen = evaluation.estimates[cause.name]
+    if not evaluation.screened or held is not None:
+        screen = quick_fit(halves.train, without, cause, settings, held).estimates[cause.name]
+    return refit, screen
 
 
 def _final_fit(halves: Halves, model: FittedModel, settings: DiagnosisSettings

@@ -29,7 +29,8 @@ extended model at the size refit on the calibration half, so P2 is averaged over
 size's error (`size_averaged_t`); and where a geometry fitted without the term mimics its
 mean (yaw_rate_ramp's mean turn, `Cause.geometry_mimics`), the model without it is refit to
 the runs with it (`geometry_absorbed`), as the race's baseline is. change_point's limit is
-stated for a change at half the runs (diagnose.change_time), its refit made there, and its
+stated for a change at half the runs (causes.change_point_limit_s), its refit made there,
+and its
 screen simulated (`screen_power`: its step's error depends on how clearly runs show the
 change's time, which a null data set says nothing of).
 
@@ -188,9 +189,10 @@ def expected_t(simulator: Simulator, without: FittedModel, without_features: Flo
     """
     pair = simulated_pair(simulator, without, without_features, cause, size, scales,
                           score_runs, fitted_values, fit)
-    identified = two_groups_power(pair.without_features * scales, pair.runs, held_out) \
-        if cause.kind == EstimateKind.MIXTURE else 1.0
-    if cause.screen_simulated and screen_floor_z is not None and pair.pseudo is not None:
+    identified = 1.0
+    if cause.kind == EstimateKind.MIXTURE:
+        identified = two_groups_power(pair.without_features * scales, pair.runs, held_out)
+    elif cause.screen_simulated and screen_floor_z is not None:
         identified = screen_power(simulator, pair, held_out, *screen_floor_z)
     t = t_statistic(pair.gains(simulator, scales, score_runs), held_out)
     if z_test is not None and size_se is not None:
@@ -453,8 +455,7 @@ def screen_power(simulator: Simulator, pair: SimulatedPair, half: int, floor: fl
     for _ in range(SCREEN_SUBSETS):
         subset = rows[rng.permutation(len(rows))[:size]]
         _, factor, error = ratio.estimate(subset, CHANGE_POINT_BOOTSTRAP, rng)
-        estimate = SizeEstimate('change_point', float(np.clip(factor, 0.25, 2.9)), error)
-        passed += not out_of_reach(estimate, floor, z_screen)
+        passed += not out_of_reach(SizeEstimate('change_point', factor, error), floor, z_screen)
     return passed / SCREEN_SUBSETS
 
 

@@ -28,7 +28,8 @@ import numpy as np
 from scipy import stats
 
 from octoroach_model.arrays import FloatArray, IntArray
-from octoroach_model.diagnosis.causes import BY_NAME, Cause, EstimateKind, MIXTURE_FRACTION
+from octoroach_model.diagnosis.causes import (
+    BY_NAME, Cause, change_point_limit_s, EstimateKind, MIXTURE_FRACTION)
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, position_points_cm, score_model, Scores)
@@ -427,7 +428,7 @@ def _zero(cause: str, data: RunData | None = None) -> dict[str, float]:
     if cause == 'periodic_heading' and data is not None and data.wobble_hz:
         values['frequency_hz'] = float(data.wobble_hz)
     if cause == 'change_point' and data is not None:
-        values['time_s'] = 0.5 * float(data.paths.t[-1])
+        values['time_s'] = change_point_limit_s(float(data.paths.t[-1]))
     return values
 
 
@@ -929,11 +930,16 @@ class SpeedRatio(NamedTuple):
 
     def estimate(self, rows: FloatArray, n_boot: int, rng: np.random.Generator,
                  time_s: float | None = None) -> tuple[float, float, float]:
-        """Return (time, factor, the factor's bootstrap error over the rows: 0 if n_boot < 2)."""
+        """
+        Return (time, factor, the factor's bootstrap error over the rows: 0 if n_boot < 2).
+
+        The factor within the bounds a speed factor may take here (0.25-2.9).
+        """
         time, factor = self.step(rows, time_s)
         factors = [self.step(rows[rng.integers(0, len(rows), len(rows))], time_s)[1]
                    for _ in range(n_boot)]
-        return time, factor, float(np.std(factors, ddof=1)) if n_boot > 1 else 0.0
+        error = float(np.std(factors, ddof=1)) if n_boot > 1 else 0.0
+        return time, float(np.clip(factor, 0.25, 2.9)), error
 
 
 def speed_ratio(simulator: Simulator, model: FittedModel) -> SpeedRatio:
@@ -964,7 +970,7 @@ def change_point_step(simulator: Simulator, model: FittedModel, n_boot: int = 0,
         runs = cycle_distances(simulator.data.paths.positions, ratio.cycle)
     time, factor, error = ratio.estimate(runs, n_boot, np.random.default_rng([simulator.seed, 43]),
                                          time_s)
-    return {'time_s': time, 'speed_factor': float(np.clip(factor, 0.25, 2.9))}, error
+    return {'time_s': time, 'speed_factor': factor}, error
 
 
 def _best_step(ratio: FloatArray, middle: FloatArray, duration: float,

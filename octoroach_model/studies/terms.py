@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from octoroach_model.diagnosis.causes import (
-    BY_NAME, CANDIDATES, MIXTURE_FRACTION, PERIODIC_LIMIT_PERIODS)
+    BY_NAME, CANDIDATES, change_point_limit_s, MIXTURE_FRACTION, PERIODIC_LIMIT_PERIODS)
 from octoroach_model.errors import ParameterError
 from octoroach_model.model import EFFECT_PARAMETERS, PARAMETER_RANGES
 from octoroach_model.model.extensions import (
@@ -98,7 +98,7 @@ def term_values(term: str, size: float, others: Mapping[str, float],
     """
     values = dict(others)
     if term == 'change_point':
-        values.setdefault('time_s', 0.5 * duration_s)
+        values.setdefault('time_s', change_point_limit_s(duration_s))
     if term == 'periodic_heading':
         values.setdefault('frequency_hz', PERIODIC_LIMIT_PERIODS / duration_s)
     if term == 'run_mixture':
