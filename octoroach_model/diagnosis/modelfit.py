@@ -657,10 +657,21 @@ def before_change(data: RunData, model: FittedModel) -> FittedModel | None:
     frequency = stride_frequency_estimate(data.paths.poses[:, early, 2], t[early])
     if not (math.isfinite(frequency) and frequency * float(t[early][-1]) >= 1.5):
         return None
+    return striding_at(model, frequency)
+
+
+def striding_at(model: FittedModel, frequency_hz: float) -> FittedModel:
+    """
+    Return `model` striding at `frequency_hz`, its legs scaled to keep its speed.
+
+    A stride covers about leg x sweep, so the leg length is scaled by the old over the new
+    frequency: a start for a geometry fit to runs of another clock, where the fit from the
+    old clock bends the legs to make up the strides and stays there (a local optimum).
+    """
     parameters = model.parameters
-    leg = parameters.leg_length * parameters.stride_frequency / frequency
+    leg = parameters.leg_length * parameters.stride_frequency / frequency_hz
     return replace(model, parameters=replace(
-        parameters, stride_frequency=frequency,
+        parameters, stride_frequency=frequency_hz,
         leg_length=float(np.clip(leg, 0.004, 0.075))).with_paper_liftoff())
 
 
