@@ -904,7 +904,8 @@ def test_a_change_points_screen_is_simulated_and_counted_in_its_size_bounds_part
     assert shares == [1.0, 0.0], replay(f'{shares}')
     point = limits.expected_t(simulator, without, base, change, 0.15, scales, 100, 300,
                               values, fit, None, None, (0.01, 1.0))
-    assert point.identified == 1.0
+    # every subset passes; the speed decay the race might add in its place gains far less
+    assert point.identified > 0.99, replay(f'{point}')
     # in the limit: P1 is the refit's bound times the simulated screen's share
     estimate = SizeEstimate('change_point', 1.0, 0.001)
     limit = limits.limit_from(lambda size: limits.TestPoint(40 * size, min(5 * size, 1.0)),
@@ -914,6 +915,53 @@ def test_a_change_points_screen_is_simulated_and_counted_in_its_size_bounds_part
     assert limit.size_bound_power == pytest.approx(
         limits.bound_power(estimate, limit.size, 0.01, 2.0) * limit.screen_power)
     assert limit.simulated_power == pytest.approx(limit.test_power * limit.screen_power)
+
+
+def test_a_change_points_limit_weighs_the_chance_that_a_speed_decay_is_added_in_its_place():
+    """
+    change_point's limit weighs its look-alike, speed_decay, fitted to runs with the change.
+
+    A decay of the gait clock over the run takes up much of a change at its middle, and the
+    race adds, of the terms that qualify, the one of the largest held-out gain: in
+    studies/clock_terms.yaml speed_decay was named in change_point's place at its limit. The
+    limit fits speed_decay to the runs simulated with the change (a least-squares line
+    through a step of 1 - factor at half the run has a slope of 1.5 (1 - factor) per run, the
+    mean rate kept) and weighs P(the change gains more than it), which is part of P1. On so
+    few short runs the two are near each other: P varied from 0.45 to 1 for a change of 10 %
+    over suite seeds (not asserted); a change of 20 % beats it.
+    """
+    from octoroach_model.diagnosis import limits
+    from octoroach_model.diagnosis.modelfit import at_size, FitSettings
+    from octoroach_model.model.effects import mean_gait_rate
+
+    simulator, without = paper_runs(200)
+    scales = np.ones(len(INDEX))
+    fit = FitSettings(moment_runs=150, mean_path_runs=100, seed=SEED)
+    base = limits.limit_base(simulator, without, scales, 300)
+    change = BY_NAME['change_point']
+    assert change.look_alike == 'speed_decay'
+    duration = float(simulator.data.paths.t[-1])
+    shares = {}
+    for size in (0.1, 0.2):
+        values = at_size(change, size, None, simulator.data)
+        pair = limits.simulated_pair(simulator, without, base, change, size, scales, 300,
+                                     values, fit)
+        look_alike = limits.look_alike_model(simulator, pair, change, fit)
+        fraction = look_alike.effects['speed_decay']['fraction']
+        rate = (look_alike.parameters.stride_frequency
+                * mean_gait_rate(look_alike.effects, duration))
+        message = replay(f'a change of {size}: decay {fraction}, mean rate {rate} Hz, the '
+                         f'model without it {pair.without.parameters.stride_frequency} Hz')
+        assert fraction == pytest.approx(1.5 * size, rel=0.2), message
+        assert rate == pytest.approx(pair.without.parameters.stride_frequency, rel=0.01), message
+        shares[size] = limits.look_alike_power(simulator, pair, change,
+                                               pair.gains(simulator, scales, 300), scales, 100,
+                                               300, fit)
+    assert shares[0.2] > 0.99, replay(f'P(added before speed_decay) by size: {shares}')
+    # the share is part of what the runs show (P3's place), so of P1 in the limit
+    point = limits.expected_t(simulator, without, base, change, 0.1, scales, 100, 300,
+                              at_size(change, 0.1, None, simulator.data), fit)
+    assert point.identified == pytest.approx(shares[0.1]), replay(f'{point}, {shares}')
 
 
 @pytest.mark.long

@@ -176,6 +176,9 @@ class Cause:
     `screen_simulated` marks a path family whose screen the limit simulates (change_point:
     its step's error depends on how well the runs show the change's time, limits.
     screen_power), where the others take the screen's error off the null data set;
+    `look_alike` names a term the race may add in this one's place on runs with it, which
+    its limit weighs (change_point's speed_decay: a decay over the run takes up much of a
+    change at its middle; limits.look_alike_power);
     `limit_caveat` says in words where studies found the term's detection limit not to hold
     as computed (the report carries it beside the limit); none does now (periodic_heading's,
     named in 7 of 12 data sets at 1x in studies/heading_terms.yaml's first run, was named in
@@ -199,6 +202,7 @@ class Cause:
     geometry_mimics: bool = False
     limit_stated: str = ''
     screen_simulated: bool = False
+    look_alike: str = ''
     limit_caveat: str = ''
 
     @property
@@ -306,7 +310,8 @@ FAMILIES: tuple[Cause, ...] = (
     Cause('change_point', '', EstimateKind.PATH, 'average path (joint fit with the geometry)',
           None, 0.7, lambda scale: 0.01, signed=True, bounds=(0.2, 3.0), family='change_point',
           main='speed_factor', null=1.0, geometry_mimics=True,
-          limit_stated='for a change at half the runs', screen_simulated=True),
+          limit_stated='for a change at half the runs', screen_simulated=True,
+          look_alike='speed_decay'),
     Cause('run_mixture', 'deg/s', EstimateKind.MIXTURE,
           'heading rates across runs (two groups)', None, 8.0, _duration_floor, signed=True,
           family='run_mixture', main='yaw_rate_deg_s',
