@@ -225,6 +225,11 @@ class Cause:
         return self.is_extension and self.kind == EstimateKind.PATH
 
     @property
+    def size_bound_simulated(self) -> bool:
+        """Whether part of its limit's P1 comes from simulated runs (screen, look-alike)."""
+        return self.screen_simulated or bool(self.look_alike)
+
+    @property
     def label(self) -> str:
         """Return the name a report gives it: the cause, or the extension family."""
         return self.family or self.name

@@ -86,9 +86,9 @@ from octoroach_model.diagnosis.decide import (
 from octoroach_model.diagnosis.features import INDEX
 from octoroach_model.diagnosis.modelfit import (
     at_size, CHANGE_POINT_BOOTSTRAP, fit_geometry, fit_spread, FitSettings, FittedModel,
-    geometry_starts, largest_size, MIXTURE_EVIDENCE_NATS, RunData, same_strides, Simulator,
-    SizeEstimate, speed_ratio, spread_error, spread_statistic, striding_at, two_groups,
-    two_groups_evidence)
+    geometry_starts, largest_size, MIXTURE_EVIDENCE_NATS, path_terms, RunData, same_strides,
+    Simulator, SizeEstimate, speed_ratio, spread_error, spread_statistic, striding_at,
+    two_groups, two_groups_evidence)
 from octoroach_model.diagnosis.scoring import feature_log_score
 from octoroach_model.fitting.gait import cycle_distances
 from octoroach_model.model.effects import mean_gait_rate
@@ -256,9 +256,7 @@ def look_alike_model(simulator: Simulator, pair: SimulatedPair, cause: Cause,
     on_runs = Simulator(pair.pseudo, simulator.seed)
     absent = pair.without.with_effect(rival.name, at_size(rival, 0.0, None, pair.pseudo))
     start = geometry_starts(on_runs, absent, [rival.name], fit)[0]
-    path_causes = tuple(name for name in start.causes
-                        if BY_NAME[name].kind == EstimateKind.PATH)
-    return fit_geometry(pair.pseudo, start, path_causes, fit)[0]
+    return fit_geometry(pair.pseudo, start, path_terms(start.causes), fit)[0]
 
 
 def t_statistic(gain: FloatArray, held_out: int) -> float:
@@ -436,13 +434,11 @@ def geometry_absorbed(runs: RunData, without: FittedModel, robot: FittedModel,
     the clock for half of each run were once fitted at the old clock with legs bent, at 18
     times the cost of the fit from their mean rate (CI, OCTOROACH_TEST_SEED=288569).
     """
-    path_causes = tuple(name for name in without.causes
-                        if BY_NAME[name].kind == EstimateKind.PATH)
     duration = float(runs.paths.t[-1])
     rate = mean_gait_rate(robot.effects, duration) / mean_gait_rate(without.effects, duration)
     start = without if rate == 1.0 else striding_at(
         without, without.parameters.stride_frequency * rate)
-    return fit_geometry(runs, start, path_causes, fit)[0]
+    return fit_geometry(runs, start, path_terms(without.causes), fit)[0]
 
 
 def simulated_gains(simulator: Simulator, without: FittedModel, without_features: FloatArray,
@@ -661,7 +657,7 @@ def _solve(points: dict[float, float] | dict[float, TestPoint], estimate: SizeEs
         return float(stats.norm.cdf(t_interpolated(points, size) - z_test))
 
     def identified(size: float) -> float:
-        simulated = mixture or cause.screen_simulated or bool(cause.look_alike)
+        simulated = mixture or cause.size_bound_simulated
         return identified_interpolated(points, size) if simulated else 1.0
 
     def power(size: float) -> float:
@@ -681,6 +677,6 @@ def _solve(points: dict[float, float] | dict[float, TestPoint], estimate: SizeEs
         middle = math.sqrt(low * high) if low > 0 else 0.5 * high
         low, high = (middle, high) if power(middle) < POWER else (low, middle)
     bound = bound_power(estimate, high, floor, z_bound, screen)
-    screened = identified(high) if cause.screen_simulated or cause.look_alike else None
+    screened = identified(high) if cause.size_bound_simulated else None
     return Limit(estimate.cause, high, bound * (1.0 if screened is None else screened),
                  test_power(high), identified(high) if mixture else None, screened)

@@ -339,7 +339,7 @@ def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
     model = replace(start, effects={cause: dict(start.effects.get(cause) or _zero(cause, data))
                                     for cause in causes})
     estimates: dict[str, SizeEstimate] = {}
-    path_causes = tuple(c for c in causes if BY_NAME[c].kind == EstimateKind.PATH)
+    path_causes = path_terms(causes)
     moment_causes = tuple(c for c in causes if BY_NAME[c].kind == EstimateKind.MOMENTS)
     trend_causes = tuple(c for c in causes if BY_NAME[c].kind == EstimateKind.TREND)
     mixtures = tuple(c for c in causes if BY_NAME[c].kind == EstimateKind.MIXTURE)
@@ -376,6 +376,11 @@ def fit_causes(data: RunData, start: FittedModel, causes: tuple[str, ...],
             model = model.with_effect(cause, _values(model, BY_NAME[cause], estimate, data,
                                                      simulator, settings))
     return CausesFit(model, estimates, uncertainty)
+
+
+def path_terms(causes: Sequence[str]) -> tuple[str, ...]:
+    """Return the terms of `causes` sized with the geometry (path kind), in their order."""
+    return tuple(cause for cause in causes if BY_NAME[cause].kind == EstimateKind.PATH)
 
 
 def _geometry_refit(simulator: Simulator, model: FittedModel,
@@ -850,8 +855,7 @@ def rival_geometries(data: RunData, fit: CausesFit, alternatives: Sequence[Model
     if fit.geometry is None or not alternatives:
         return ()
     model = fit.model
-    path_causes = tuple(cause for cause in model.causes
-                        if BY_NAME[cause].kind == EstimateKind.PATH)
+    path_causes = path_terms(model.causes)
     residuals = geometry_residuals(data, model, path_causes, settings)
     changes = target_changes(data.target, data.features[:, GAIT_COLUMNS],
                              settings.heading_weight_m, data.scales,
