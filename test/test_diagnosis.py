@@ -904,8 +904,12 @@ def test_a_change_points_screen_is_simulated_and_counted_in_its_size_bounds_part
     assert shares == [1.0, 0.0], replay(f'{shares}')
     point = limits.expected_t(simulator, without, base, change, 0.15, scales, 100, 300,
                               values, fit, None, None, (0.01, 1.0))
-    # every subset passes; the speed decay the race might add in its place gains far less
-    assert point.identified > 0.99, replay(f'{point}')
+    # every subset passes, so what the runs show is the chance that the change gains more than
+    # the speed decay the race might add in its place (near 1 here; 0.987 at seed 1717)
+    look_alike = limits.look_alike_power(simulator, pair, change,
+                                         pair.gains(simulator, scales, 300), scales, 100, 300,
+                                         fit)
+    assert point.identified == pytest.approx(look_alike), replay(f'{point}, {look_alike}')
     # in the limit: P1 is the refit's bound times the simulated screen's share
     estimate = SizeEstimate('change_point', 1.0, 0.001)
     limit = limits.limit_from(lambda size: limits.TestPoint(40 * size, min(5 * size, 1.0)),
