@@ -9,7 +9,10 @@ from __future__ import annotations
 
 from dataclasses import replace
 import math
+import os
+import warnings
 
+from hypothesis import given, seed, settings, strategies as st
 import numpy as np
 import pytest
 
@@ -210,3 +213,90 @@ def test_runs_with_every_sample_read_bit_for_bit_as_through_the_masked_path():
     assert np.array_equal(whole, masked)
     assert np.array_equal(detrended(poses[..., 2], t), detrended(both[..., 2], t)[:-1])
     assert np.isfinite(masked).all()
+
+
+SUITE_SEED = int(os.environ.get('OCTOROACH_TEST_SEED', '0'))   # pytest's header prints it
+
+
+# The bootstrap resamples of the runs are taken all at once (a product of multiplicities and
+# the runs, not a copy per resample), and the change point's step at every time and every
+# resample at once (prefix sums): checked against the definitions, one resample and one time
+# at a time, on arrays Hypothesis draws (runs that end early leave NaN behind them).
+@st.composite
+def rows_with_ends(draw) -> np.ndarray:
+    runs, cycles = draw(st.integers(1, 30)), draw(st.integers(1, 60))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    rows = 0.05 * (1.0 + draw(st.floats(0.0, 0.3)) * rng.standard_normal((runs, cycles)))
+    if draw(st.booleans()):                 # a step in speed, anywhere (the first cycles too)
+        rows[:, draw(st.integers(0, cycles - 1)):] *= draw(st.floats(0.3, 2.0))
+    ends = rng.integers(0, cycles + 1, runs) if draw(st.booleans()) else np.full(runs, cycles)
+    for run, end in enumerate(ends):
+        rows[run, end:] = np.nan
+    return rows
+
+
+def steps_by_definition(ratio, middle, duration, time_s=None) -> dict[float, tuple]:
+    """Each allowed step time's (cost, factor), one time at a time."""
+    usable = np.isfinite(ratio)
+    ratio, middle = ratio[usable], middle[usable]
+    steps = {}
+    for time in (np.linspace(0.1, 0.9, 33) * duration if time_s is None else [time_s]):
+        after = middle >= time
+        if after.sum() < 2 or (~after).sum() < 2:
+            continue
+        first, second = np.mean(ratio[~after]), np.mean(ratio[after])
+        if first > 0:
+            steps[float(time)] = (np.sum((ratio[~after] - first) ** 2)
+                                  + np.sum((ratio[after] - second) ** 2), second / first)
+    return steps
+
+
+def assert_best_step(found, steps, duration, time_s) -> None:
+    """`found` is a step of least cost (ties within rounding either way), else the default."""
+    if not steps:
+        assert found == (0.5 * duration if time_s is None else time_s, 1.0)
+        return
+    least = min(cost for cost, _ in steps.values())
+    [(cost, factor)] = [value for time, value in steps.items()
+                        if time == pytest.approx(found[0], rel=1e-12)]
+    assert cost <= least + 1e-9 * max(least, 1e-12), (found, steps)
+    assert found[1] == pytest.approx(factor, rel=1e-9)
+
+
+def mean_of_runs(rows):
+    with np.errstate(invalid='ignore'), warnings.catch_warnings():
+        warnings.simplefilter('ignore', RuntimeWarning)     # all-NaN columns: NaN, as wanted
+        return np.nanmean(rows, axis=0)
+
+
+@seed(SUITE_SEED)
+@settings(max_examples=60, deadline=None, database=None)
+@given(rows_with_ends(), st.integers(0, 5), st.booleans(), st.integers(0, 1000))
+def test_resamples_and_steps_taken_at_once_are_those_taken_one_at_a_time(rows, n_boot, held,
+                                                                         draw_seed):
+    from octoroach_model.diagnosis.modelfit import SpeedRatio
+    from octoroach_model.fitting.covariance import resample_weights, resampled_means
+
+    runs, cycles = rows.shape
+    picks = np.random.default_rng(draw_seed).integers(0, runs, runs)
+    weights = resample_weights(np.random.default_rng(draw_seed), runs, 1)
+    assert np.array_equal(weights[0], np.bincount(picks, minlength=runs))
+    np.testing.assert_allclose(resampled_means(weights, rows)[0], mean_of_runs(rows[picks]),
+                               rtol=1e-12, atol=1e-15, equal_nan=True)
+
+    speed = np.full(cycles, 0.05)
+    middle = 0.02 * np.arange(cycles) + 0.01
+    duration = 0.02 * cycles
+    time_s = float(middle[cycles // 2]) if held else None
+    ratio = SpeedRatio(speed, middle, 1, duration)
+    assert_best_step(ratio.step(rows, time_s),
+                     steps_by_definition(mean_of_runs(rows) / speed, middle, duration, time_s),
+                     duration, time_s)
+    # the bootstrap's resamples, drawn one after the other from the same generator
+    rng = np.random.default_rng(draw_seed)
+    resamples = [rows[rng.integers(0, runs, runs)] for _ in range(n_boot)]
+    times, factors = ratio.steps(rows, resample_weights(np.random.default_rng(draw_seed), runs,
+                                                        n_boot), time_s)
+    for resample, time, factor in zip(resamples, times, factors):
+        assert_best_step((time, factor), steps_by_definition(
+            mean_of_runs(resample) / speed, middle, duration, time_s), duration, time_s)

@@ -34,8 +34,11 @@ from octoroach_model.validation import validate, ValidationSettings
 
 # The quick profile's diagnosis simulates half as many runs as the thorough one's: what the
 # property asks (a result or a one-line reason) does not depend on the simulations' noise.
+# Its runs are capped at 600 samples (at least 3 cycles): an example's cost grows with its
+# samples (the 500 Hz draws with limits took 25 s at 1200), and the thorough profile draws
+# runs up to 20000 samples.
 PROFILES = {
-    'quick': {'examples': 6, 'max_runs': 90, 'max_samples': 1200, 'simulated_runs': {
+    'quick': {'examples': 6, 'max_runs': 90, 'max_samples': 600, 'simulated_runs': {
         'score_runs': 100, 'moment_runs': 60, 'mean_path_runs': 40, 'discrepancy_runs': 100,
         'bootstrap': 10}},
     'thorough': {'examples': 60, 'max_runs': 3000, 'max_samples': 20000, 'simulated_runs': {

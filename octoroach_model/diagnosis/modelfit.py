@@ -33,7 +33,8 @@ from octoroach_model.diagnosis.causes import (
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, position_points_cm, score_model, Scores)
-from octoroach_model.fitting.covariance import cost_gap_se, path_covariance, target_changes
+from octoroach_model.fitting.covariance import (
+    cost_gap_se, path_covariance, resample_weights, resampled_means, target_changes)
 from octoroach_model.fitting.gait import (
     cycle_distances, GAIT_FEATURES, stride_frequency_estimate, stride_samples)
 from octoroach_model.fitting.lines import bootstrap_se, paired_relative_se, read_line
@@ -938,10 +939,21 @@ class SpeedRatio(NamedTuple):
 
     def step(self, rows: FloatArray, time_s: float | None = None) -> tuple[float, float]:
         """Return (time, factor) of the step that fits the rows' mean speed ratio best."""
-        with np.errstate(invalid='ignore'):
-            ratio = np.nanmean(rows, axis=0) / np.maximum(self.model_speed, 1e-12)
-        usable = np.isfinite(ratio)
-        return _best_step(ratio[usable], self.middle[usable], self.duration, time_s)
+        times, factors = self.steps(rows, np.ones((1, len(rows))), time_s)
+        return float(times[0]), float(factors[0])
+
+    def steps(self, rows: FloatArray, weights: FloatArray, time_s: float | None = None
+              ) -> tuple[FloatArray, FloatArray]:
+        """
+        Return the step (`step`) of each weighting of the rows: (B,) times and factors.
+
+        `weights` (B, runs): how often each run is counted (a bootstrap resample's
+        multiplicities); the mean over the runs of each cycle leaves out the runs that did
+        not reach it.
+        """
+        with np.errstate(invalid='ignore', divide='ignore'):
+            ratios = resampled_means(weights, rows) / np.maximum(self.model_speed, 1e-12)
+        return _best_steps(ratios, self.middle, self.duration, time_s)
 
     def estimate(self, rows: FloatArray, n_boot: int, rng: np.random.Generator,
                  time_s: float | None = None) -> tuple[float, float, float]:
@@ -951,8 +963,7 @@ class SpeedRatio(NamedTuple):
         The factor within the bounds a speed factor may take here (0.25-2.9).
         """
         time, factor = self.step(rows, time_s)
-        factors = [self.step(rows[rng.integers(0, len(rows), len(rows))], time_s)[1]
-                   for _ in range(n_boot)]
+        factors = self.steps(rows, resample_weights(rng, len(rows), n_boot), time_s)[1]
         error = float(np.std(factors, ddof=1)) if n_boot > 1 else 0.0
         return time, float(np.clip(factor, 0.25, 2.9)), error
 
@@ -988,26 +999,45 @@ def change_point_step(simulator: Simulator, model: FittedModel, n_boot: int = 0,
     return {'time_s': time, 'speed_factor': factor}, error
 
 
-def _best_step(ratio: FloatArray, middle: FloatArray, duration: float,
-               time_s: float | None = None) -> tuple[float, float]:
+def _best_steps(ratios: FloatArray, middle: FloatArray, duration: float,
+                time_s: float | None = None) -> tuple[FloatArray, FloatArray]:
     """
-    Return (time, factor) of the step that fits `ratio` best: a level before, another after.
+    Return (times, factors) of the steps that fit each row of `ratios` best: (B,) each.
 
-    The factor is the level after over the level before (a model whose speed is off by a
-    constant, as a baseline that mimicked the change may be, still gives the change's factor);
-    the time is sought on a grid over 10-90 % of the runs, or is `time_s`.
+    A step is a level before a time and another after it; the factor is the level after over
+    the level before (a model whose speed is off by a constant, as a baseline that mimicked
+    the change may be, still gives the change's factor). The time is sought on a grid over
+    10-90 % of the runs (the earliest of equal costs), or is `time_s`; a row's NaN entries
+    (cycles no run of it reached) are left out; a row with no step of two cycles either side
+    and a positive level before gets the middle (or `time_s`) and a factor of 1.
     """
-    best = (math.inf, 0.5 * duration if time_s is None else time_s, 1.0)
-    times = np.linspace(0.1, 0.9, 33) * duration if time_s is None else [time_s]
-    for time in times:
-        after = middle >= time
-        if after.sum() < 2 or (~after).sum() < 2:
-            continue
-        first, second = float(np.mean(ratio[~after])), float(np.mean(ratio[after]))
-        cost = float(np.sum((ratio[~after] - first) ** 2) + np.sum((ratio[after] - second) ** 2))
-        if cost < best[0] and first > 0:
-            best = (cost, float(time), second / first)
-    return best[1], best[2]
+    times = np.linspace(0.1, 0.9, 33) * duration if time_s is None else np.array([time_s])
+    # `middle` increases, so the cycles before each time are a prefix: sums over prefixes
+    # (of each row's values less its mean, so the squares do not cancel) give every split
+    before = np.searchsorted(middle, times, side='left')            # (K,) cycles before
+    usable = np.isfinite(ratios)                                    # (B, T')
+    with np.errstate(invalid='ignore', divide='ignore'):
+        centre = (np.where(usable, ratios, 0.0).sum(axis=1, keepdims=True)
+                  / usable.sum(axis=1, keepdims=True))
+        shifted = np.where(usable, ratios - centre, 0.0)
+
+        def prefix(values: FloatArray) -> tuple[FloatArray, FloatArray]:
+            sums = np.concatenate([np.zeros((len(values), 1)), np.cumsum(values, axis=1)],
+                                  axis=1)
+            return sums[:, before], sums[:, -1:] - sums[:, before]   # (B, K) each side
+
+        counts, sums, squares = (prefix(values) for values in
+                                 (usable.astype(float), shifted, shifted ** 2))
+        levels = [centre + total / count for total, count in zip(sums, counts)]
+        cost = sum(square - total ** 2 / count
+                   for square, total, count in zip(squares, sums, counts))
+        factors = levels[1] / levels[0]
+    valid = (counts[0] >= 2) & (counts[1] >= 2) & (levels[0] > 0) & np.isfinite(cost)
+    best = np.argmin(np.where(valid, cost, np.inf), axis=1)
+    rows = np.arange(len(ratios))
+    found = valid[rows, best]
+    default = 0.5 * duration if time_s is None else time_s
+    return (np.where(found, times[best], default), np.where(found, factors[rows, best], 1.0))
 
 
 SIGNATURE_BOOTSTRAP = 60

@@ -52,12 +52,10 @@ def path_covariance(fit: NominalFit, target: AverageTarget, data_gait: FloatArra
     pair_gait = 0.5 * (model_gait[:half] + model_gait[half:2 * half])
     centre = vector(pairs[..., :2].mean(axis=0), pairs[..., 2].mean(axis=0),
                     pair_gait.mean(axis=0))
-    model_steps = []
-    for _ in range(n_boot):
-        pick = rng.integers(0, half, half)
-        change = vector(pairs[pick, :, :2].mean(axis=0), pairs[pick, :, 2].mean(axis=0),
-                        pair_gait[pick].mean(axis=0)) - centre
-        model_steps.append(pseudo_inverse @ change)
+    weights = resample_weights(rng, half, n_boot)
+    paths, gaits = resampled_means(weights, pairs), resampled_means(weights, pair_gait)
+    model_steps = [pseudo_inverse @ (vector(path[..., :2], path[..., 2], gait) - centre)
+                   for path, gait in zip(paths, gaits)]
     measured = np.atleast_2d(np.cov(np.array(data_steps), rowvar=False))
     simulated = np.atleast_2d(np.cov(np.array(model_steps), rowvar=False))
     return measured, simulated
@@ -76,15 +74,38 @@ def target_changes(target: AverageTarget, data_gait: FloatArray, heading_weight_
     def vector(xy: FloatArray, turn: FloatArray, gait: FloatArray) -> FloatArray:
         return residual_vector(xy, turn, gait, heading_weight_m, scales)
 
-    n_runs = len(data_gait)
     base = vector(target.average, target.turn, np.nanmean(data_gait, axis=0))
-    changes = []
-    for _ in range(n_boot):
-        pick = rng.integers(0, n_runs, n_runs)
-        resampled = target.resampled(pick)
-        changes.append(vector(resampled.average, resampled.turn,
-                              np.nanmean(data_gait[pick], axis=0)) - base)
-    return np.array(changes)
+    weights = resample_weights(rng, len(data_gait), n_boot)
+    averages, turns, gaits = (resampled_means(weights, values) for values in
+                              (target.runs_xy, target.runs_turn, data_gait))
+    return np.array([vector(average, turn, gait) - base
+                     for average, turn, gait in zip(averages, turns, gaits)]
+                    ).reshape(n_boot, len(base))
+
+
+def resample_weights(rng: np.random.Generator, n: int, n_boot: int) -> FloatArray:
+    """
+    Return how often each of `n` items is drawn in each of `n_boot` bootstrap resamples.
+
+    (n_boot, n) multiplicities; the resamples are drawn one after the other, each as
+    `rng.integers(0, n, n)`, so a seed gives the items it always gave.
+    """
+    return np.array([np.bincount(rng.integers(0, n, n), minlength=n) for _ in range(n_boot)],
+                    dtype=float).reshape(n_boot, n)
+
+
+def resampled_means(weights: FloatArray, values: FloatArray) -> FloatArray:
+    """
+    Return the mean of `values` (n, ...) over its first axis in each resample: (n_boot, ...).
+
+    NaN entries (a run that has ended) are left out of their mean, as `np.nanmean` does;
+    all resamples in one product, not a copy of the values each.
+    """
+    flat = values.reshape(len(values), -1)
+    present = np.isfinite(flat)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        means = (weights @ np.where(present, flat, 0.0)) / (weights @ present)
+    return means.reshape(len(weights), *values.shape[1:])
 
 
 def cost_gap_se(residuals: FloatArray, rival_residuals: FloatArray,

@@ -183,11 +183,6 @@ class AverageTarget:
         return ResidualScales(standard_error(self.runs_xy), standard_error(self.runs_turn),
                               np.maximum(gait, 1e-12), gait_weight)
 
-    def resampled(self, index: IntArray) -> AverageTarget:
-        """Return the target of the runs picked by `index` (a bootstrap resample)."""
-        return AverageTarget(self.t, self.runs_xy[index], self.runs_turn[index],
-                             self.start_heading[index])
-
 
 def _nanmean_rows(values: FloatArray) -> FloatArray:
     with np.errstate(invalid='ignore', divide='ignore'):
