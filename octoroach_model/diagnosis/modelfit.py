@@ -520,8 +520,9 @@ def restarted_geometry(simulator: Simulator, model: FittedModel,
 
     Where there are several starts, each is first fitted coarsely (`coarse_ends`), and only
     the ends in distinct valleys are fitted in full from there: most starts end in one
-    valley (59 of 85 refits within 0.01 % of each other's cost in the suite's tests), and
-    from far a coarse fit travels the same way at a third of the cost.
+    valley (59 of 85 refits within 0.01 % of each other's cost in the suite's tests,
+    docs/diagnosis.md section 11), and from far a coarse fit travels the same way for about
+    a third of the cost.
     """
     starts = geometry_starts(simulator, model, new, settings)
     if len(starts) > 1:
@@ -547,8 +548,9 @@ def coarse_ends(data: RunData, starts: Sequence[FittedModel], path_causes: tuple
 
     The geometry fit of `fit_geometry` on fewer simulated runs and at a looser tolerance
     (COARSE_SHARE, COARSE_TOLERANCE); of ends in one valley, the one of lowest cost.
-    Measured on the suite's tests that hide effects in data: the same decisions and named
-    values as fitting every start in full (docs/diagnosis.md, section 11).
+    Measured on the suite's tests that hide effects in data against fitting every start in
+    full: the same decisions, named values within 2e-6 of themselves but for two (0.6 %, and
+    a stand-in on data outside the table; docs/diagnosis.md, section 11).
     """
     coarse = replace(settings, tolerance=COARSE_TOLERANCE, mean_path_runs=max(
         COARSE_MIN_RUNS, settings.mean_path_runs // COARSE_SHARE))
