@@ -34,7 +34,8 @@ from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, position_points_cm, score_model, Scores)
 from octoroach_model.fitting.covariance import (
-    cost_gap_se, path_covariance, resample_weights, resampled_means, target_changes)
+    cost_gap_se, path_covariance, resample_picks, resample_weights, resampled_means,
+    target_changes)
 from octoroach_model.fitting.gait import (
     cycle_distances, GAIT_FEATURES, stride_frequency_estimate, stride_samples)
 from octoroach_model.fitting.lines import bootstrap_se, paired_relative_se, read_line
@@ -990,8 +991,7 @@ class SpeedRatio(NamedTuple):
         multiplicities); the mean over the runs of each cycle leaves out the runs that did
         not reach it.
         """
-        with np.errstate(invalid='ignore', divide='ignore'):
-            ratios = resampled_means(weights, rows) / np.maximum(self.model_speed, 1e-12)
+        ratios = resampled_means(weights, rows) / np.maximum(self.model_speed, 1e-12)
         return _best_steps(ratios, self.middle, self.duration, time_s)
 
     def estimate(self, rows: FloatArray, n_boot: int, rng: np.random.Generator,
@@ -1361,8 +1361,8 @@ def fit_mixture(simulator: Simulator, model: FittedModel, cause: Cause,
         shift, rate, fraction = (float(v) for v in other_way_round(
             np.array([shift, rate, fraction])))
     rng = np.random.default_rng([settings.seed, 31])
-    picks = np.array([rng.integers(0, len(rates), len(rates)) for _ in range(n_boot)])
-    draws = two_groups_each(rates[picks], centre, spread, (shift, rate, fraction))
+    draws = two_groups_each(rates[resample_picks(rng, len(rates), n_boot)], centre, spread,
+                            (shift, rate, fraction))
     # each resample labelled as the estimate is (its turning group's rate on the same side)
     boot = np.where((draws[:, 1] * rate < 0)[:, None], other_way_round(draws), draws)
     sizes = np.abs(boot[:, 1]) * np.sqrt(boot[:, 2] * (1 - boot[:, 2]))

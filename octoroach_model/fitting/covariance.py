@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from octoroach_model.arrays import FloatArray
+from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.fitting.nominal import MeanPathSettings, NominalFit, simulated_runs
 from octoroach_model.fitting.target import AverageTarget, residual_vector, ResidualScales
 
@@ -83,14 +83,22 @@ def target_changes(target: AverageTarget, data_gait: FloatArray, heading_weight_
                     ).reshape(n_boot, len(base))
 
 
-def resample_weights(rng: np.random.Generator, n: int, n_boot: int) -> FloatArray:
+def resample_picks(rng: np.random.Generator, n: int, n_boot: int) -> IntArray:
     """
-    Return how often each of `n` items is drawn in each of `n_boot` bootstrap resamples.
+    Return the items of `n_boot` bootstrap resamples of `n` items: (n_boot, n) indices.
 
-    (n_boot, n) multiplicities; the resamples are drawn one after the other, each as
-    `rng.integers(0, n, n)`, so a seed gives the items it always gave.
+    Drawn one resample after the other, each as `rng.integers(0, n, n)`: one (n_boot, n)
+    draw gives other items for odd n (numpy draws bounded integers in buffered 32-bit
+    halves per call), and a seed must give the items it always gave.
     """
-    return np.array([np.bincount(rng.integers(0, n, n), minlength=n) for _ in range(n_boot)],
+    return np.array([rng.integers(0, n, n) for _ in range(n_boot)],
+                    dtype=np.intp).reshape(n_boot, n)
+
+
+def resample_weights(rng: np.random.Generator, n: int, n_boot: int) -> FloatArray:
+    """Return how often each of `n` items is drawn in each resample (`resample_picks`)."""
+    picks = resample_picks(rng, n, n_boot)
+    return np.array([np.bincount(pick, minlength=n) for pick in picks],
                     dtype=float).reshape(n_boot, n)
 
 

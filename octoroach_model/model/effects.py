@@ -263,8 +263,8 @@ def rotate_about_start(poses: FloatArray, dheading: FloatArray) -> FloatArray:
     cos_d, sin_d = (value[:, None] for value in cos_sin(dheading))
     x, y = poses[..., 0], poses[..., 1]
     x0, y0 = x[:, :1], y[:, :1]
-    # each coordinate apart (contiguous), no copy of the poses first: a quarter faster for
-    # the 1200 scored runs of a detection limit, the same numbers bit for bit
+    # each coordinate apart (contiguous), no copy of the poses first: the same numbers bit
+    # for bit, a quarter faster for 1200 runs of 251 samples (timed once, script not kept)
     rel_x, rel_y = x - x0, y - y0
     out = np.empty_like(poses)
     out[..., 0] = x0 + cos_d * rel_x - sin_d * rel_y
