@@ -300,3 +300,44 @@ def test_resamples_and_steps_taken_at_once_are_those_taken_one_at_a_time(rows, n
     for resample, time, factor in zip(resamples, times, factors):
         assert_best_step((time, factor), steps_by_definition(
             mean_of_runs(resample) / speed, middle, duration, time_s), duration, time_s)
+
+
+@st.composite
+def poses_with_ends(draw) -> np.ndarray:
+    """(n, T, 3) random-walk poses of runs that may end early (NaN after their end)."""
+    runs, samples = draw(st.integers(1, 12)), draw(st.integers(20, 90))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    poses = np.cumsum(0.01 * rng.standard_normal((runs, samples, 3)), axis=1)
+    if draw(st.booleans()):
+        for run, end in enumerate(rng.integers(10, samples + 1, runs)):
+            poses[run, end:] = np.nan
+    return poses
+
+
+@seed(SUITE_SEED)
+@settings(max_examples=60, deadline=None, database=None)
+@given(poses_with_ends(), st.integers(1, 6))
+def test_positions_taken_a_coordinate_at_a_time_are_the_numbers_of_xy_pairs(poses, cycle):
+    """Each coordinate apart: bit for bit the (x, y) pair arithmetic it stands for."""
+    from octoroach_model.diagnosis.features import INDEX, RESOLUTION_NOISE_M2, run_features
+    from octoroach_model.fitting.gait import cycle_distances
+    from octoroach_model.model.effects import add_to_positions
+
+    xy = poses[..., :2]
+    np.testing.assert_array_equal(cycle_distances(xy, cycle),
+                                  np.linalg.norm(xy[:, cycle:] - xy[:, :-cycle], axis=-1))
+    # the noise feature: the median of both coordinates' squared fourth differences together
+    fourth = np.diff(xy, n=4, axis=1) ** 2
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', RuntimeWarning)
+        median = np.nanmedian(fourth.reshape(len(poses), -1), axis=1) \
+            if np.isnan(poses).any() else np.median(fourth, axis=(1, 2))
+        features = run_features(om.Paths(0.01 * np.arange(poses.shape[1]), poses), 2.0, 0.0)
+    np.testing.assert_array_equal(features[:, INDEX['log_noise']],
+                                  np.log(np.nan_to_num(median, nan=0.0) + RESOLUTION_NOISE_M2))
+    offsets = np.random.default_rng(cycle).standard_normal((len(poses), poses.shape[1], 2))
+    for offset in (offsets, offsets[:, :1]):            # one per sample, or one per run
+        moved = poses.copy()
+        add_to_positions(moved, offset)
+        np.testing.assert_array_equal(moved[..., :2], poses[..., :2] + offset)
+        np.testing.assert_array_equal(moved[..., 2], poses[..., 2])

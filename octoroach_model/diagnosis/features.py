@@ -150,8 +150,11 @@ def run_features(paths: Paths, stride_frequency: float, reference_heading: float
     complete = bool(lengths.min() == len(t))
     values: dict[str, FloatArray | float] = {'start_heading': heading[:, 0],
                                              'start_x': xy[:, 0, 0], 'start_y': xy[:, 0, 1]}
-    fourth = np.diff(xy, n=4, axis=1) ** 2
-    median = np.median(fourth, axis=(1, 2)) if complete else _nanmedian_rows(fourth)
+    # both coordinates' fourth differences of a run side by side (the median of a set does
+    # not depend on its order): each coordinate apart, along whole runs
+    fourth = np.concatenate([np.diff(xy[..., channel], n=4, axis=1) ** 2
+                             for channel in (0, 1)], axis=1)
+    median = np.median(fourth, axis=1) if complete else _nanmedian_rows(fourth)
     values['log_noise'] = np.log(np.nan_to_num(median, nan=0.0) + RESOLUTION_NOISE_M2)
     cycle = stride_samples(stride_frequency, dt)
     windowed = windowed_sway(heading, t)

@@ -238,7 +238,11 @@ def cycle_distances(xy: FloatArray, cycle: int) -> FloatArray:
     change of speed within a run is read from (the change point's fit and its plot). NaN
     where a window reaches past a run's end.
     """
-    distances: FloatArray = np.linalg.norm(xy[:, cycle:] - xy[:, :-cycle], axis=-1)
+    x, y = xy[..., 0], xy[..., 1]
+    dx, dy = x[:, cycle:] - x[:, :-cycle], y[:, cycle:] - y[:, :-cycle]
+    # x and y apart (as np.linalg.norm sums the two squares, the same numbers), not as a
+    # (..., 2) array, which numpy walks two numbers at a time
+    distances: FloatArray = np.sqrt(dx * dx + dy * dy)
     return distances
 
 
@@ -250,7 +254,8 @@ def slip_angle(xy: FloatArray, heading: FloatArray, cycle: int) -> FloatArray:
     fourth touchdown angles (a body that crabs), which neither the average path nor the sway
     pins down on few long runs.
     """
-    step = xy[:, cycle:] - xy[:, :-cycle]
+    x, y = xy[..., 0], xy[..., 1]
+    step_x, step_y = x[:, cycle:] - x[:, :-cycle], y[:, cycle:] - y[:, :-cycle]
     filled = heading if np.isfinite(heading).all() else np.nan_to_num(heading)
     total = np.zeros((heading.shape[0], heading.shape[1] + 1))
     np.cumsum(filled, axis=1, out=total[:, 1:])
@@ -258,10 +263,10 @@ def slip_angle(xy: FloatArray, heading: FloatArray, cycle: int) -> FloatArray:
     # the step turned into the mean heading's frame: its angle is already within [-pi, pi]
     # (np.remainder on the difference of two angles cost as much as the rest together)
     cos, sin = cos_sin(mean_heading)
-    along = step[..., 0] * cos + step[..., 1] * sin
-    across = step[..., 1] * cos - step[..., 0] * sin
+    along = step_x * cos + step_y * sin
+    across = step_y * cos - step_x * sin
     offset = np.arctan2(across, along)
-    usable = np.isfinite(step[..., 0])
+    usable = np.isfinite(step_x)
     count = np.maximum(usable.sum(axis=1), 1)
     mean_offset: FloatArray = (offset if usable.all() else np.where(usable, offset, 0.0)).sum(
         axis=1) / count

@@ -237,11 +237,24 @@ def apply_pose_effects(poses: FloatArray, t: FloatArray, effects: Effects,
         dheading = math.radians(params['heading_std_deg']) * rng.standard_normal(n_runs)
         shift = params['position_std_cm'] / 100.0 * rng.standard_normal((n_runs, 2))
         poses = rotate_about_start(poses, dheading)
-        poses[..., :2] += shift[:, None, :]
+        add_to_positions(poses, shift[:, None, :])
     if 'measurement_noise' in effects:
         std = effects['measurement_noise']['position_std_cm'] / 100.0
-        poses[..., :2] += std * rngs['measurement_noise'].standard_normal(poses[..., :2].shape)
+        add_to_positions(poses, std * rngs['measurement_noise'].standard_normal(
+            poses[..., :2].shape))
     return poses
+
+
+def add_to_positions(poses: FloatArray, offsets: FloatArray) -> None:
+    """
+    Add (n, T or 1, 2) `offsets` to the x and y of (n, T, 3) `poses`, in place.
+
+    A coordinate at a time, along whole runs: numpy's inner loop runs along the last axis, so
+    on a (..., 2) view of the poses it went two numbers at a time (the same sums, 3-5 times
+    slower).
+    """
+    for channel in (0, 1):
+        poses[..., channel] += offsets[..., channel]
 
 
 def rotate_about_start(poses: FloatArray, dheading: FloatArray) -> FloatArray:
@@ -337,7 +350,7 @@ def _turned_steps(poses: FloatArray, angle: FloatArray, heading: FloatArray) -> 
     out[:, 0, :2] = poses[:, 0, :2]
     np.cumsum(cos_a * step_x - sin_a * step_y, axis=1, out=out[:, 1:, 0])
     np.cumsum(sin_a * step_x + cos_a * step_y, axis=1, out=out[:, 1:, 1])
-    out[:, 1:, :2] += poses[:, :1, :2]
+    add_to_positions(out[:, 1:], poses[:, :1, :2])
     return out
 
 
