@@ -68,6 +68,24 @@ def test_measurement_noise_adds_independent_noise_to_positions_only(plain):
     assert abs(np.corrcoef(noise[..., 0].ravel(), noise[..., 1].ravel())[0, 1]) < 0.01
 
 
+@pytest.mark.parametrize('effects', [
+    {'measurement_noise': {'position_std_cm': 0.5}},
+    {'initial_pose_error': {'heading_std_deg': 5.0, 'position_std_cm': 1.0},
+     'measurement_noise': {'position_std_cm': 0.5}},
+    {'persistent_turning': {'yaw_rate_std_deg_s': 5.0}},
+    {'lateral_slip': {'velocity_cm_s': 2.0}, 'measurement_noise': {'position_std_cm': 0.5}}])
+def test_the_poses_effects_are_applied_to_are_left_as_they_were(plain, effects):
+    """apply_pose_effects writes its effects on a new array (noise alone on a copy)."""
+    from octoroach_model.model.effects import apply_pose_effects, check_effects
+    from octoroach_model.model.simulate import RandomStreams
+
+    poses = plain.poses[:50].copy()
+    moved = apply_pose_effects(poses, plain.t, check_effects(effects), RandomStreams(1).effects)
+    np.testing.assert_array_equal(poses, plain.poses[:50])
+    assert not np.shares_memory(moved, poses)
+    assert np.abs(moved[..., :2] - poses[..., :2]).max() > 1e-4
+
+
 def test_adding_an_effect_leaves_the_angle_draws_unchanged(plain):
     # Same seed with and without effects of zero size: the very same runs.
     for effects in ({'measurement_noise': {'position_std_cm': 0.0}},

@@ -31,6 +31,33 @@ def test_same_seed_gives_identical_runs():
     np.testing.assert_array_equal(first.t, second.t)
 
 
+@pytest.mark.parametrize('antithetic', [False, True])
+def test_each_stream_draws_child_i_of_the_seed_whenever_and_in_whatever_order_it_is_made(
+        antithetic):
+    """A generator made when first drawn from draws what child i of the seed draws."""
+    from octoroach_model.model.effects import MODEL_TERMS
+    from octoroach_model.model.simulate import AntitheticNormal, RandomStreams
+
+    names = ('angles', 'extra_stances', *MODEL_TERMS)
+    children = np.random.SeedSequence(11).spawn(len(names))
+    expected = {}
+    for name, child in zip(names, children):
+        generator = np.random.default_rng(child)
+        source = AntitheticNormal(generator) if antithetic else generator
+        expected[name] = [source.standard_normal((4, 3)) for _ in range(2)]
+    for order in (names, names[::-1]):
+        streams = RandomStreams(11, antithetic=antithetic)
+        assert sorted(streams.effects) == sorted(MODEL_TERMS)
+        drawn = {name: [] for name in names}
+        for _ in range(2):      # the second draw goes on from the first, from the same stream
+            for name in order:
+                source = getattr(streams, name) if name in ('angles', 'extra_stances') \
+                    else streams.effects[name]
+                drawn[name].append(source.standard_normal((4, 3)))
+        for name in names:
+            np.testing.assert_array_equal(drawn[name], expected[name], err_msg=name)
+
+
 def test_different_seeds_give_different_runs():
     first = om.simulate(50, seed=3)
     second = om.simulate(50, seed=4)

@@ -210,10 +210,11 @@ def apply_pose_effects(poses: FloatArray, t: FloatArray, effects: Effects,
     Returns
     -------
     array, shape (n, T, 3)
-        The poses with the effects, same units.
+        The poses with the effects, same units: a new array, or `poses` itself where no
+        effect moves it (it is never changed).
 
     """
-    poses = poses.copy()
+    given = poses
     n_runs = poses.shape[0]
     duration = float(t[-1]) if len(t) else 0.0
     context = replace(_context(t, n_runs, positions, duration), phase=phase)
@@ -240,6 +241,8 @@ def apply_pose_effects(poses: FloatArray, t: FloatArray, effects: Effects,
         add_to_positions(poses, shift[:, None, :])
     if 'measurement_noise' in effects:
         std = effects['measurement_noise']['position_std_cm'] / 100.0
+        if poses is given:      # every effect before gives a new array; noise alone copies
+            poses = poses.copy()
         add_to_positions(poses, std * rngs['measurement_noise'].standard_normal(
             poses[..., :2].shape))
     return poses

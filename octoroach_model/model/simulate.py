@@ -9,7 +9,7 @@ asked for: common random numbers for every comparison between settings (docs/mod
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 import math
 
 import numpy as np
@@ -51,6 +51,9 @@ class RandomStreams:
 
     With `antithetic`, every generator gives its normals in mirrored pairs (AntitheticNormal):
     for means over runs (the nominal fit's mean path), not for runs that stand for data.
+    Each generator is made when first drawn from (`TermStreams`): a geometry fit makes a
+    RandomStreams for every evaluation of its residuals, and most runs draw from a few of
+    its streams (one per term of the model, besides the angles').
     """
 
     def __init__(self, seed: int | np.random.SeedSequence | None,
@@ -64,13 +67,47 @@ class RandomStreams:
             sequence = np.random.SeedSequence(seed)
         # child i is the same whatever the count: streams of later terms leave earlier ones
         children = sequence.spawn(2 + len(MODEL_TERMS))
-        wrap = AntitheticNormal if antithetic else (lambda generator: generator)
         self.seed_entropy = sequence.entropy
-        self.angles = wrap(np.random.default_rng(children[0]))
-        self.extra_stances = wrap(np.random.default_rng(children[1]))
-        self.effects: dict[str, NormalSource] = {
-            name: wrap(np.random.default_rng(child))
-            for name, child in zip(MODEL_TERMS, children[2:])}
+        self._stances = TermStreams(dict(zip(('angles', 'extra_stances'), children)),
+                                    antithetic)
+        self.effects: Mapping[str, NormalSource] = TermStreams(
+            dict(zip(MODEL_TERMS, children[2:])), antithetic)
+
+    @property
+    def angles(self) -> NormalSource:
+        """Return the stream of the angle normals of the first 2 * cycles stances."""
+        return self._stances['angles']
+
+    @property
+    def extra_stances(self) -> NormalSource:
+        """Return the stream of the normals of stances beyond those (a faster gait)."""
+        return self._stances['extra_stances']
+
+
+class TermStreams(Mapping[str, NormalSource]):
+    """
+    Named generators, each made from its own seed sequence when first asked for.
+
+    A generator made later draws what it would have drawn made at once (its seed sequence is
+    not changed by being read), so the streams are those of one seed whenever they are made.
+    """
+
+    def __init__(self, children: Mapping[str, np.random.SeedSequence], antithetic: bool) -> None:
+        self._children = children
+        self._wrap: Callable[[np.random.Generator], NormalSource] = \
+            AntitheticNormal if antithetic else (lambda generator: generator)
+        self._made: dict[str, NormalSource] = {}
+
+    def __getitem__(self, name: str) -> NormalSource:
+        if name not in self._made:
+            self._made[name] = self._wrap(np.random.default_rng(self._children[name]))
+        return self._made[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._children)
+
+    def __len__(self) -> int:
+        return len(self._children)
 
 
 def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = None,
