@@ -238,12 +238,20 @@ def cycle_distances(xy: FloatArray, cycle: int) -> FloatArray:
     change of speed within a run is read from (the change point's fit and its plot). NaN
     where a window reaches past a run's end.
     """
-    x, y = xy[..., 0], xy[..., 1]
-    dx, dy = x[:, cycle:] - x[:, :-cycle], y[:, cycle:] - y[:, :-cycle]
-    # x and y apart (as np.linalg.norm sums the two squares, the same numbers), not as a
-    # (..., 2) array, which numpy walks two numbers at a time
-    distances: FloatArray = np.sqrt(dx * dx + dy * dy)
+    dx, dy = cycle_steps(xy, cycle)
+    distances: FloatArray = np.sqrt(dx * dx + dy * dy)  # the sums np.linalg.norm makes
     return distances
+
+
+def cycle_steps(xy: FloatArray, cycle: int) -> tuple[FloatArray, FloatArray]:
+    """
+    Return the (n, T - cycle) x and y each run moves over each window of `cycle` samples.
+
+    Each coordinate apart: numpy walks a (..., 2) array two numbers at a time (its inner loop
+    is the last axis). NaN where a window reaches past a run's end.
+    """
+    x, y = xy[..., 0], xy[..., 1]
+    return x[:, cycle:] - x[:, :-cycle], y[:, cycle:] - y[:, :-cycle]
 
 
 def slip_angle(xy: FloatArray, heading: FloatArray, cycle: int) -> FloatArray:
@@ -254,8 +262,7 @@ def slip_angle(xy: FloatArray, heading: FloatArray, cycle: int) -> FloatArray:
     fourth touchdown angles (a body that crabs), which neither the average path nor the sway
     pins down on few long runs.
     """
-    x, y = xy[..., 0], xy[..., 1]
-    step_x, step_y = x[:, cycle:] - x[:, :-cycle], y[:, cycle:] - y[:, :-cycle]
+    step_x, step_y = cycle_steps(xy, cycle)
     filled = heading if np.isfinite(heading).all() else np.nan_to_num(heading)
     total = np.zeros((heading.shape[0], heading.shape[1] + 1))
     np.cumsum(filled, axis=1, out=total[:, 1:])
