@@ -532,6 +532,14 @@ def restarted_geometry(simulator: Simulator, model: FittedModel,
     return best_valley(simulator, fits, settings)
 
 
+# a fit from another start that ends this many standard errors away in some entry of the
+# geometry (leg, angles, stride frequency; and the path-cause sizes in `best_valley`) is in
+# another valley of the objective
+DISTINCT_SE = 2.0
+# it replaces the lowest cost end where the calibration runs score higher under it by more
+# than this many paired standard errors
+VALLEY_Z = 2.0
+
 # the coarse fits of `coarse_ends`: a third of the simulated runs of a mean path (at least
 # COARSE_MIN_RUNS), least squares stopped at a relative change of COARSE_TOLERANCE; ends
 # within COARSE_DISTINCT_SE of a lower one's standard errors in every entry are its valley
@@ -539,7 +547,9 @@ def restarted_geometry(simulator: Simulator, model: FittedModel,
 COARSE_SHARE = 3
 COARSE_MIN_RUNS = 30
 COARSE_TOLERANCE = 1e-3
-COARSE_DISTINCT_SE = 1.0
+COARSE_DISTINCT_SE = 0.5 * DISTINCT_SE
+
+GeometryFit = tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]
 
 
 def coarse_ends(data: RunData, starts: Sequence[FittedModel], path_causes: tuple[str, ...],
@@ -555,23 +565,24 @@ def coarse_ends(data: RunData, starts: Sequence[FittedModel], path_causes: tuple
     """
     coarse = replace(settings, tolerance=COARSE_TOLERANCE, mean_path_runs=max(
         COARSE_MIN_RUNS, settings.mean_path_runs // COARSE_SHARE))
-    ends = sorted((fit_geometry(data, start, path_causes, coarse) for start in starts),
-                  key=lambda end: end[2].cost)          # stable: the first of equal costs
-    errors = np.sqrt(np.maximum(np.diag(ends[0][2].covariance), 1e-300))
-    others = other_valleys(_fit_vector(ends[0]), errors,
-                           [_fit_vector(end) for end in ends[1:]], COARSE_DISTINCT_SE)
-    return [ends[0][0]] + [ends[1 + index][0] for index in others]
+    ends = [fit_geometry(data, start, path_causes, coarse) for start in starts]
+    return [model for model, _, _ in valley_ends(ends, COARSE_DISTINCT_SE)]
 
 
-# a fit from another start that ends this many standard errors away in some entry of the
-# geometry (leg, angles, stride frequency; and the path-cause sizes in `best_valley`) is in
-# another valley of the objective
-DISTINCT_SE = 2.0
-# it replaces the lowest cost end where the calibration runs score higher under it by more
-# than this many paired standard errors
-VALLEY_Z = 2.0
+def valley_ends(fits: Sequence[GeometryFit], distinct_se: float = DISTINCT_SE
+                ) -> list[GeometryFit]:
+    """
+    Return the fit of lowest cost, then the fits in other valleys than it and each other.
 
-GeometryFit = tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]
+    In the order of their costs (of equal costs, the first given); another valley: some entry
+    of the geometry and path-cause sizes more than `distinct_se` of the lowest's standard
+    errors away (`other_valleys`).
+    """
+    ordered = sorted(fits, key=lambda fit: fit[2].cost)         # stable
+    lowest = ordered[0]
+    errors = np.sqrt(np.maximum(np.diag(lowest[2].covariance), 1e-300))
+    return [lowest] + [ordered[1 + index] for index in other_valleys(
+        _fit_vector(lowest), errors, [_fit_vector(fit) for fit in ordered[1:]], distinct_se)]
 
 
 def best_valley(simulator: Simulator, fits: Sequence[GeometryFit], settings: FitSettings
@@ -591,12 +602,7 @@ def best_valley(simulator: Simulator, fits: Sequence[GeometryFit], settings: Fit
     lowest cost's end gives way only to a clearly better score (`VALLEY_Z`), and of several
     to the best.
     """
-    order = sorted(range(len(fits)), key=lambda index: fits[index][2].cost)   # stable
-    best = fits[order[0]]
-    errors = np.sqrt(np.maximum(np.diag(best[2].covariance), 1e-300))
-    others = [fits[index] for index in order[1:]]
-    rivals = [others[index] for index in other_valleys(
-        _fit_vector(best), errors, [_fit_vector(fit) for fit in others])]
+    best, *rivals = valley_ends(fits)
     if not rivals:
         return best
     base = calibration_log_scores(simulator, best[0], settings)
@@ -770,8 +776,7 @@ def geometry_problem(data: RunData, model: FittedModel, path_causes: tuple[str, 
 
 
 def fit_geometry(data: RunData, model: FittedModel, path_causes: tuple[str, ...],
-                 settings: FitSettings
-                 ) -> tuple[FittedModel, dict[str, SizeEstimate], GeometryUncertainty]:
+                 settings: FitSettings) -> GeometryFit:
     """
     Fit the geometry and the path-cause sizes, with their covariance.
 

@@ -98,8 +98,10 @@ def resample_picks(rng: np.random.Generator, n: int, n_boot: int) -> IntArray:
 def resample_weights(rng: np.random.Generator, n: int, n_boot: int) -> FloatArray:
     """Return how often each of `n` items is drawn in each resample (`resample_picks`)."""
     picks = resample_picks(rng, n, n_boot)
-    return np.array([np.bincount(pick, minlength=n) for pick in picks],
-                    dtype=float).reshape(n_boot, n)
+    # every resample's counts in one bincount: resample b's items numbered from b n
+    counts = np.bincount((picks + n * np.arange(n_boot)[:, None]).ravel(),
+                         minlength=n_boot * n)
+    return counts.reshape(n_boot, n).astype(float)
 
 
 def resampled_means(weights: FloatArray, values: FloatArray) -> FloatArray:

@@ -51,7 +51,7 @@ class RandomStreams:
 
     With `antithetic`, every generator gives its normals in mirrored pairs (AntitheticNormal):
     for means over runs (the nominal fit's mean path), not for runs that stand for data.
-    Each generator is made when first drawn from (`TermStreams`): a geometry fit makes a
+    Each generator is made when first drawn from (`NamedStreams`): a geometry fit makes a
     RandomStreams for every evaluation of its residuals, and most runs draw from a few of
     its streams (one per term of the model, besides the angles').
     """
@@ -68,9 +68,9 @@ class RandomStreams:
         # child i is the same whatever the count: streams of later terms leave earlier ones
         children = sequence.spawn(2 + len(MODEL_TERMS))
         self.seed_entropy = sequence.entropy
-        self._stances = TermStreams(dict(zip(('angles', 'extra_stances'), children)),
-                                    antithetic)
-        self.effects: Mapping[str, NormalSource] = TermStreams(
+        self._stances = NamedStreams(dict(zip(('angles', 'extra_stances'), children)),
+                                     antithetic)
+        self.effects: Mapping[str, NormalSource] = NamedStreams(
             dict(zip(MODEL_TERMS, children[2:])), antithetic)
 
     @property
@@ -84,7 +84,7 @@ class RandomStreams:
         return self._stances['extra_stances']
 
 
-class TermStreams(Mapping[str, NormalSource]):
+class NamedStreams(Mapping[str, NormalSource]):
     """
     Named generators, each made from its own seed sequence when first asked for.
 
