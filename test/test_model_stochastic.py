@@ -31,22 +31,33 @@ def test_same_seed_gives_identical_runs():
     np.testing.assert_array_equal(first.t, second.t)
 
 
+def seed_sequence_of(seed) -> np.random.SeedSequence:
+    """Return a fresh copy of `seed` as a SeedSequence (spawn advances the one it is called on)."""
+    if isinstance(seed, np.random.SeedSequence):
+        return np.random.SeedSequence(seed.entropy, spawn_key=seed.spawn_key,
+                                      pool_size=seed.pool_size)
+    return np.random.SeedSequence(seed)
+
+
 @pytest.mark.parametrize('antithetic', [False, True])
+@pytest.mark.parametrize('seed', [11, np.random.SeedSequence([11, 5]),
+                                  np.random.SeedSequence(11).spawn(3)[2]],
+                         ids=['int', 'entropy list', 'spawned child'])
 def test_each_stream_draws_child_i_of_the_seed_whenever_and_in_whatever_order_it_is_made(
-        antithetic):
+        antithetic, seed):
     """A generator made when first drawn from draws what child i of the seed draws."""
     from octoroach_model.model.effects import MODEL_TERMS
     from octoroach_model.model.simulate import AntitheticNormal, RandomStreams
 
     names = ('angles', 'extra_stances', *MODEL_TERMS)
-    children = np.random.SeedSequence(11).spawn(len(names))
+    children = seed_sequence_of(seed).spawn(len(names))
     expected = {}
     for name, child in zip(names, children):
         generator = np.random.default_rng(child)
         source = AntitheticNormal(generator) if antithetic else generator
         expected[name] = [source.standard_normal((4, 3)) for _ in range(2)]
     for order in (names, names[::-1]):
-        streams = RandomStreams(11, antithetic=antithetic)
+        streams = RandomStreams(seed, antithetic=antithetic)
         assert sorted(streams.effects) == sorted(MODEL_TERMS)
         drawn = {name: [] for name in names}
         for _ in range(2):      # the second draw goes on from the first, from the same stream

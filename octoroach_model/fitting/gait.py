@@ -75,12 +75,11 @@ def _detrended_whole(values: FloatArray, t: FloatArray) -> FloatArray:
     """
     count = max(len(t), 1)
     t_mean = t.sum() / count
-    v_mean = values.sum(axis=1, keepdims=True) / count
+    centred: FloatArray = values - values.sum(axis=1, keepdims=True) / count
     centred_t = t - t_mean
-    slope = (centred_t * (values - v_mean)).sum(axis=1, keepdims=True) \
-        / max((centred_t ** 2).sum(), 1e-300)
-    whole: FloatArray = values - v_mean - slope * centred_t
-    return whole
+    slope = (centred_t * centred).sum(axis=1, keepdims=True) / max((centred_t ** 2).sum(), 1e-300)
+    centred -= slope * centred_t        # values - v_mean - slope (t - t_mean), as masked
+    return centred
 
 
 def band_spectrum(signal: FloatArray, t: FloatArray, frequencies: FloatArray) -> FloatArray:
@@ -179,7 +178,8 @@ def heading_sway(heading: FloatArray, t: FloatArray, nominal_hz: float,
 
 
 def lateral_sway(xy: FloatArray, heading: FloatArray, t: FloatArray,
-                 frequency: FloatArray) -> tuple[FloatArray, FloatArray]:
+                 frequency: FloatArray, window: FloatArray | None = None
+                 ) -> tuple[FloatArray, FloatArray]:
     """
     Measure the sideways sway of G (m) at each run's stride frequency and twice it.
 
@@ -196,6 +196,8 @@ def lateral_sway(xy: FloatArray, heading: FloatArray, t: FloatArray,
         s.
     frequency : array, shape (n,)
         Each run's stride frequency, Hz.
+    window : array, shape (n, T), or None
+        Each run's Hann window (`windowed_sway`'s), where the caller has it.
 
     Returns
     -------
@@ -204,12 +206,14 @@ def lateral_sway(xy: FloatArray, heading: FloatArray, t: FloatArray,
 
     """
     mask = valid_mask(heading)
-    count = np.maximum(mask.sum(axis=1, keepdims=True), 1)
+    lengths = mask.sum(axis=1, keepdims=True)
+    count = np.maximum(lengths, 1)
     whole = bool(mask.all())       # no run ends early: nothing to mask (the same sums)
     mean_heading = (heading if whole else np.where(mask, heading, 0.0)).sum(
         axis=1, keepdims=True) / count
     across = xy[..., 0] * np.sin(mean_heading) - xy[..., 1] * np.cos(mean_heading)
-    window = hann_windows(mask.sum(axis=1), len(t))
+    if window is None:
+        window = hann_windows(lengths[:, 0], len(t))
     residual = detrended(across, t) * window
     norm = np.maximum(window.sum(axis=1), 1e-12)
     angle = 2 * np.pi * frequency[:, None] * t[None, :]
@@ -309,8 +313,9 @@ def gait_features(t: FloatArray, xy: FloatArray, heading: FloatArray,
         `windowed_sway` of `heading`, where the caller has it.
 
     """
+    windowed = windowed if windowed is not None else windowed_sway(heading, t)
     frequency, amplitude = heading_sway(heading, t, guess_hz, windowed)
-    first, second = lateral_sway(xy, heading, t, frequency)
+    first, second = lateral_sway(xy, heading, t, frequency, windowed[1])
     return np.column_stack([amplitude, first, second, frequency,
                             slip_angle(xy, heading, cycle)])
 

@@ -13,10 +13,12 @@ world through a rotation by theta - pi/2.
 """
 from __future__ import annotations
 
+from typing import TypeVar
+
 import numpy as np
 import numpy.typing as npt
 
-from octoroach_model.arrays import FloatArray, Floats
+from octoroach_model.arrays import FloatArray, Floats, IntArray
 from octoroach_model.model.trig import cos_sin
 
 # x and y of a point in the body frame, metres
@@ -236,13 +238,18 @@ def integrate_stances(angles: FloatArray, phase: FloatArray, start_pose: npt.Arr
         flat_table = table.reshape(len(table), -1)
         for sub in _row_blocks(table.shape[2], max(1, _BLOCK // n_samples)):
             block = phase[rows][sub]
-            index = np.clip(np.floor(block).astype(np.intp), 0, n_stances - 1)
-            within = np.clip(block - index, 0.0, 1.0)
+            # np.minimum and np.maximum in place, not np.clip: its Python wrapper cost more
+            # than the clipping (integer bounds look up np.iinfo each call); the same values
+            index = np.floor(block).astype(np.intp)
+            _clamp(index, 0, n_stances - 1)
+            within = _clamp(block - index, 0.0, 1.0)
             # flat position of (stance, run) in the table: stance * runs + run
             flat = index * table.shape[2] + np.arange(sub.start, sub.stop)[:, None]
             geometry.poses(np.take(flat_table, flat, axis=1), within, out=poses[rows][sub])
     return poses
 
+
+Clamped = TypeVar('Clamped', FloatArray, IntArray)
 
 # Samples per block of work: small enough that the temporaries stay in the CPU cache.
 _BLOCK = 1 << 13
@@ -274,8 +281,7 @@ class _Geometry:
         # P = B - rear foot in the pair's frame is (l cos r, d - l sin r)
         p_y = d - l_sin_r
         inv_p = 1.0 / np.sqrt(self.reach_sq - (2.0 * d) * l_sin_r)
-        ratio = (closure_offset + (d / l) * l_sin_r) * inv_p
-        np.clip(ratio, -1.0, 1.0, out=ratio)
+        ratio = _clamp((closure_offset + (d / l) * l_sin_r) * inv_p, -1.0, 1.0)
         # front angle f = atan2(b, a) + branch acos(ratio), with (a, b) along P / |P|:
         # l cos f and l sin f by the addition formulas
         scale = l * inv_p
@@ -377,7 +383,10 @@ def _stances(angles: FloatArray, start: FloatArray, geometry: _Geometry) -> Floa
     axis_y = sin_0 * sin_s - cos_0 * cos_s
     fields = (rear_td, sweep, closure_offset, branch, mirror, heading0, segment_angle,
               axis_x, axis_y, foot_x, foot_y)
-    return np.stack([np.broadcast_to(field, (n_stances, n_runs)) for field in fields])
+    table = np.empty((len(fields), n_stances, n_runs))
+    for row, field in zip(table, fields):
+        row[...] = field        # mirror is (S, 1): assignment broadcasts it over the runs
+    return table
 
 
 def _starts(first: FloatArray, increments: FloatArray) -> FloatArray:
@@ -388,6 +397,19 @@ def _starts(first: FloatArray, increments: FloatArray) -> FloatArray:
         np.cumsum(increments[:-1], axis=0, out=out[1:])
         out[1:] += first
     return out
+
+
+def _clamp(values: Clamped, low: float, high: float) -> Clamped:
+    """
+    Clip `values` into [low, high] in place and return them (np.clip's values).
+
+    Two ufuncs instead of np.clip, whose Python wrapper costs more than the work on the
+    model's blocks of a few thousand samples, tens of thousands of times a diagnosis.
+    NaN stays NaN; a -0.0 against a bound of 0 may stay -0.0, which equals 0.
+    """
+    np.maximum(values, low, out=values)
+    np.minimum(values, high, out=values)
+    return values
 
 
 def _row_blocks(n_rows: int, size: int) -> list[slice]:

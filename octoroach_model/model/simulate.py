@@ -58,20 +58,16 @@ class RandomStreams:
 
     def __init__(self, seed: int | np.random.SeedSequence | None,
                  antithetic: bool = False) -> None:
-        if isinstance(seed, np.random.SeedSequence):
-            # a copy: spawn() advances the sequence it is called on, and the same seed must
-            # give the same streams every time (common random numbers)
-            sequence = np.random.SeedSequence(seed.entropy, spawn_key=seed.spawn_key,
-                                              pool_size=seed.pool_size)
-        else:
-            sequence = np.random.SeedSequence(seed)
-        # child i is the same whatever the count: streams of later terms leave earlier ones
-        children = sequence.spawn(2 + len(MODEL_TERMS))
+        # the children are made from the seed's entropy and spawn key (NamedStreams), not by
+        # spawn(), which advances the sequence it is called on: the same seed gives the same
+        # streams every time (common random numbers), and child i is the same whatever the
+        # count, so streams of later terms leave earlier ones
+        sequence = seed if isinstance(seed, np.random.SeedSequence) \
+            else np.random.SeedSequence(seed)
         self.seed_entropy = sequence.entropy
-        self._stances = NamedStreams(dict(zip(('angles', 'extra_stances'), children)),
-                                     antithetic)
+        self._stances = NamedStreams(sequence, ('angles', 'extra_stances'), 0, antithetic)
         self.effects: Mapping[str, NormalSource] = NamedStreams(
-            dict(zip(MODEL_TERMS, children[2:])), antithetic)
+            sequence, MODEL_TERMS, 2, antithetic)
 
     @property
     def angles(self) -> NormalSource:
@@ -86,28 +82,36 @@ class RandomStreams:
 
 class NamedStreams(Mapping[str, NormalSource]):
     """
-    Named generators, each made from its own seed sequence when first asked for.
+    Named generators of children of one seed sequence, each made when first asked for.
 
-    A generator made later draws what it would have drawn made at once (its seed sequence is
-    not changed by being read), so the streams are those of one seed whenever they are made.
+    The name at `names[k]` draws from child `first + k` of `parent`, the sequence
+    `parent.spawn` would give in that place, made when the name is first read (spawning all
+    sixteen children at every residual evaluation cost more than the draws of most). A
+    generator made later draws what it would have drawn made at once, so the streams are those
+    of one seed whenever they are made.
     """
 
-    def __init__(self, children: Mapping[str, np.random.SeedSequence], antithetic: bool) -> None:
-        self._children = children
+    def __init__(self, parent: np.random.SeedSequence, names: Sequence[str], first: int,
+                 antithetic: bool) -> None:
+        self._parent = parent
+        self._index = {name: first + k for k, name in enumerate(names)}
         self._wrap: Callable[[np.random.Generator], NormalSource] = \
             AntitheticNormal if antithetic else (lambda generator: generator)
         self._made: dict[str, NormalSource] = {}
 
     def __getitem__(self, name: str) -> NormalSource:
         if name not in self._made:
-            self._made[name] = self._wrap(np.random.default_rng(self._children[name]))
+            parent = self._parent
+            child = np.random.SeedSequence(parent.entropy, pool_size=parent.pool_size,
+                                           spawn_key=(*parent.spawn_key, self._index[name]))
+            self._made[name] = self._wrap(np.random.default_rng(child))
         return self._made[name]
 
     def __iter__(self) -> Iterator[str]:
-        return iter(self._children)
+        return iter(self._index)
 
     def __len__(self) -> int:
-        return len(self._children)
+        return len(self._index)
 
 
 def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = None,
