@@ -213,6 +213,8 @@ def test_runs_with_every_sample_read_bit_for_bit_as_through_the_masked_path():
     assert np.array_equal(whole, masked)
     assert np.array_equal(detrended(poses[..., 2], t), detrended(both[..., 2], t)[:-1])
     assert np.isfinite(masked).all()
+    from octoroach_model.diagnosis.features import _slope      # the heading rate's line
+    assert np.array_equal(_slope(poses[..., 2], t), _slope(both[..., 2], t)[:-1])
 
 
 SUITE_SEED = int(os.environ.get('OCTOROACH_TEST_SEED', '0'))   # pytest's header prints it

@@ -275,12 +275,27 @@ def _nanmedian_rows(values: FloatArray) -> FloatArray:
 def _slope(values: FloatArray, t: FloatArray) -> FloatArray:
     """Least-squares slope of each run over its own samples."""
     mask = valid_mask(values)
+    if mask.all():
+        return _slope_whole(values, t)
     weight = mask.astype(float)
     count = np.maximum(weight.sum(axis=1, keepdims=True), 1)
     filled = np.where(mask, values, 0.0)
     centred_t = (t - (weight * t).sum(axis=1, keepdims=True) / count) * weight
     slope: FloatArray = (centred_t * filled).sum(axis=1) / np.maximum((centred_t ** 2).sum(axis=1),
                                                                       1e-300)
+    return slope
+
+
+def _slope_whole(values: FloatArray, t: FloatArray) -> FloatArray:
+    """
+    `_slope` where every run has every sample: the weights of 1 and the masks left out.
+
+    Bit-identical to the masked form (a row's sum is its own 1-D sum, and a weight of 1
+    changes no product), at about half its cost: a run's heading rate is taken for every
+    simulated run the diagnosis scores.
+    """
+    centred_t = t - t.sum() / max(len(t), 1)
+    slope: FloatArray = (centred_t * values).sum(axis=1) / max((centred_t ** 2).sum(), 1e-300)
     return slope
 
 
