@@ -41,8 +41,9 @@ def main(argv: list[str] | None = None) -> int:
 
     # the module, not the function the package exports under the same name
     module = importlib.import_module('octoroach_model.diagnosis.diagnose')
-    seconds: dict[str, float] = defaultdict(float)
+    seconds: dict[str, float] = defaultdict(float)      # CPU seconds of each task
     calls: dict[str, int] = defaultdict(int)
+    limit_seconds: dict[str, float] = {}                 # _limit's, cause by cause
     depth = [0]     # a task called inside another (a candidate scores its model) is the outer's
 
     def timed(name: str, function: Callable[..., Any]) -> Callable[..., Any]:
@@ -55,9 +56,11 @@ def main(argv: list[str] | None = None) -> int:
                 result = function(*args, **options)
             finally:
                 depth[0] -= 1
-            key = f'_limit {args[2].cause}' if name == '_limit' else name
-            seconds[key] += time.process_time() - started
-            calls[key] += 1
+            spent = time.process_time() - started
+            seconds[name] += spent
+            calls[name] += 1
+            if name == '_limit':        # _limit(halves, model, evaluation, ...)
+                limit_seconds[args[2].cause] = spent
             return result
         return run
 
@@ -72,23 +75,19 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         for name, function in originals.items():
             setattr(module, name, function)
-    limits = sum(value for key, value in seconds.items() if key.startswith('_limit '))
     print(f'diagnosis of {measured.n_paths} runs in one process (limits and validations '
           f'included): {total:.1f} CPU-s, {wall:.1f} s wall; causes named: '
           f'{", ".join(cause.cause for cause in report.causes) or "none"}')
+    rows = [('detection limits, all' if name == '_limit' else name, calls[name], value)
+            for name, value in seconds.items()]
+    rows += [(f'limit of {cause}', 1, value) for cause, value in
+             sorted(limit_seconds.items(), key=lambda item: -item[1])]
+    rows.append(('the rest of diagnose (features of the runs, the split, the choices between '
+                 'steps)', 0, total - sum(seconds.values())))
     print('| task | calls | CPU, s | share |')
     print('| --- | --- | --- | --- |')
-    rows = [(key, value) for key, value in seconds.items() if not key.startswith('_limit ')]
-    rows.append(('detection limits, all', limits))
-    rows += sorted(((key.replace('_limit ', 'limit of '), value) for key, value in
-                    seconds.items() if key.startswith('_limit ')), key=lambda row: -row[1])
-    for key, value in rows:
-        count = calls.get(key.replace('limit of ', '_limit '), sum(
-            number for name, number in calls.items() if name.startswith('_limit ')))
-        print(f'| {key} | {count} | {value:.1f} | {100 * value / total:.0f} % |')
-    rest = total - sum(value for key, value in seconds.items())
-    print(f'| the rest of diagnose (features of the runs, the split, the choices between steps) '
-          f'| | {rest:.1f} | {100 * rest / total:.0f} % |')
+    for label, count, value in rows:
+        print(f'| {label} | {count or ""} | {value:.1f} | {100 * value / total:.0f} % |')
     return 0
 
 

@@ -238,8 +238,6 @@ def integrate_stances(angles: FloatArray, phase: FloatArray, start_pose: npt.Arr
         flat_table = table.reshape(len(table), -1)
         for sub in _row_blocks(table.shape[2], max(1, _BLOCK // n_samples)):
             block = phase[rows][sub]
-            # np.minimum and np.maximum in place, not np.clip: its Python wrapper cost more
-            # than the clipping (integer bounds look up np.iinfo each call); the same values
             index = np.floor(block).astype(np.intp)
             _clamp(index, 0, n_stances - 1)
             within = _clamp(block - index, 0.0, 1.0)
@@ -248,8 +246,6 @@ def integrate_stances(angles: FloatArray, phase: FloatArray, start_pose: npt.Arr
             geometry.poses(np.take(flat_table, flat, axis=1), within, out=poses[rows][sub])
     return poses
 
-
-Clamped = TypeVar('Clamped', FloatArray, IntArray)
 
 # Samples per block of work: small enough that the temporaries stay in the CPU cache.
 _BLOCK = 1 << 13
@@ -399,13 +395,17 @@ def _starts(first: FloatArray, increments: FloatArray) -> FloatArray:
     return out
 
 
+Clamped = TypeVar('Clamped', FloatArray, IntArray)
+
+
 def _clamp(values: Clamped, low: float, high: float) -> Clamped:
     """
     Clip `values` into [low, high] in place and return them (np.clip's values).
 
     Two ufuncs instead of np.clip, whose Python wrapper costs more than the work on the
-    model's blocks of a few thousand samples, tens of thousands of times a diagnosis.
-    NaN stays NaN; a -0.0 against a bound of 0 may stay -0.0, which equals 0.
+    model's blocks of a few thousand samples, tens of thousands of times a diagnosis (integer
+    bounds look up np.iinfo at every call). NaN stays NaN; a -0.0 against a bound of 0 may
+    stay -0.0, which equals 0.
     """
     np.maximum(values, low, out=values)
     np.minimum(values, high, out=values)
