@@ -24,6 +24,7 @@ from typing import Any, TYPE_CHECKING
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import OMIT_NONE
+from octoroach_model.limit_setting import LIMITS, read_limits
 from octoroach_model.model import DRAWS
 from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.paths import Paths
@@ -104,6 +105,7 @@ class Job:
     sigma2: float = setting(-1.0, 'evaluate at this liftoff spread; negative: search',
                             unit='rad', low=-1.0, high=SIGMA_LIMIT, open_high=True)
     simulation_draws: int = setting(1, SIMULATION_DRAWS)    # ~/diagnose only
+    limits: str = setting('all', LIMITS)                    # ~/diagnose only
     report_dir: str = setting('', '~/diagnose also writes each report (report.json, '
                               'summary.md, plots) into a new folder here; empty: no files',
                               read_only=True)
@@ -111,6 +113,7 @@ class Job:
 
     def __post_init__(self) -> None:
         check_fields(self)
+        read_limits(self.limits)
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> Job:
@@ -125,7 +128,8 @@ class Job:
                    nominal=values['nominal'], draws=values['draws'],
                    sigma1=float(values['sigma1']), sigma2=float(values['sigma2']),
                    simulation_draws=int(values['simulation_draws']),
-                   report_dir=values['report_dir'], settings=settings)
+                   limits=str(values['limits']), report_dir=values['report_dir'],
+                   settings=settings)
 
     def sigmas(self) -> tuple[float, float] | None:
         """Return the fixed point to evaluate, or None for the search (15)."""
@@ -247,13 +251,15 @@ def diagnosis_settings(job: Job) -> Any:
     Return the diagnosis settings of a call: the library's, with the node's own settings.
 
     The seed, the validation settings (rho, epsilon, delta, k, gamma, the search grid) the
-    diagnosis's validations of the baseline and the extended model use, and the draws of the
-    simulations the decision is made on (redraws.py).
+    diagnosis's validations of the baseline and the extended model use, the draws of the
+    simulations the decision is made on (redraws.py) and the detection limits computed.
     """
     from octoroach_model.diagnosis import DiagnosisSettings
 
+    detection_limits, limit_terms = read_limits(job.limits)
     return DiagnosisSettings(seed=job.settings.seed, validation=job.settings,
-                             simulation_draws=job.simulation_draws)
+                             simulation_draws=job.simulation_draws,
+                             detection_limits=detection_limits, limit_terms=limit_terms)
 
 
 def new_report_folder(report_dir: str) -> Path:

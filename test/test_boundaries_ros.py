@@ -96,7 +96,7 @@ def test_report_dir_is_read_only_and_a_report_never_writes_through_a_link(
         spun, client, tmp_path, monkeypatch):
     monkeypatch.setattr(validation_jobs, 'diagnosis_settings', lambda job: om.DiagnosisSettings(
         seed=0, moment_runs=80, mean_path_runs=60, score_runs=150, bootstrap=10, workers=1,
-        validate_models=False))
+        validate_models=False, detection_limits=False))     # the report's folder is checked
     data = save_dataset(tmp_path / 'runs.npz', om.simulate(60, seed=3))
     reports, target = tmp_path / 'reports', tmp_path / 'target.txt'
     reports.mkdir()

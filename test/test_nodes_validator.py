@@ -28,6 +28,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 
 import octoroach_model as om  # noqa: E402
 from octoroach_model import validation_jobs  # noqa: E402
+from octoroach_model.diagnosis.records import LimitMethod  # noqa: E402
 from octoroach_model.nodes import validator  # noqa: E402
 from octoroach_model.recordings import save_dataset  # noqa: E402
 
@@ -247,10 +248,12 @@ def test_diagnose_answers_the_report_with_its_cause_without_blocking(
     from octoroach_model import guidance
     from octoroach_model.diagnosis import DiagnosisSettings
 
+    as_the_node_says = validation_jobs.diagnosis_settings
+
     def quick(job: validation_jobs.Job) -> DiagnosisSettings:
-        """Use the library's diagnosis with fewer model runs, so the test stays short."""
-        names = {f.name for f in fields(DiagnosisSettings)}
-        return replace(DiagnosisSettings(seed=job.settings.seed),
+        """Take the node's diagnosis settings with fewer model runs: the test stays short."""
+        names = {f.name for f in fields(DiagnosisSettings)} - {'detection_limits'}
+        return replace(as_the_node_says(job),
                        **{k: v for k, v in QUICK_DIAGNOSIS.items() if k in names})
 
     monkeypatch.setattr(validation_jobs, 'diagnosis_settings', quick)
@@ -259,7 +262,8 @@ def test_diagnose_answers_the_report_with_its_cause_without_blocking(
     effect = {'initial_pose_error': {'heading_std_deg': 6.0, 'position_std_cm': 0.3}}
     data = save_dataset(tmp_path / 'runs80.npz', om.simulate(80, seed=3, effects=effect))
     node = start_node(bags=[str(data)], report_dir=str(tmp_path / 'report'),
-                      question='initial_pose_error', question_size=2.0).node
+                      question='initial_pose_error', question_size=2.0,
+                      limits='measurement_noise').node
     latest_guidance(client, lambda v: v['runs'] == '80' and v['status'] != 'fitting', 120)
 
     from std_srvs.srv import Trigger
@@ -276,6 +280,10 @@ def test_diagnose_answers_the_report_with_its_cause_without_blocking(
     assert report['cause'] == 'initial_pose_error'
     assert [c['cause'] for c in report['causes']] == ['initial_pose_error']
     assert isinstance(report['adequate'], bool) and isinstance(report['unexplained'], list)
+    # the node's `limits`: the whole decision's limit of the term named, and of no other
+    whole = [c['cause'] for c in report['candidates'] + report['extension_candidates']
+             if c['detectable_method'] == LimitMethod.WHOLE_DECISION.value]
+    assert whole == ['measurement_noise'], whole
     # the node's own keys: the call's elapsed_s in the report's place, the rest after it
     assert list(report)[-3:] == ['report_files', 'started_at', 'guidance']
     assert list(report)[list(report).index('elapsed_s') + 1] == 'sources'

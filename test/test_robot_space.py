@@ -7,9 +7,10 @@ reason naming the limit its data miss.
 Hypothesis draws robots (strides 0.5-6 Hz, 30-500 Hz sampling, 3-40 cycles, touchdown angles
 within 10 deg of Table II, leg 1.5-3 cm), data sets (40-3000 runs; here capped for time, see
 PROFILE), runs cut short (70-95 % of their duration) and dropped frames (interpolated, as the
-bag reader fills them). `fit_nominal`, `validate`, `diagnose` (with or without the detection
-limits, drawn too) and `write_report` (with plots) must each return, or raise DataError; a plot
-that cannot be drawn must not cost the report.
+bag reader fills them). `fit_nominal`, `validate`, `diagnose` (with the detection limits of
+every term, of none or of one: drawn too, and computed for those alone) and `write_report`
+(with plots) must each return, or raise DataError; a plot that cannot be drawn must not cost
+the report.
 
 Profiles: the suite's (OCTOROACH_ROBOT_SPACE=quick, the default: few examples, small data, few
 simulated runs in the diagnosis) and the thorough one (OCTOROACH_ROBOT_SPACE=thorough, from
@@ -29,7 +30,9 @@ import pytest
 
 import octoroach_model as om
 from octoroach_model.diagnosis import diagnose, DiagnosisSettings, write_report
+from octoroach_model.diagnosis.records import LimitMethod
 from octoroach_model.fitting import fit_nominal
+from octoroach_model.limit_setting import read_limits, TERMS
 from octoroach_model.validation import validate, ValidationSettings
 
 # The quick profile's diagnosis simulates half as many runs as the thorough one's: what the
@@ -73,7 +76,9 @@ def data_sets(draw) -> tuple[om.Paths, str, bool]:
     lengths = np.full(runs, len(paths.t))
     cut = rng.random(runs) < draw(st.floats(0.0, 0.3))
     lengths[cut] = np.maximum(2, (rng.uniform(0.7, 0.95, cut.sum()) * len(paths.t)).astype(int))
-    limits = draw(st.booleans())
+    limits = draw(st.sampled_from(['none', 'all', 'one']))     # diagnose --limits
+    if limits == 'one':
+        limits = draw(st.sampled_from(TERMS))
     case = (f'{runs} runs, {cycles} cycles at {frequency:.2f} Hz, {rate:.0f} Hz, leg '
             f'{robot.leg_length * 100:.2f} cm, angles {np.round(offsets, 1).tolist()} deg off, '
             f'spread x{spread:.2f}, {int(cut.sum())} cut short, limits {limits}')
@@ -117,7 +122,9 @@ def test_every_robot_gets_a_result_or_a_one_line_reason(tmp_path_factory, case) 
     except om.DataError as error:
         assert '\n' not in str(error) and str(error), description
     try:
-        report = diagnose(measured, replace(TINY, detection_limits=limits))
+        detection_limits, limit_terms = read_limits(limits)
+        report = diagnose(measured, replace(TINY, detection_limits=detection_limits,
+                                            limit_terms=limit_terms))
     except om.DataError as error:
         message = str(error)
         assert '\n' not in message and ('at least' in message or 'no stride' in message), \
@@ -127,3 +134,7 @@ def test_every_robot_gets_a_result_or_a_one_line_reason(tmp_path_factory, case) 
     written = write_report(report, out, measured=measured)
     assert written['report'].stat().st_size > 0 and written['summary'].stat().st_size > 0
     assert report.runs.ended_early == int(np.count_nonzero(measured.lengths < len(measured.t)))
+    candidates = report.candidates + report.extension_candidates
+    whole = {c.cause for c in candidates if c.detectable_method == LimitMethod.WHOLE_DECISION}
+    asked = {c.cause for c in candidates} if limits == 'all' else set(limit_terms)
+    assert whole == asked, description

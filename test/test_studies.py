@@ -27,7 +27,7 @@ from octoroach_model.studies.damage import cut_runs_short, damage_paths, drop_fr
 from octoroach_model.studies.design import build_tasks, draw_robot, draw_signs
 from octoroach_model.studies.plan import _coarse_grid, _next_counts
 from octoroach_model.studies.power_curve import fit_power_curve
-from octoroach_model.studies.replicate import read_report
+from octoroach_model.studies.replicate import read_report, task_settings
 from octoroach_model.studies.rows import Status, StudyRow, TermOutcome
 from octoroach_model.studies.spec import ArmKind, DamageSpec, Draw, parse_spec
 from octoroach_model.studies.summary import summarize, wilson
@@ -128,6 +128,12 @@ def test_limit_multiples_bring_the_null_data_sets_they_are_read_from():
     ('diagnosis: {speed: 3}', "no setting 'speed'"),
     ('diagnosis: {bootstrap: 0}', 'at least 1'),
     ('robot: [1, 2]', 'must be a mapping'),
+    ('diagnosis: {limit_terms: lateral_slip}', 'must be a list of term names'),
+    ('diagnosis: {limit_terms: [wobble]}', "'wobble' is no term"),
+    ('causes: [{cause: speed_decay, limit_multiples: [1]}]\n'
+     'diagnosis: {limit_terms: [lateral_slip]}', 'add speed_decay to diagnosis.limit_terms'),
+    ('causes: [{cause: speed_decay, limit_multiples: [1]}]\n'
+     'diagnosis: {detection_limits: false}', 'detection_limits must not be false'),
 ])
 def test_a_bad_spec_is_one_line_naming_what_is_wrong(text, reason):
     with pytest.raises(ParameterError, match=None) as caught:
@@ -405,6 +411,19 @@ def test_the_summary_counts_false_positives_power_recovery_and_errors():
     assert plain['false_positive']['count'] == 2 and plain['power'][0]['data_sets'] == 10
     assert list(plain['power'][0]) == ['cause', 'parameter', 'size', 'sign', 'runs', 'count',
                                        'data_sets', 'rate', 'interval_95']
+
+
+def test_limit_terms_reach_the_nulls_alone_and_the_summary_lists_their_limits_alone():
+    spec = spec_of('runs: [50]\ncauses: [none, {cause: speed_decay, limit_multiples: [2]}]\n'
+                   'diagnosis: {limit_terms: [speed_decay, change_point, speed_decay]}')
+    assert dict(spec.diagnosis)['limit_terms'] == ('change_point', 'speed_decay')
+    null, relative = build_tasks(spec)
+    assert task_settings(null, spec, 1).limit_terms == ('change_point', 'speed_decay')
+    assert not task_settings(relative, spec, 1).detection_limits
+    rows = [a_row(key=f'n{replicate}', replicate=replicate, arm='none', kind='null',
+                  true_causes=[], named=[]) for replicate in range(3)]
+    limits = summarize(spec, rows).detection_limits
+    assert [entry.cause for entry in limits] == ['speed_decay', 'change_point']
 
 
 def test_power_at_a_limit_multiple_counts_the_misses_and_which_were_not_silent():

@@ -41,12 +41,16 @@ SEED = suite_seed()
 
 
 def tiny_spec(replicates: int = 1) -> dict:
-    """Null data sets, a strong turning spread, and a slip at twice the reported limit."""
+    """
+    Null data sets, a strong turning spread, and a slip at twice the reported limit.
+
+    The nulls compute the slip's whole limit alone (limit_terms), the one the spec reads.
+    """
     return {'name': 'tiny', 'seed': SEED, 'replicates': replicates, 'runs': [40],
             'robot': {'cycles': 5, 'stride_frequency_hz': {'low': 1.8, 'high': 2.2}},
             'causes': ['none', {'cause': 'persistent_turning', 'sizes': [20]},
                        {'cause': 'lateral_slip', 'limit_multiples': [2], 'sign': 'both'}],
-            'diagnosis': FEW_SIMULATED_RUNS}
+            'diagnosis': {**FEW_SIMULATED_RUNS, 'limit_terms': ['lateral_slip']}}
 
 
 def table_rows(path: Path, with_timing: bool = False) -> list[dict]:
@@ -73,6 +77,8 @@ def test_a_study_gives_the_same_table_in_process_and_on_a_cluster_even_when_a_wo
     # the slip was put in at twice the limit the null data set of its replicate reported
     null, slip = expected[0], expected[2]
     assert abs(float(slip['true_lateral_slip'])) == 2 * float(null['limit_lateral_slip'])
+    # of the whole decision (a held-out test's power at the limit), and no other term's
+    assert float(null['test_power_lateral_slip']) > 0 and null['test_power_speed_decay'] == ''
     assert null['seed'] == slip['seed'] and null['stride_frequency_hz'] == \
         slip['stride_frequency_hz']
 

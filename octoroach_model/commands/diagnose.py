@@ -19,6 +19,7 @@ from octoroach_model.workers import default_workers, process_pool
 def parser() -> argparse.ArgumentParser:
     """Build the `diagnose` command line (--seed, --simulation-draws: DiagnosisSettings fields)."""
     from octoroach_model.diagnosis import DiagnosisSettings
+    from octoroach_model.limit_setting import LIMITS
 
     result = OneLineParser(
         prog='diagnose', description='The main job: calibrates the paper model on measured '
@@ -30,9 +31,22 @@ def parser() -> argparse.ArgumentParser:
                         help='directory for the report (new, or an existing empty one)')
     add_setting(result, DiagnosisSettings, 'seed')
     add_setting(result, DiagnosisSettings, 'simulation_draws')
+    result.add_argument('--limits', type=limit_choice, default='all', metavar='WHICH',
+                        help=LIMITS.help_text())
     result.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
     add_workers_argument(result, 'the side-by-side work of the diagnosis')
     return result
+
+
+def limit_choice(text: str) -> tuple[bool, tuple[str, ...]]:
+    """Read --limits (limit_setting.read_limits); argparse says why not, in one line."""
+    from octoroach_model.errors import ParameterError
+    from octoroach_model.limit_setting import read_limits
+
+    try:
+        return read_limits(text)
+    except ParameterError as error:
+        raise argparse.ArgumentTypeError(str(error).removeprefix('limits: ')) from None
 
 
 @contextmanager
@@ -56,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
 
     new_output(args.out, '--out', directory_ok=True)
     settings = DiagnosisSettings(seed=args.seed, simulation_draws=args.simulation_draws,
-                                 workers=1)
+                                 workers=1, detection_limits=args.limits[0],
+                                 limit_terms=args.limits[1])
     reading = time.monotonic()
     measured = load_measured(args.bags, options=read_options(args), gap_s=args.gap_s,
                              progress=reading_progress('diagnose'))

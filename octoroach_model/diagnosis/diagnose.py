@@ -59,6 +59,7 @@ from octoroach_model.errors import DataError
 from octoroach_model.fitting import fit_nominal, mean_start_pose, NominalFitSettings
 from octoroach_model.fitting.gait import stride_frequency_estimate
 from octoroach_model.fitting.target import average_target
+from octoroach_model.limit_setting import check_term_names
 from octoroach_model.model import ModelParameters
 from octoroach_model.model.extensions import family_form
 from octoroach_model.paths import Paths
@@ -90,8 +91,10 @@ class DiagnosisSettings:
     fewest simulated runs a model's statistics are compared with (as many as the data where
     they are more); workers: processes
     (1: in this process), ignored when an executor is passed to `diagnose`; detection_limits:
-    compute every candidate's limit of the whole decision (limits.py; without it `detectable`
-    is the size bound's own limit, and the method says so); split_seed: the seed of the split
+    compute the limit of the whole decision (limits.py; without it `detectable` is the size
+    bound's own limit, and the method says so) of every candidate, or of those named in
+    limit_terms alone (most of a whole diagnosis's time is the limits: docs/diagnosis.md,
+    section 11); split_seed: the seed of the split
     into halves alone (None: `seed`), so that the simulations can be drawn again on the same
     halves (benchmarks/bench_seed_agreement.py); simulation_draws: the decision made this many
     times on the same halves with the simulations drawn again, the report saying how many
@@ -113,6 +116,7 @@ class DiagnosisSettings:
     validation: ValidationSettings = field(default_factory=ValidationSettings)
     validate_models: bool = True
     detection_limits: bool = True
+    limit_terms: tuple[str, ...] = ()
     workers: int = 2
     split_seed: int | None = None
     simulation_draws: int = setting(1, SIMULATION_DRAWS)
@@ -121,6 +125,12 @@ class DiagnosisSettings:
 
     def __post_init__(self) -> None:
         check_fields(self)
+        check_term_names(self.limit_terms, 'limit_terms')
+        object.__setattr__(self, 'limit_terms', tuple(self.limit_terms))
+
+    def computes_limit(self, term: str) -> bool:
+        """Tell whether the whole decision's limit of `term` is computed (detection_limits)."""
+        return self.detection_limits and (not self.limit_terms or term in self.limit_terms)
 
     @property
     def halves_seed(self) -> int:
@@ -187,12 +197,14 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
                            for name, fitted in (('baseline', baseline), ('extended', model))}
         # the model without a cause it does not include is the model itself: its scored
         # runs are simulated once for all of them
+        limited = [cause for cause in last_seen if settings.computes_limit(cause)]
         shared = limit_base(Simulator(halves.test, settings.seed), model, halves.scales,
-                            settings.score_runs) if settings.detection_limits else None
+                            settings.score_runs) if any(
+            cause not in model.effects for cause in limited) else None
         limit_futures = {cause: pool.submit(_limit, halves, model, race.last_evaluated[cause],
                                             last_seen[cause], settings,
                                             None if cause in model.effects else shared)
-                         for cause in last_seen} if settings.detection_limits else {}
+                         for cause in limited}
         # the same halves with the simulations drawn again (redraws.py), beside the rest
         drawn_settings = [redraw_settings(settings, draw)
                           for draw in range(1, settings.simulation_draws)]

@@ -118,7 +118,7 @@ def validator_specs() -> list[ParamSpec]:
         *field_specs(Job, ('topic', 'forward_axis', 'up_axis', 'gap_s', 'min_duration_s',
                            'nominal', 'draws')),
         *field_specs(ValidationSettings, tuple(settings_of(ValidationSettings))),
-        *field_specs(Job, ('sigma1', 'sigma2', 'simulation_draws', 'report_dir')),
+        *field_specs(Job, ('sigma1', 'sigma2', 'simulation_draws', 'limits', 'report_dir')),
         *field_specs(GuidanceSettings, GUIDANCE_PARAMETERS),
     ]
 

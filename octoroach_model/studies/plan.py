@@ -375,11 +375,16 @@ def _with_runs(base: StudySpec, counts: Sequence[int]) -> StudySpec:
 
 
 def _pilot(base: StudySpec, run: Callable, min_runs: int, max_runs: int) -> SimulatedPilot:
-    """Diagnose one null data set; the limit it reports gives the first guess of runs."""
+    """
+    Diagnose one null data set; the limit it reports gives the first guess of runs.
+
+    Only the planned term's whole limit is computed (the others' would take most of the time).
+    """
     arm = base.arms[0]
     pilot_runs = int(min(max(PILOT_RUNS, min_runs), max_runs))
+    diagnosis = tuple(sorted({**dict(base.diagnosis), 'limit_terms': (arm.cause,)}.items()))
     spec = StudySpec(base.name, base.seed, 1, (pilot_runs,), base.robot,
-                     (Arm(ArmKind.NULL, NULL),), diagnosis=base.diagnosis)
+                     (Arm(ArmKind.NULL, NULL),), diagnosis=diagnosis)
     row = run(spec, 'pilot')[0]
     limit = row.terms[arm.cause].limit if row.ok else None
     if limit is not None and math.isfinite(limit) and limit > 0:

@@ -21,6 +21,7 @@ from typing import Any
 from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
+from octoroach_model.limit_setting import check_term_names
 from octoroach_model.studies.terms import (
     main_parameter, parameter_range, parameters as term_parameters, signed, term_named,
     term_of, TERMS)
@@ -282,6 +283,7 @@ def parse_spec(data: Any, default_name: str = 'study') -> StudySpec:
     diagnosis = _diagnosis(_mapping(data.get('diagnosis', {}), 'diagnosis'))
     spec = StudySpec(name, seed, replicates, runs, robot, arms, damage, diagnosis)
     _check_robot_space(spec)
+    _check_limits_read(spec)
     return spec
 
 
@@ -519,8 +521,12 @@ def _diagnosis(values: Mapping[str, Any]) -> tuple[tuple[str, Any], ...]:
     defaults = DiagnosisSettings()
     settable = {f.name: getattr(defaults, f.name) for f in dataclasses.fields(DiagnosisSettings)
                 if f.name != 'seed' and isinstance(getattr(defaults, f.name), (bool, int, float))}
+    settable['limit_terms'] = ()
     checked = []
     for key, value in values.items():
+        if key == 'limit_terms':
+            checked.append((key, _limit_terms(value)))
+            continue
         if key not in settable:
             raise ParameterError(f'diagnosis: no setting {key!r}; settable: '
                                  f'{", ".join(sorted(settable))}')
@@ -536,6 +542,31 @@ def _diagnosis(values: Mapping[str, Any]) -> tuple[tuple[str, Any], ...]:
                 raise ParameterError(f'diagnosis.{key} must not be negative, got {value:g}')
         checked.append((str(key), value))
     return tuple(sorted(checked))
+
+
+def _limit_terms(value: Any) -> tuple[str, ...]:
+    """Check diagnosis.limit_terms: a list of the terms whose whole limits nulls compute."""
+    if not isinstance(value, list) or not all(isinstance(name, str) for name in value):
+        raise ParameterError(f'diagnosis.limit_terms must be a list of term names, got {value!r}')
+    check_term_names(value, 'diagnosis.limit_terms')
+    return tuple(sorted(set(value)))
+
+
+def _check_limits_read(spec: StudySpec) -> None:
+    """Refuse limit multiples of a term whose whole limit the null data sets would not compute."""
+    settings = dict(spec.diagnosis)
+    terms = settings.get('limit_terms', ())
+    for arm in spec.arms:
+        if arm.kind != ArmKind.RELATIVE:
+            continue
+        if settings.get('detection_limits') is False:
+            raise ParameterError(f"causes: {arm.cause}'s limit_multiples are of the detection "
+                                 'limit the null data sets compute: diagnosis.detection_limits '
+                                 'must not be false')
+        if terms and arm.cause not in terms:
+            raise ParameterError(f"causes: {arm.cause}'s limit_multiples are of the detection "
+                                 f'limit the null data sets compute: add {arm.cause} to '
+                                 'diagnosis.limit_terms')
 
 
 def _draw(value: Any, where: str) -> Draw:

@@ -226,11 +226,18 @@ def _recovery(spec: StudySpec, ok: Sequence[StudyRow]) -> tuple[Recovery, ...]:
 
 
 def _limits(spec: StudySpec, ok: Sequence[StudyRow]) -> tuple[DetectionLimit, ...]:
-    """Median detection limit each cause reported on null data sets, per run count."""
+    """
+    Return the median detection limit each cause reported on null data sets, per run count.
+
+    Only the terms the nulls computed limits of, where the spec names them (limit_terms).
+    """
     nulls = [row for row in ok if row.kind == ArmKind.NULL]
+    named = dict(spec.diagnosis).get('limit_terms')
     entries = []
     for cell_of, group in _by_cell(spec, nulls):
         for cause in TERMS:
+            if named and cause not in named:
+                continue
             limits = _finite(row.terms[cause].limit for row in group)
             entries.append(DetectionLimit(
                 cause=cause, parameter=main_parameter(cause), runs=cell_of,
