@@ -6,7 +6,8 @@ Two parts:
 - `--scale` (what `make bench` runs): studies/scale.yaml with 1 and with 2 local Dask workers;
   prints the wall times, the speed-up, the cost of one data set, and the data sets per hour a
   64-core cluster would diagnose, derived from these (64 workers at the measured per-worker
-  efficiency).
+  efficiency). With `--limit-terms TERM ...` the null data sets compute those terms' detection
+  limits alone (a study that reads no others), not every term's.
 - `--studies` (hours on this machine): runs the README's studies (false_positives, power,
   limits, two_causes, wide_robots in studies/) into out/studies/NAME, resuming any that an
   earlier call left unfinished, and prints the README tables from their summary.json. With
@@ -16,7 +17,8 @@ Two parts:
   sets each study's null limits beside OTHER's, data set by data set (the same spec run at
   another commit, say): how the limits moved, and which data sets were decided otherwise.
 
-Run: .venv/bin/python benchmarks/bench_studies.py [--scale] [--studies [NAME ...]]
+Run: .venv/bin/python benchmarks/bench_studies.py [--scale [--limit-terms TERM ...]]
+     [--studies [NAME ...]]
      [--workers N | --scheduler ADDRESS] [--report-only [--compare OTHER]]
 """
 from __future__ import annotations
@@ -30,6 +32,8 @@ import sys
 import tempfile
 import time
 from typing import TYPE_CHECKING
+
+import yaml
 
 if TYPE_CHECKING:
     from octoroach_model.studies.rows import StudyRow
@@ -45,16 +49,24 @@ README_STUDIES = ('false_positives', 'power', 'limits', 'two_causes', 'wide_robo
 CLUSTER_CORES = 64
 
 
-def measure_scale(workers: tuple[int, ...] = (1, 2)) -> dict[int, dict]:
-    """Wall time of studies/scale.yaml with each number of local workers."""
+def measure_scale(workers: tuple[int, ...] = (1, 2), limit_terms: tuple[str, ...] = ()
+                  ) -> dict[int, dict]:
+    """
+    Wall time of studies/scale.yaml with each number of local workers.
+
+    With `limit_terms`, its null data sets compute those terms' detection limits alone
+    (diagnosis.limit_terms), not every term's.
+    """
     import octoroach_model as om
 
+    spec = yaml.safe_load((SPECS / 'scale.yaml').read_text())
+    if limit_terms:
+        spec['diagnosis'] = {**spec.get('diagnosis', {}), 'limit_terms': list(limit_terms)}
     results = {}
     for count in workers:
         with tempfile.TemporaryDirectory() as folder:
             started = time.perf_counter()
-            result = om.run_study(SPECS / 'scale.yaml', Path(folder) / 'scale', workers=count,
-                                  plots=False)
+            result = om.run_study(spec, Path(folder) / 'scale', workers=count, plots=False)
             total = time.perf_counter() - started
         timing = result.summary.timing
         results[count] = {'tasks': result.rows, 'wall_s': timing.wall_time_s,
@@ -62,14 +74,17 @@ def measure_scale(workers: tuple[int, ...] = (1, 2)) -> dict[int, dict]:
     return results
 
 
-def print_scale(results: dict[int, dict]) -> None:
+def print_scale(results: dict[int, dict], limit_terms: tuple[str, ...] = ()) -> None:
     """Print the README's scale table and the cluster figures derived from it."""
     one, two = results[1], results[2]
     per_data_set = one['wall_s'] / one['tasks']
     speed_up = one['wall_s'] / two['wall_s']
     efficiency = speed_up / 2
     per_hour = CLUSTER_CORES * efficiency * 3600 / per_data_set
-    print(f'studies/scale.yaml: {one["tasks"]} data sets of 500 runs (Table II robot)\n')
+    limits = (f', the nulls computing the detection limits of {", ".join(limit_terms)} alone'
+              if limit_terms else '')
+    print(f'studies/scale.yaml: {one["tasks"]} data sets of 500 runs (Table II robot)'
+          f'{limits}\n')
     print('| local workers | wall time, s (cluster start-up) | per data set, s |')
     print('| --- | --- | --- |')
     for count, result in sorted(results.items()):
@@ -535,6 +550,9 @@ def print_coverage(summary: StudySummary) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--scale', action='store_true', help='1 vs 2 local workers')
+    parser.add_argument('--limit-terms', nargs='+', default=(), metavar='TERM',
+                        help='with --scale: the null data sets compute the detection limits '
+                             'of these terms alone (diagnosis.limit_terms of the spec)')
     parser.add_argument('--studies', nargs='*', default=None, metavar='NAME',
                         help=f'run the README studies (default all: {", ".join(README_STUDIES)})')
     parser.add_argument('--report-only', action='store_true',
@@ -556,7 +574,8 @@ def main(argv: list[str] | None = None) -> int:
     if not args.scale and args.studies is None:
         args.scale = True
     if args.scale:
-        print_scale(measure_scale())
+        terms = tuple(args.limit_terms)
+        print_scale(measure_scale(limit_terms=terms), terms)
     if names:
         run_studies(names, args.workers, args.scheduler)
         print_tables(names)

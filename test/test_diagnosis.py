@@ -715,7 +715,8 @@ def test_a_limit_is_never_sought_beyond_the_sizes_a_path_cause_can_take():
 
     Simulated there, the gait clock ran backwards and the diagnosis of a small null data set
     ended in "stride_frequency ... must be positive" (test_studies_dask at seed 185463). No
-    size past the cause's bound is computed; a limit that lies past it is none.
+    size past the cause's bound is computed; a limit that lies past it is none. A mixture's
+    was put at thousands of deg/s, where the model's turning runs stop at 90.
     """
     from octoroach_model.diagnosis import limits
     from octoroach_model.diagnosis.causes import BY_NAME, EstimateKind
@@ -730,6 +731,15 @@ def test_a_limit_is_never_sought_beyond_the_sizes_a_path_cause_can_take():
             effects = {cause.name: at_size(cause, largest, values)}
             assert mean_gait_rate(effects, 10.0) > 0, (cause.name, values)
     assert largest_size(BY_NAME['persistent_turning']) == math.inf
+    # a mixture's yaw rate stops at the model's edge: past it every size is the same runs, and
+    # on 60 runs its held-out t saturated and was extrapolated to limits of 200-25 000 deg/s
+    mixture = BY_NAME['run_mixture']
+    for fraction in (0.3, 0.1, 0.0):
+        values = {'fraction': fraction, 'yaw_rate_deg_s': -4.0}
+        edge = at_size(mixture, largest_size(mixture, values), values)
+        assert edge['yaw_rate_deg_s'] == pytest.approx(-90.0), (fraction, edge)
+        assert at_size(mixture, 0.99 * largest_size(mixture, values), values)[
+            'yaw_rate_deg_s'] > -90.0
     sizes: list[float] = []
 
     def slow(size: float) -> float:                  # 80 % power only at size 4

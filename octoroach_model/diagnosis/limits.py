@@ -565,9 +565,9 @@ def limit_from(t_computed: Callable[[float], TestPoint | float], first: float,
     Solve for the limit with T computed at `first`, 3 `first` and, if needed, the limit.
 
     Where no size reaches POWER through those two, T (and P3) is computed at 9 and 27 `first`
-    before the limit is said to be none. No size above `largest` (a path cause's bound,
-    `modelfit.largest_size`) is computed or returned: a limit that would lie beyond it is
-    none (`first` comes down to a third of it where needed).
+    before the limit is said to be none. No size above `largest` (a path cause's bound, a
+    mixture's largest yaw rate: `modelfit.largest_size`) is computed or returned: a limit
+    that would lie beyond it is none (`first` comes down to a third of it where needed).
 
     The limit found is where T is computed next while the simulated part (the test, and P3)
     decides it (module docstring). `t_computed` gives a TestPoint, or T alone; `screen` as

@@ -439,6 +439,17 @@ def _zero(cause: str, data: RunData | None = None) -> dict[str, float]:
     return values
 
 
+# the largest yaw rate of run_mixture's turning runs the model takes (model/extensions.py)
+MIXTURE_RATE_EDGE_DEG_S = dict(zip(TERM_BY_NAME['run_mixture'].parameters,
+                                   TERM_BY_NAME['run_mixture'].ranges))['yaw_rate_deg_s'][1]
+
+
+def _mixture_fraction(values: Mapping[str, float]) -> float:
+    """Return a mixture's share of turning runs: its own, or MIXTURE_FRACTION where degenerate."""
+    fraction = values.get('fraction', 0.0)
+    return fraction if 0.02 <= fraction <= 0.98 else MIXTURE_FRACTION
+
+
 def at_size(cause: Cause, size: float, values: Mapping[str, float] | None = None,
             data: RunData | None = None) -> dict[str, float]:
     """
@@ -453,24 +464,28 @@ def at_size(cause: Cause, size: float, values: Mapping[str, float] | None = None
     if cause.null != 0.0:
         return {**base, cause.parameter: float(cause.null + _side(cause, base) * abs(size))}
     if cause.kind == EstimateKind.MIXTURE:
-        fraction = base.get('fraction', 0.0)
-        fraction = fraction if 0.02 <= fraction <= 0.98 else MIXTURE_FRACTION
+        fraction = _mixture_fraction(base)
         sign = -1.0 if base.get('yaw_rate_deg_s', 0.0) < 0 else 1.0
         rate = sign * size / math.sqrt(fraction * (1 - fraction))
-        return {**base, 'fraction': fraction,
-                'yaw_rate_deg_s': float(np.clip(rate, -90.0, 90.0))}
+        return {**base, 'fraction': fraction, 'yaw_rate_deg_s': float(
+            np.clip(rate, -MIXTURE_RATE_EDGE_DEG_S, MIXTURE_RATE_EDGE_DEG_S))}
     return {**base, cause.parameter: float(size)}
 
 
 def largest_size(cause: Cause, values: Mapping[str, float] | None = None) -> float:
     """
-    Return the largest size `at_size` may give a path cause: its bound on the side it takes.
+    Return the largest size `at_size` may give a path cause or a mixture: its edge.
 
     A fit never goes beyond a path cause's bounds, and beyond them a clock term stops the gait
     or runs it backwards (speed_decay's fraction 2 stops it at a run's end): a detection
-    limit's search that extrapolated past them simulated a negative stride frequency. Other
-    kinds have no such edge (inf).
+    limit's search that extrapolated past them simulated a negative stride frequency. A
+    mixture's yaw rate stops at the model's MIXTURE_RATE_EDGE_DEG_S (`at_size`), beyond which
+    every size simulates the same runs: a limit extrapolated past it (thousands of deg/s on
+    60 runs, docs/diagnosis.md section 12) is none. Other kinds have no such edge (inf).
     """
+    if cause.kind == EstimateKind.MIXTURE:
+        fraction = _mixture_fraction({**_zero(cause.name), **dict(values or {})})
+        return MIXTURE_RATE_EDGE_DEG_S * math.sqrt(fraction * (1 - fraction))
     if cause.kind != EstimateKind.PATH:
         return math.inf
     low, high = cause.bounds
