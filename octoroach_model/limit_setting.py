@@ -19,7 +19,7 @@ from octoroach_model.settings import Setting
 
 # the terms a diagnosis races: the table's causes, then the extension families' terms
 # (diagnosis/causes.py's CANDIDATES, which asserts the two lists)
-TERMS = (*EFFECT_NAMES, *TERM_NAMES)
+RACED_TERMS = (*EFFECT_NAMES, *TERM_NAMES)
 LIMITS = Setting('the detection limits of the whole decision to compute: all, none (each '
                  "candidate then reports its size bound's own limit), or the terms named, "
                  'comma-separated (e.g. lateral_slip,speed_decay); they take most of a whole '
@@ -31,8 +31,9 @@ def check_term_names(names: Sequence[str], what: str) -> None:
     if isinstance(names, str):
         raise ParameterError(f'{what} must be a list of terms, got the string {names!r}')
     for name in names:
-        if name not in TERMS:
-            raise ParameterError(f'{what}: {name!r} is no term; the terms: ' + ', '.join(TERMS))
+        if name not in RACED_TERMS:
+            raise ParameterError(f'{what}: {name!r} is no term; the terms: '
+                                 + ', '.join(RACED_TERMS))
 
 
 def read_limits(text: str) -> tuple[bool, tuple[str, ...]]:
@@ -41,7 +42,7 @@ def read_limits(text: str) -> tuple[bool, tuple[str, ...]]:
         return text.strip() == 'all', ()
     terms = tuple(name.strip() for name in text.split(','))
     for name in terms:
-        if name not in TERMS:
+        if name not in RACED_TERMS:
             raise ParameterError(f'limits: {name!r} is no term; give all, none or terms among '
-                                 + ', '.join(TERMS))
+                                 + ', '.join(RACED_TERMS))
     return True, terms

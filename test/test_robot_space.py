@@ -32,7 +32,7 @@ import octoroach_model as om
 from octoroach_model.diagnosis import diagnose, DiagnosisSettings, write_report
 from octoroach_model.diagnosis.records import LimitMethod
 from octoroach_model.fitting import fit_nominal
-from octoroach_model.limit_setting import read_limits, TERMS
+from octoroach_model.limit_setting import RACED_TERMS, read_limits
 from octoroach_model.validation import validate, ValidationSettings
 
 # The quick profile's diagnosis simulates half as many runs as the thorough one's: what the
@@ -78,7 +78,7 @@ def data_sets(draw) -> tuple[om.Paths, str, bool]:
     lengths[cut] = np.maximum(2, (rng.uniform(0.7, 0.95, cut.sum()) * len(paths.t)).astype(int))
     limits = draw(st.sampled_from(['none', 'all', 'one']))     # diagnose --limits
     if limits == 'one':
-        limits = draw(st.sampled_from(TERMS))
+        limits = draw(st.sampled_from(RACED_TERMS))
     case = (f'{runs} runs, {cycles} cycles at {frequency:.2f} Hz, {rate:.0f} Hz, leg '
             f'{robot.leg_length * 100:.2f} cm, angles {np.round(offsets, 1).tolist()} deg off, '
             f'spread x{spread:.2f}, {int(cut.sum())} cut short, limits {limits}')
