@@ -334,6 +334,31 @@ def test_the_report_has_the_documented_fields_a_summary_and_plots(tmp_path, monk
     assert all(f'`{stage}`' in documented for stage in STAGES)
 
 
+def test_the_summary_says_when_the_held_out_runs_are_too_few_for_a_spread_at_any_size():
+    """A spread's held-out t tends to sqrt(n / 2) as it grows (docs/diagnosis.md, section 12)."""
+    from types import SimpleNamespace
+
+    from scipy import stats
+
+    from octoroach_model.diagnosis.summary import spread_ceiling_line
+
+    level = 0.01 / 14                                 # the first step's, 14 candidates
+    power_z = stats.norm.ppf(0.8)
+
+    def line(held_out: int) -> str | None:
+        return spread_ceiling_line(SimpleNamespace(steps=[SimpleNamespace(test_level=level)],
+                                                   split={'held_out': held_out}))
+
+    said = line(22)                                   # studies/spreads_few_runs.yaml's 45 runs
+    assert 'cannot be named at any size' in said and 'sqrt(22 / 2) = 3.3' in said, said
+    assert 'cannot reach 80 % power at any size' in line(30)
+    total = int(said.split('with about ')[1].split(' runs')[0])
+    enough = total // 2
+    assert math.sqrt(enough / 2) >= stats.t.isf(level, enough - 1) + power_z
+    assert math.sqrt((enough - 1) / 2) < stats.t.isf(level, enough - 2) + power_z
+    assert line(enough) is None and line(250) is None and line(enough - 1) is not None
+
+
 def test_a_declared_limit_caveat_reaches_the_candidate_and_its_line_in_the_summary(monkeypatch):
     # where studies find a term's limit not to hold, its declaration says so (Cause.limit_caveat)
     # and the report carries it beside the limit, in report.json and in summary.md

@@ -31,6 +31,7 @@ import pytest
 import octoroach_model as om
 from octoroach_model.diagnosis import diagnose, DiagnosisSettings, write_report
 from octoroach_model.diagnosis.records import LimitMethod
+from octoroach_model.diagnosis.summary import spread_ceiling_line
 from octoroach_model.fitting import fit_nominal
 from octoroach_model.limit_setting import RACED_TERMS, read_limits
 from octoroach_model.validation import validate, ValidationSettings
@@ -133,6 +134,8 @@ def test_every_robot_gets_a_result_or_a_one_line_reason(tmp_path_factory, case) 
     out = tmp_path_factory.mktemp('report')
     written = write_report(report, out, measured=measured)
     assert written['report'].stat().st_size > 0 and written['summary'].stat().st_size > 0
+    ceiling = spread_ceiling_line(report)        # few held-out runs: said in the summary
+    assert ceiling is None or ceiling in written['summary'].read_text(), description
     assert report.runs.ended_early == int(np.count_nonzero(measured.lengths < len(measured.t)))
     candidates = report.candidates + report.extension_candidates
     whole = {c.cause for c in candidates if c.detectable_method == LimitMethod.WHOLE_DECISION}

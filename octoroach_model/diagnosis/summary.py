@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import math
 
+from scipy import stats
+
 from octoroach_model.diagnosis.causes import BY_NAME
-from octoroach_model.diagnosis.decide import close_call, CLOSE_CALL_SE
+from octoroach_model.diagnosis.decide import close_call, CLOSE_CALL_SE, POWER
 from octoroach_model.diagnosis.records import CandidateResult, DiagnosisReport, Rival
 
 
@@ -171,6 +173,9 @@ def summary_text(report: DiagnosisReport) -> str:
                          f'{_number(checked.violation)}'
                          + ('' if checked.accepted else ' (no spread admissible)') + '.')
     lines += ['', '## What could have been seen', '']
+    ceiling = spread_ceiling_line(report)
+    if ceiling is not None:
+        lines.append(ceiling)
     named_terms = set(report.named_terms)
     for candidate in (*report.candidates, *report.extension_candidates):
         if candidate.cause in named_terms:
@@ -183,6 +188,42 @@ def summary_text(report: DiagnosisReport) -> str:
                            for stage, seconds in report.stages_s.items())
         lines += ['', f'Time: {stages} (wall time of each stage).']
     return '\n'.join(lines) + '\n'
+
+
+def spread_ceiling_line(report: DiagnosisReport) -> str | None:
+    """
+    Say where the held-out runs are too few for a spread to be named at any size (else None).
+
+    A cause that only widens the spread of a statistic, r times the model's, gains
+    -log r + (r^2 - 1) z^2 / 2 in a run's log score (z standard normal): its paired t over n
+    held-out runs tends to sqrt(n / 2) however wide it is (docs/diagnosis.md, section 12).
+    Below the first step's critical t it is never named; below that plus z(POWER), not with
+    POWER. The line says which, and about how many runs in all would let it.
+    """
+    if not report.steps:
+        return None
+    held_out, level = int(report.split['held_out']), report.steps[0].test_level
+    power_z = float(stats.norm.ppf(POWER))
+
+    def short(runs: int) -> bool:
+        return math.sqrt(runs / 2) < float(stats.t.isf(level, runs - 1)) + power_z
+
+    if held_out < 2 or not short(held_out):
+        return None
+    needed = held_out
+    while short(needed) and needed < MAX_HELD_OUT:
+        needed += 1
+    ceiling, critical = math.sqrt(held_out / 2), float(stats.t.isf(level, held_out - 1))
+    power = f'{POWER * 100:.0f} % power'
+    reach = 'be named at any size' if ceiling < critical else f'reach {power} at any size'
+    return (f'- In {held_out} held-out runs, a cause that only widens the spread of a statistic '
+            f'cannot {reach}: its held-out t tends to sqrt({held_out} / 2) = {ceiling:.1f} as '
+            f'it grows, against a critical {critical:.2f} (docs/diagnosis.md, section 12); '
+            f'with about {2 * needed} runs in all a wide enough spread is named with {power}.')
+
+
+# where `spread_ceiling_line` stops counting (the held-out runs a spread needs are ~40)
+MAX_HELD_OUT = 10_000
 
 
 def close_calls(report: DiagnosisReport) -> list[tuple[CandidateResult, float, float]]:
@@ -268,7 +309,7 @@ def _unseen_line(candidate: CandidateResult, paths: int) -> str:
     limit = candidate.detectable[parameter]
     words = [_number(limit), cause.unit, 'from 1' if cause.null != 0 else '']
     text = ('below ' + ' '.join(word for word in words if word) if limit is not None
-            else 'of any size on the grid')
+            else 'of any size')
     if cause.limit_stated:
         text += f' ({cause.limit_stated})'
     label = cause.label + (f' ({cause.name.split(":", 1)[1]})' if ':' in cause.name else '')
