@@ -194,7 +194,7 @@ def spread_ceiling_line(report: DiagnosisReport) -> str | None:
     """
     Say where the held-out runs are too few for a spread to be named at any size (else None).
 
-    A cause that only widens the spread of a statistic, r times the model's, gains
+    A cause that only widens the spread of one statistic, r times the model's, gains
     -log r + (r^2 - 1) z^2 / 2 in a run's log score (z standard normal): its paired t over n
     held-out runs tends to sqrt(n / 2) however wide it is (docs/diagnosis.md, section 12).
     Below the first step's critical t it is never named; below that plus z(POWER), not with
@@ -216,10 +216,12 @@ def spread_ceiling_line(report: DiagnosisReport) -> str | None:
     ceiling, critical = math.sqrt(held_out / 2), float(stats.t.isf(level, held_out - 1))
     power = f'{POWER * 100:.0f} % power'
     reach = 'be named at any size' if ceiling < critical else f'reach {power} at any size'
-    return (f'- In {held_out} held-out runs, a cause that only widens the spread of a statistic '
-            f'cannot {reach}: its held-out t tends to sqrt({held_out} / 2) = {ceiling:.1f} as '
-            f'it grows, against a critical {critical:.2f} (docs/diagnosis.md, section 12); '
-            f'with about {2 * needed} runs in all a wide enough spread is named with {power}.')
+    return (f'- In {held_out} held-out runs, a cause seen only as a wider spread of one '
+            f'statistic (as a start heading spread is in short runs) cannot {reach}: its '
+            f'held-out t tends to sqrt({held_out} / 2) = {ceiling:.1f} however wide it is, '
+            f'against a critical {critical:.2f}; with about {2 * needed} runs in all a wide '
+            f'enough one is named with {power}. A cause seen in several statistics, each with '
+            f'noise of its own, can pass with fewer (docs/diagnosis.md, section 12).')
 
 
 # where `spread_ceiling_line` stops counting (the held-out runs a spread needs are ~40)
