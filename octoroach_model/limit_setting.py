@@ -26,13 +26,19 @@ LIMITS = Setting('the detection limits of the whole decision to compute: all, no
                  "diagnosis's time and the decision does not depend on them")
 
 
+# a name longer than this is not quoted back in an error (it may be a file's content)
+SHOWN_CHARACTERS = 40
+
+
 def check_term_names(names: Sequence[str], what: str) -> None:
     """Raise ParameterError, in one line, unless `names` are terms (`what` says where)."""
     if isinstance(names, str):
-        raise ParameterError(f'{what} must be a list of terms, got the string {names!r}')
+        raise ParameterError(f'{what} must be a list of terms, not one string')
     for name in names:
         if name not in RACED_TERMS:
-            raise ParameterError(f'{what}: {name!r} is no term; the terms: '
+            shown = repr(name) if isinstance(name, str) and len(name) <= SHOWN_CHARACTERS \
+                and name.isprintable() else 'an entry'
+            raise ParameterError(f'{what}: {shown} is no term; give all, none or terms among '
                                  + ', '.join(RACED_TERMS))
 
 
@@ -41,8 +47,5 @@ def read_limits(text: str) -> tuple[bool, tuple[str, ...]]:
     if text.strip() in ('all', 'none'):
         return text.strip() == 'all', ()
     terms = tuple(name.strip() for name in text.split(','))
-    for name in terms:
-        if name not in RACED_TERMS:
-            raise ParameterError(f'limits: {name!r} is no term; give all, none or terms among '
-                                 + ', '.join(RACED_TERMS))
+    check_term_names(terms, 'limits')
     return True, terms

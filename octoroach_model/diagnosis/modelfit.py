@@ -44,7 +44,7 @@ from octoroach_model.fitting.nominal import (
 from octoroach_model.fitting.target import (
     average_target, AverageTarget, gait_weight_for, GaitTarget, ResidualScales)
 from octoroach_model.model import model_poses, ModelParameters, nominal_sigmas, RandomStreams
-from octoroach_model.model.effects import mean_gait_rate
+from octoroach_model.model.effects import mean_gait_rate, parameter_range
 from octoroach_model.model.extensions import TERM_BY_NAME
 from octoroach_model.model.parameters import ParameterTable, StartPoseTable
 from octoroach_model.paths import Paths
@@ -440,8 +440,7 @@ def _zero(cause: str, data: RunData | None = None) -> dict[str, float]:
 
 
 # the largest yaw rate of run_mixture's turning runs the model takes (model/extensions.py)
-MIXTURE_RATE_EDGE_DEG_S = dict(zip(TERM_BY_NAME['run_mixture'].parameters,
-                                   TERM_BY_NAME['run_mixture'].ranges))['yaw_rate_deg_s'][1]
+MIXTURE_RATE_EDGE_DEG_S = parameter_range('run_mixture', 'yaw_rate_deg_s')[1]
 
 
 def _mixture_fraction(values: Mapping[str, float]) -> float:

@@ -53,6 +53,14 @@ PARAMETER_RANGES: dict[str, tuple[float, float]] = {
 Effects = Mapping[str, Mapping[str, float]]
 
 
+def parameter_range(term: str, key: str) -> tuple[float, float]:
+    """Return the range (inclusive) a cause's or an extension term's parameter `key` takes."""
+    if term in EFFECT_PARAMETERS:
+        return PARAMETER_RANGES[key]
+    found = TERM_BY_NAME[term]
+    return found.ranges[found.parameters.index(key)]
+
+
 def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
     """
     Check an effects mapping {name: {parameter: value}}; return a copy, missing ones 0.

@@ -22,9 +22,9 @@ from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
 from octoroach_model.limit_setting import check_term_names
+from octoroach_model.model.effects import parameter_range
 from octoroach_model.studies.terms import (
-    main_parameter, parameter_range, parameters as term_parameters, signed, term_named,
-    term_of, TERMS)
+    main_parameter, parameters as term_parameters, signed, term_named, term_of, TERMS)
 
 SIGNED_CAUSES = tuple(term for term in TERMS if signed(term))   # main parameter has a sign
 NULL = 'none'
@@ -547,7 +547,7 @@ def _diagnosis(values: Mapping[str, Any]) -> tuple[tuple[str, Any], ...]:
 def _limit_terms(value: Any) -> tuple[str, ...]:
     """Check diagnosis.limit_terms: a list of the terms whose whole limits nulls compute."""
     if not isinstance(value, list) or not all(isinstance(name, str) for name in value):
-        raise ParameterError(f'diagnosis.limit_terms must be a list of term names, got {value!r}')
+        raise ParameterError('diagnosis.limit_terms must be a list of term names')
     check_term_names(value, 'diagnosis.limit_terms')
     return tuple(sorted(set(value)))
 

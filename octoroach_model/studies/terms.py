@@ -15,7 +15,7 @@ from typing import Any
 from octoroach_model.diagnosis.causes import (
     BY_NAME, CANDIDATES, change_point_limit_s, MIXTURE_FRACTION, PERIODIC_LIMIT_PERIODS)
 from octoroach_model.errors import ParameterError
-from octoroach_model.model import EFFECT_PARAMETERS, PARAMETER_RANGES
+from octoroach_model.model import EFFECT_PARAMETERS
 from octoroach_model.model.extensions import (
     DRIFT, drift_term, DRIFTED, FAMILY_NAMES, TERM_BY_NAME)
 
@@ -44,13 +44,6 @@ def parameters(term: str) -> tuple[str, ...]:
     if term in EFFECT_PARAMETERS:
         return EFFECT_PARAMETERS[term]
     return TERM_BY_NAME[term].parameters
-
-
-def parameter_range(term: str, key: str) -> tuple[float, float]:
-    if term in EFFECT_PARAMETERS:
-        return PARAMETER_RANGES[key]
-    found = TERM_BY_NAME[term]
-    return found.ranges[found.parameters.index(key)]
 
 
 def term_of(item: Mapping[str, Any], where: str) -> str:
