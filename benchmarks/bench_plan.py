@@ -191,7 +191,7 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
     from octoroach_model.diagnosis.live import Question
     from octoroach_model.diagnosis.power import calibration_group
     from octoroach_model.studies.plan import _base_spec
-    from octoroach_model.studies.plan_model import _Curve, check_task, pilot_task, PILOTS
+    from octoroach_model.studies.plan_model import PredictedCurve, check_task, pilot_task, PILOTS
     from octoroach_model.studies.summary import wilson
     from scipy import stats
 
@@ -213,7 +213,7 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
                 pilots = [future.result()[0] for future in [
                     pool.submit(pilot_task, spec, question, replicate, 500)
                     for replicate in range(PILOTS)]]
-                runs = _Curve(pilots, *levels).runs_for(0.8, 0.0, 40, 2000)
+                runs = PredictedCurve(pilots, *levels).runs_for(0.8, 0.0, 40, 2000)
                 named: list[bool] = []
                 if math.isfinite(runs) and runs > 40:
                     named = [outcome.named for outcome in [future.result() for future in [

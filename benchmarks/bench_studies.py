@@ -574,7 +574,14 @@ def main(argv: list[str] | None = None) -> int:
     if not args.scale and args.studies is None:
         args.scale = True
     if args.scale:
+        from octoroach_model.errors import ParameterError
+        from octoroach_model.limit_setting import check_term_names
+
         terms = tuple(args.limit_terms)
+        try:
+            check_term_names(terms, '--limit-terms')
+        except ParameterError as error:
+            parser.error(str(error))
         print_scale(measure_scale(limit_terms=terms), terms)
     if names:
         run_studies(names, args.workers, args.scheduler)

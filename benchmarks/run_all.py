@@ -14,7 +14,7 @@ BENCHMARKS = ['bench_model.py', 'bench_nominal_fit.py', 'bench_diagnose.py', 'be
               'bench_diagnosis_tasks.py', 'bench_extension_cost.py', 'bench_nodes.py',
               'bench_validator_busy.py', 'bench_reading.py', 'bench_bag_memory.py',
               'bench_mocap_memory.py', 'bench_studies.py', 'bench_scale_out.py',
-              'bench_guidance.py']
+              'bench_guidance.py', 'bench_plan_calibration.py']
 
 
 def main() -> int:

@@ -755,7 +755,17 @@ def test_a_limit_is_never_sought_beyond_the_sizes_a_path_cause_can_take():
             assert min(cause.bounds) - 1e-12 <= edge <= max(cause.bounds) + 1e-12, (cause, edge)
             effects = {cause.name: at_size(cause, largest, values)}
             assert mean_gait_rate(effects, 10.0) > 0, (cause.name, values)
-    assert largest_size(BY_NAME['persistent_turning']) == math.inf
+    # a moments or trend term stops where the model's range for its parameter does: the
+    # model simulates the edge and refuses anything past it
+    from octoroach_model.errors import ParameterError
+    from octoroach_model.model import check_effects
+    bounded_kinds = (EstimateKind.MOMENTS, EstimateKind.TREND)
+    for cause in (c for c in BY_NAME.values() if c.kind in bounded_kinds):
+        largest = largest_size(cause)
+        assert 0 < largest < math.inf, cause.name
+        check_effects({cause.name: at_size(cause, largest)})
+        with pytest.raises(ParameterError):
+            check_effects({cause.name: at_size(cause, 1.01 * largest)})
     # a mixture's yaw rate stops at the model's edge: past it every size is the same runs, and
     # on 60 runs its held-out t saturated and was extrapolated to limits of 200-25 000 deg/s
     mixture = BY_NAME['run_mixture']

@@ -480,13 +480,15 @@ def largest_size(cause: Cause, values: Mapping[str, float] | None = None) -> flo
     limit's search that extrapolated past them simulated a negative stride frequency. A
     mixture's yaw rate stops at the model's MIXTURE_RATE_EDGE_DEG_S (`at_size`), beyond which
     every size simulates the same runs: a limit extrapolated past it (thousands of deg/s on
-    60 runs, docs/diagnosis.md section 12) is none. Other kinds have no such edge (inf).
+    60 runs, docs/diagnosis.md section 12) is none. A moments or trend term stops at the top
+    of its parameter's range, which the model refuses to simulate beyond (a search past it
+    would end the diagnosis with the range's error).
     """
     if cause.kind == EstimateKind.MIXTURE:
         fraction = _mixture_fraction({**_zero(cause.name), **dict(values or {})})
         return MIXTURE_RATE_EDGE_DEG_S * math.sqrt(fraction * (1 - fraction))
     if cause.kind != EstimateKind.PATH:
-        return math.inf
+        return parameter_range(cause.name, cause.parameter)[1] - cause.null
     low, high = cause.bounds
     if cause.null != 0.0 and _side(cause, {**_zero(cause.name), **dict(values or {})}) < 0:
         return abs(cause.null - low)

@@ -10,16 +10,16 @@ How it decides (docs/studies.md, "How plan decides"):
    count (diagnosis/power.py): P(size bound clears the floor) x P(held-out test
    significant), at the diagnosis's levels (every candidate in the race). The pilots'
    powers are averaged.
-2. **Calibration.** The predicted power is shifted on the probit scale by what the studies
-   measured at the reported limits (power.Calibration: the six causes named in 102 of 120
-   data sets where 80 % was predicted); the answer is where the shifted curve reaches the
-   requested power, its 95 % interval where the curve does with the shift at the ends of its
-   interval.
+2. **Calibration.** The predicted power is shifted on the probit scale by the question's
+   shift: its group's, measured by the studies where 80 % was predicted
+   (power.CALIBRATION_COUNTS), widened by how far a question may lie from its group
+   (power.question_sd); the answer is where the shifted curve reaches the requested power,
+   its 95 % interval where the curve does with the shift at the ends of its interval.
 3. **Checks, as time allows** (`budget_s`, the plan's whole time). Data sets with the
-   effect at the requested size are simulated at the current answer and the term's first
-   step taken on each, at the diagnosis's levels; each outcome updates the shift
-   (`Calibration.updated`), and with it the answer, its interval and where the next checks
-   go. A check starts only when it can end within the budget (its expected time from the
+   effect at the requested size are simulated at the current answer (`check_runs`) and the
+   term's first step taken on each, at the diagnosis's levels; each outcome updates the
+   question's shift (`after_check`), and with it the answer, its interval and where the next
+   checks go. A check starts only when it can end within the budget (its expected time from the
    checks so far).
 
 What it leaves out, and the reason: the full diagnosis of each check (a minute each with
@@ -55,6 +55,7 @@ PILOTS = 2
 PILOT_RUNS = 500
 CURVE_POINTS = 41
 Progress = Callable[[float, str], None]
+Answer = tuple[float, tuple[float, float]]      # runs, and their 95 % interval
 
 
 @dataclass(frozen=True)
@@ -146,16 +147,21 @@ def check_task(spec: StudySpec, question: Question, runs: int, replicate: int
 
 
 @dataclass
-class _Curve:
+class PredictedCurve:
     """The pilots' power curve at the diagnosis's levels, averaged over the pilots."""
 
     models: Sequence[PowerModel]
     z_bound: float
     z_test: float
 
+    def predicted(self, runs: float) -> float:
+        """Return the pilots' (uncalibrated) power with `runs` runs."""
+        return float(np.mean([model.power(runs, fixed(self.z_bound), fixed(self.z_test))
+                              for model in self.models]))
+
     def power(self, runs: float, shift: float = 0.0) -> float:
-        predicted = float(np.mean([model.power(runs, fixed(self.z_bound), fixed(self.z_test))
-                                   for model in self.models]))
+        """Return the power with `runs` runs, shifted by `shift` on the probit scale."""
+        predicted = self.predicted(runs)
         return shifted(predicted, shift) if shift else predicted
 
     def runs_for(self, target: float, shift: float, least: int, most: int) -> float:
@@ -188,9 +194,9 @@ def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_run
     futures = [executor.submit(pilot_task, spec, question, replicate, PILOT_RUNS)
                for replicate in range(PILOTS)]
     pilots = [future.result() for future in futures]
-    curve = _Curve([model for model, _ in pilots], *curve_levels)
+    curve = PredictedCurve([model for model, _ in pilots], *curve_levels)
     calibration = Calibration.for_term(question.term)
-    answer = _answer(curve, calibration, question.power, min_runs, max_runs)
+    answer = answer_of(curve, calibration, question.power, min_runs, max_runs)
     say(0.3, f'pilots done ({time.monotonic() - started:.1f} s): predicted '
              f'{_runs_text(answer[0])} runs (95 % {_runs_text(answer[1][0])} to '
              f'{_runs_text(answer[1][1])}), calibration shift {calibration.shift:+.2f}')
@@ -202,15 +208,16 @@ def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_run
             [check.named for check in checks if check.status == Status.OK],
             f'checks: named in {sum(check.named for check in checks)} of '
             f'{sum(check.status == Status.OK for check in checks)} simulated data sets')
-        answer = _answer(curve, calibration, question.power, min_runs, max_runs)
+        answer = answer_of(curve, calibration, question.power, min_runs, max_runs)
     return ModelAnswer(answer[0], answer[1], calibration.shift, calibration.interval_95,
                        calibration.sources, tuple(info for _, info in pilots), tuple(checks),
                        _curve_points(curve, calibration, answer, min_runs, max_runs),
                        tuple(curve.models))
 
 
-def _answer(curve: _Curve, calibration: Calibration, power: float, min_runs: int,
-            max_runs: int) -> tuple[float, tuple[float, float]]:
+def answer_of(curve: PredictedCurve, calibration: Calibration, power: float, min_runs: int,
+              max_runs: int) -> Answer:
+    """Return the runs where the calibrated curve reaches `power`, and their 95 % interval."""
     low_shift, high_shift = calibration.interval_95
     middle = curve.runs_for(power, calibration.shift, min_runs, max_runs)
     # a larger shift means more power, so fewer runs: the interval's low end is the high shift
@@ -218,8 +225,22 @@ def _answer(curve: _Curve, calibration: Calibration, power: float, min_runs: int
                     curve.runs_for(power, low_shift, min_runs, max_runs))
 
 
-def _check(spec: StudySpec, question: Question, curve: _Curve, calibration: Calibration,
-           answer: tuple[float, tuple[float, float]], min_runs: int, max_runs: int,
+def check_runs(answer: Answer, min_runs: int, max_runs: int) -> int:
+    """Return the run count the next check simulates: the current answer, within the range."""
+    target = answer[0]
+    return (int(min(max(round(target), min_runs), max_runs)) if math.isfinite(target)
+            else max_runs)
+
+
+def after_check(curve: PredictedCurve, calibration: Calibration, predicted: float, named: bool,
+                power: float, min_runs: int, max_runs: int) -> tuple[Calibration, Answer]:
+    """Return the calibration and the answer updated by one check's outcome."""
+    calibration = calibration.updated([predicted], [named], 'check')
+    return calibration, answer_of(curve, calibration, power, min_runs, max_runs)
+
+
+def _check(spec: StudySpec, question: Question, curve: PredictedCurve,
+           calibration: Calibration, answer: Answer, min_runs: int, max_runs: int,
            executor: Executor, workers: int, deadline: float, say: Progress
            ) -> list[CheckOutcome]:
     """Run checks at the current answer until the deadline (module docstring)."""
@@ -234,9 +255,7 @@ def _check(spec: StudySpec, question: Question, curve: _Curve, calibration: Cali
         return per_run * runs
 
     while True:
-        target = answer[0]
-        runs = int(min(max(round(target), min_runs), max_runs)) if math.isfinite(target) \
-            else max_runs
+        runs = check_runs(answer, min_runs, max_runs)
         now = time.monotonic()
         while len(running) < max(workers, 1) and now + expected_cost(runs) <= deadline:
             future = executor.submit(check_task, spec, question, runs, replicate)
@@ -251,8 +270,9 @@ def _check(spec: StudySpec, question: Question, curve: _Curve, calibration: Cali
             done.append(outcome)
             if outcome.status == Status.OK:
                 costs.append(outcome.elapsed_s / max(runs_done, 1))
-                calibration = calibration.updated([predicted], [outcome.named], 'check')
-                answer = _answer(curve, calibration, question.power, min_runs, max_runs)
+                calibration, answer = after_check(curve, calibration, predicted,
+                                                  outcome.named, question.power, min_runs,
+                                                  max_runs)
             say(min(0.3 + 0.6 * len(done) / (len(done) + 2), 0.95),
                 f'check {len(done)}: {runs_done} runs, '
                 + ('named' if outcome.named else 'not named' if outcome.status == Status.OK
@@ -261,8 +281,8 @@ def _check(spec: StudySpec, question: Question, curve: _Curve, calibration: Cali
                   f'runs (95 % {_runs_text(answer[1][0])} to {_runs_text(answer[1][1])})')
 
 
-def _curve_points(curve: _Curve, calibration: Calibration,
-                  answer: tuple[float, tuple[float, float]], min_runs: int, max_runs: int
+def _curve_points(curve: PredictedCurve, calibration: Calibration,
+                  answer: Answer, min_runs: int, max_runs: int
                   ) -> tuple[tuple[float, float, float, float], ...]:
     """Return the calibrated curve (runs, power, and its 95 % band) around the answer."""
     finite = [value for value in (answer[0], *answer[1]) if math.isfinite(value)]

@@ -1,0 +1,126 @@
+"""
+How often `plan`'s answer interval holds the true run count, through its calibration and checks.
+
+`plan --method model` (studies/plan_model.py) shifts the pilots' predicted power curve on the
+probit scale (diagnosis/power.py): by its group's shift, measured by the studies
+(`CALIBRATION_COUNTS`), widened by how far a question's own shift may lie from it
+(`question_sd`); each check then updates the question's shift, and the answer with it. Here
+the questions are simulated: a known predicted curve (a probit in ln runs, 80 % at 300 runs),
+a true shift that is a draw of the group's (from its posterior) plus a deviation, and plan's
+own calibration, check placement and updates (`Calibration.for_term`, `check_runs`,
+`after_check`) on outcomes drawn from the true curve. Printed per case: how often the
+answer's 95 % interval holds the run count where the true curve reaches 80 % (with a 95 %
+Wilson interval), the median width of the interval (high / low) and the median
+|ln(answer / truth)|, beside the same with the group's shift taken as the question's
+(`spread` 0: the calibration before this benchmark).
+
+Cases: deviations drawn at the spread plan assumes (`question_sd`, 0.35 probit units from
+CALIBRATION_COUNTS), at twice it (the spread's likelihood interval reaches 1.0), none (the
+group right), and one fixed miss of -0.8 (initial_pose_error at 15 deg on 10-cycle runs: 7 of
+16 checks named it where 72-79 % was predicted).
+
+Run: .venv/bin/python benchmarks/bench_plan_calibration.py [--questions 400] [--checks 16]
+     [--term persistent_turning] [--seed 1]
+The figures in docs/studies.md ("How plan decides") come from the default call (~1 min).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from octoroach_model.diagnosis.power import (  # noqa: E402
+    Calibration, groups_log_likelihood, question_sd, shifted, SHIFTS)
+from octoroach_model.studies.plan_model import (  # noqa: E402
+    after_check, answer_of, check_runs, PredictedCurve)
+
+TARGET = 0.8
+MIN_RUNS, MAX_RUNS = 40, 20_000
+SLOPE = 1.2                     # probit units per unit of ln runs: 50 % to 80 % over x 2
+
+
+class KnownCurve(PredictedCurve):
+    """A predicted power curve of known form: a probit in ln runs, 80 % at 300 runs."""
+
+    def predicted(self, runs: float) -> float:
+        from scipy import special
+
+        return float(special.ndtr(special.ndtri(TARGET)
+                                  + SLOPE * (math.log(runs) - math.log(300))))
+
+
+def group_shift(term: str, rng: np.random.Generator) -> float:
+    """Return a draw of the term's group's shift from its posterior (no question spread)."""
+    log_p = np.array(Calibration.for_term(term, 0.0).log_likelihood)
+    weights = np.exp(log_p - log_p.max())
+    return float(rng.choice(SHIFTS, p=weights / weights.sum()))
+
+
+def plan_once(term: str, spread: float | None, true_shift: float, checks: int,
+              rng: np.random.Generator) -> tuple[bool, float, float]:
+    """Run plan's calibration and checks once; return covered, width ratio, |ln error|."""
+    curve = KnownCurve((), 0.0, 0.0)
+    calibration = Calibration.for_term(term, spread)
+    answer = answer_of(curve, calibration, TARGET, MIN_RUNS, MAX_RUNS)
+    for _ in range(checks):
+        runs = check_runs(answer, MIN_RUNS, MAX_RUNS)
+        predicted = curve.predicted(runs)
+        named = bool(rng.random() < shifted(predicted, true_shift))
+        calibration, answer = after_check(curve, calibration, predicted, named, TARGET,
+                                          MIN_RUNS, MAX_RUNS)
+    truth = curve.runs_for(TARGET, true_shift, MIN_RUNS, MAX_RUNS)
+    low, high = answer[1]
+    return (low <= truth <= high, high / low if low > 0 else math.inf,
+            abs(math.log(answer[0] / truth)))
+
+
+def wilson(hits: int, total: int) -> tuple[float, float]:
+    z = 1.959964
+    centre = (hits + z * z / 2) / (total + z * z)
+    half = z * math.sqrt(hits * (total - hits) / total + z * z / 4) / (total + z * z)
+    return centre - half, centre + half
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    parser.add_argument('--questions', type=int, default=400)
+    parser.add_argument('--checks', type=int, default=16)
+    parser.add_argument('--term', default='persistent_turning')
+    parser.add_argument('--seed', type=int, default=1)
+    arguments = parser.parse_args()
+    spread = question_sd()
+    upper = next(value for value in np.arange(spread, 3.0, 0.01)
+                 if groups_log_likelihood(spread) - groups_log_likelihood(value) > 1.92)
+    print(f'question_sd from CALIBRATION_COUNTS: {spread:.2f} probit units (likelihood '
+          f'interval 0 to {upper:.2f}); {arguments.questions} questions per line, '
+          f'{arguments.checks} checks each, term {arguments.term}, seed {arguments.seed}')
+    cases = {f'deviation ~ N(0, {spread:.2f})': lambda rng: rng.normal(0.0, spread),
+             f'deviation ~ N(0, {2 * spread:.2f})': lambda rng: rng.normal(0.0, 2 * spread),
+             'no deviation': lambda rng: 0.0,
+             'deviation -0.8': lambda rng: -0.8}
+    print(f'{"case":<26} {"calibration":<18} {"coverage":>9} {"(95 %)":>14} '
+          f'{"width":>6} {"|ln err|":>8}')
+    started = time.perf_counter()
+    for case, deviation in cases.items():
+        for label, used in (('question shift', None), ('group shift only', 0.0)):
+            rng = np.random.default_rng([arguments.seed, len(case)])    # the same questions
+            rows = []
+            for _ in range(arguments.questions):
+                truth = group_shift(arguments.term, rng) + deviation(rng)
+                rows.append(plan_once(arguments.term, used, truth, arguments.checks, rng))
+            covered = sum(row[0] for row in rows)
+            low, high = wilson(covered, len(rows))
+            print(f'{case:<26} {label:<18} {covered / len(rows):>9.3f} '
+                  f'{f"{low:.3f}-{high:.3f}":>14} {np.median([r[1] for r in rows]):>6.2f} '
+                  f'{np.median([r[2] for r in rows]):>8.3f}', flush=True)
+    print(f'{time.perf_counter() - started:.0f} s')
+
+
+if __name__ == '__main__':
+    main()
