@@ -14,8 +14,8 @@ Three parts:
   interval, for a case where the two answers disagree.
 - `--calibrate`: the calibration of the power model (diagnosis/power.py): for each term at
   one size, the pilots' prediction of the runs for 80 % power, and K simulated checks (the
-  term's first step, the diagnosis's levels) at that count; prints the named share per
-  calibration group, the counts power.CALIBRATION_COUNTS holds.
+  term's first step, the diagnosis's levels) at that count; prints the counts per term
+  (what power.CALIBRATION_COUNTS holds) and the named share per calibration group.
 
 Run: .venv/bin/python benchmarks/bench_plan.py [--compare [CASE ...]] [--fresh]
      [--evidence CASE N1,N2 R] [--calibrate [--checks K] [--terms TERM ...]] [--workers N]
@@ -198,6 +198,7 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
     everyone = len(CANDIDATES)          # the race's first step, as the diagnosis's levels
     levels = (decision_z(0.05, everyone), float(stats.norm.isf(0.01 / everyone)))
     groups: dict[str, list[bool]] = {}
+    counts: dict[str, tuple[int, int]] = {}
     folder = OUT / 'calibration'
     folder.mkdir(parents=True, exist_ok=True)
     print('| term | size | predicted runs for 80 % | checks named |')
@@ -228,9 +229,13 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
                       f'bound) |')
                 continue
             groups.setdefault(calibration_group(term), []).extend(named)
+            counts[term] = (sum(named), len(named))
             print(f'| {term} | {size:g} | {entry["runs"]:.0f} | {sum(named)}/{len(named)} |',
                   flush=True)
-    print('\ncalibration counts (named, checks) at a predicted 80 %, per group:')
+    print('\nCALIBRATION_COUNTS (named, checks) at a predicted 80 %, per term:')
+    for term, (named_count, total) in counts.items():
+        print(f"    '{term}': ({named_count}, {total}),")
+    print('\nper group (power.group_counts):')
     for group, named in groups.items():
         rate = wilson(sum(named), len(named))
         assert rate.rate is not None and rate.interval is not None

@@ -14,8 +14,8 @@ Wilson interval), the median width of the interval (high / low) and the median
 |ln(answer / truth)|, beside the same with the group's shift taken as the question's
 (`spread` 0: the calibration before this benchmark).
 
-Cases: deviations drawn at the spread plan assumes (`question_sd`, 0.35 probit units from
-CALIBRATION_COUNTS), at twice it (the spread's likelihood interval reaches 1.0), none (the
+Cases: deviations drawn at the spread plan assumes (`question_sd`, from the terms' counts
+in CALIBRATION_COUNTS), at twice it (about the top of its likelihood interval), none (the
 group right), and one fixed miss of -0.8 (initial_pose_error at 15 deg on 10-cycle runs: 7 of
 16 checks named it where 72-79 % was predicted).
 
@@ -36,7 +36,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from octoroach_model.diagnosis.power import (  # noqa: E402
-    Calibration, groups_log_likelihood, question_sd, shifted, SHIFTS)
+    Calibration, question_sd, shifted, SHIFTS, terms_log_likelihood)
 from octoroach_model.studies.plan_model import (  # noqa: E402
     after_check, answer_of, check_runs, PredictedCurve)
 
@@ -95,10 +95,12 @@ def main() -> None:
     parser.add_argument('--seed', type=int, default=1)
     arguments = parser.parse_args()
     spread = question_sd()
-    upper = next(value for value in np.arange(spread, 3.0, 0.01)
-                 if groups_log_likelihood(spread) - groups_log_likelihood(value) > 1.92)
+    top = terms_log_likelihood(spread)
+    inside = [value for value in np.arange(0.0, 3.0, 0.01)
+              if top - terms_log_likelihood(value) <= 1.92]
     print(f'question_sd from CALIBRATION_COUNTS: {spread:.2f} probit units (likelihood '
-          f'interval 0 to {upper:.2f}); {arguments.questions} questions per line, '
+          f'interval {min(inside):.2f} to {max(inside):.2f}); {arguments.questions} questions '
+          'per line, '
           f'{arguments.checks} checks each, term {arguments.term}, seed {arguments.seed}')
     cases = {f'deviation ~ N(0, {spread:.2f})': lambda rng: rng.normal(0.0, spread),
              f'deviation ~ N(0, {2 * spread:.2f})': lambda rng: rng.normal(0.0, 2 * spread),

@@ -26,13 +26,13 @@ predicts 80 %: for each term at one size, the pilots of `plan` (studies/plan_mod
 predicted the runs for 80 % power, and 16 data sets with the term at that size and run count
 were simulated and the term's first step taken on each, as the plan's checks take it
 (`benchmarks/bench_plan.py --calibrate`; README, "How many runs: plan"). The counts are
-`CALIBRATION_COUNTS`, per group of terms (the six causes pooled, each extension family
-apart). The measured power is modelled as Phi(Phi^-1(predicted) + shift): a shift on the probit
-scale per group, with a normal prior N(0, 1) (the predictor is right within two probit
-units), updated by the group's counts. A question (a term at a size, on a robot) is not its
-group's average: its own shift is the group's plus a deviation of the spread the groups'
-shifts show about their mean (`question_sd`: the between-group standard deviation that makes
-CALIBRATION_COUNTS most likely, about 0.35 probit units). So a question's prior is the
+`CALIBRATION_COUNTS`, per term. The measured power is modelled as Phi(Phi^-1(predicted) +
+shift): a shift on the probit scale per group of terms (the six causes pooled, each
+extension family apart; `group_counts`), with a normal prior N(0, 1) (the predictor is right
+within two probit units), updated by the group's counts. A question (a term at a size, on a
+robot) is not its group's average: its own shift is the group's plus a deviation of the
+spread the terms' shifts show about their mean (`question_sd`: the standard deviation that
+makes CALIBRATION_COUNTS most likely). So a question's prior is the
 group's posterior widened by that spread (`Calibration.for_term`), and the checks of the
 caller update the question's own shift (`Calibration.updated`): 16 checks that name the term
 far less often than predicted move it, where pooled with the group's 96 data sets they would
@@ -60,23 +60,27 @@ from octoroach_model.diagnosis.modelfit import FittedModel, RunData, Simulator, 
 
 ZFunction = Callable[[float], float]          # information (runs in a half) -> critical z
 MOST_RUNS = 1_000_000                         # runs_for gives up beyond this
-# named / data sets where the pilots predicted 80 % power, per calibration group: 16 data
-# sets per term (benchmarks/bench_plan.py --calibrate prints these; README, "How many runs:
-# plan"); measurement_noise and the stride frequency's drift at a size just above their
-# floors, where the runs needed are many. Measured at commit 7ccf16b, after speed_decay's
-# and change_point's detection limits were mended (9b210b6); speed_decay's and
-# change_point's again after bb82bf7, their test weighed against the model refit to the
-# robot's runs with them: speed_decay 15/16 where 1319 runs were predicted at 0.04 (10/16
-# at 7ccf16b), so 'causes' 68/80 + 15/16; change_point 16/16 again (240 runs at 0.05)
+# named / checks where the pilots predicted 80 % power, per term at one size (16 data sets
+# each at bench_plan.py's CALIBRATION_SIZES, Table II's robot; `.venv/bin/python
+# benchmarks/bench_plan.py --calibrate` prints these, 3 min; README, "How many runs: plan");
+# measurement_noise and the stride frequency's drift at a size just above their floors,
+# where the runs needed are many. Measured with the diagnosis of commit 3d875ec; per group
+# they were within two data sets of those measured at 7ccf16b-d03aab6 ('causes' 83/96,
+# 'run_order_drift' 34/48, periodic_heading 14/16, the others the same)
 CALIBRATION_COUNTS: dict[str, tuple[int, int]] = {
-    'causes': (83, 96),
-    'run_order_drift': (34, 48),
+    'initial_pose_error': (16, 16),
+    'measurement_noise': (16, 16),
+    'gait_frequency_variation': (13, 16),
+    'speed_decay': (15, 16),
+    'lateral_slip': (11, 16),
+    'persistent_turning': (11, 16),
+    'run_order_drift:stride_frequency': (12, 16),
+    'run_order_drift:yaw_rate': (10, 16),
+    'run_order_drift:lateral_velocity': (10, 16),
     'heading_random_walk': (15, 16),
-    'periodic_heading': (14, 16),
+    'periodic_heading': (13, 16),
     'change_point': (16, 16),
     'run_mixture': (15, 16),
-    # after d03aab6, the ramp weighed against the model refit to it (limits.geometry_absorbed):
-    # 5 deg/s, 189 runs predicted (12/16 where 172 were, at 7358d86)
     'yaw_rate_ramp': (14, 16),
 }
 GAIN_REPEATS = 2                               # simulations pooled in gain_sample
@@ -92,8 +96,15 @@ def calibration_group(term: str) -> str:
     return BY_NAME[term].family or 'causes'
 
 
-# the between-group spread of the shift is searched within [0, MOST_QUESTION_SD] (probit units)
-# to within QUESTION_SD_TOLERANCE, each group's deviation integrated by Gauss-Hermite
+def group_counts(group: str) -> tuple[int, int]:
+    """Return (named, data sets) of CALIBRATION_COUNTS summed over the group's terms."""
+    counts = [value for term, value in CALIBRATION_COUNTS.items()
+              if calibration_group(term) == group]
+    return sum(named for named, _ in counts), sum(total for _, total in counts)
+
+
+# the terms' spread of the shift is searched within [0, MOST_QUESTION_SD] (probit units)
+# to within QUESTION_SD_TOLERANCE, each term's deviation integrated by Gauss-Hermite
 # quadrature on HERMITE_NODES nodes, the mean shift on every MEAN_STEP-th point of SHIFTS
 MOST_QUESTION_SD = 2.0
 QUESTION_SD_TOLERANCE = 1e-3
@@ -101,11 +112,11 @@ HERMITE_NODES = 41
 MEAN_STEP = 4
 
 
-def groups_log_likelihood(spread: float) -> float:
+def terms_log_likelihood(spread: float) -> float:
     """
-    Return log P(CALIBRATION_COUNTS) with the groups' shifts spread by `spread` (probit).
+    Return log P(CALIBRATION_COUNTS) with the terms' shifts spread by `spread` (probit).
 
-    Each group's count binomial at Phi(Phi^-1(0.8) + mean + deviation), its deviation
+    Each term's count binomial at Phi(Phi^-1(0.8) + mean + deviation), its deviation
     N(0, spread^2), the mean shift integrated over its N(0, PRIOR_SD) prior (binomial
     coefficients left out: they do not depend on the spread).
     """
@@ -124,12 +135,12 @@ def question_sd() -> float:
     """
     Return the spread of a question's shift about its group's (module docstring).
 
-    The between-group standard deviation of the shifts that makes CALIBRATION_COUNTS most
-    likely (type II maximum likelihood, `groups_log_likelihood`). The groups stand in for
-    questions: the terms within a group are measured pooled, so their own spread is not
-    known apart.
+    The standard deviation of the terms' shifts that makes CALIBRATION_COUNTS most likely
+    (type II maximum likelihood, `terms_log_likelihood`): the terms, each at one size on one
+    robot, stand in for questions. Taken about one mean, it holds the groups' differences
+    too, so as a question's spread about its group's shift it errs wide.
     """
-    best = optimize.minimize_scalar(lambda spread: -groups_log_likelihood(spread),
+    best = optimize.minimize_scalar(lambda spread: -terms_log_likelihood(spread),
                                     bounds=(0.0, MOST_QUESTION_SD), method='bounded',
                                     options={'xatol': QUESTION_SD_TOLERANCE})
     return float(best.x)
@@ -155,7 +166,7 @@ class Calibration:
         (default `question_sd()`; 0 takes the group's shift as the question's).
         """
         group = calibration_group(term)
-        named, total = CALIBRATION_COUNTS[group]
+        named, total = group_counts(group)
         spread = question_sd() if spread is None else float(spread)
         prior = stats.norm.logpdf(SHIFTS, 0.0, PRIOR_SD)
         counts = _binomial(named, total, np.full_like(SHIFTS, POWER))
@@ -163,7 +174,7 @@ class Calibration:
                 'predicted' if total else f'calibration: none measured for {group} yet (the '
                 'prior alone: the predictor right within two probit units)')
         question = (f'this question: its own shift, within {spread:.2f} probit units (one sd) '
-                    "of the group's (the groups' spread)")
+                    "of the group's (the spread of the terms' shifts)")
         return cls(_widened(prior + counts, spread), (said, question))
 
     def updated(self, predicted: Sequence[float], named: Sequence[bool], what: str
@@ -197,13 +208,15 @@ class Calibration:
 
 def _widened(log_likelihood: FloatArray, spread: float) -> tuple[float, ...]:
     """Return the log density of a shift that is one of `log_likelihood` plus N(0, spread)."""
-    if spread <= 0:
+    step = float(SHIFTS[1] - SHIFTS[0])
+    if 6 * spread < step:          # narrower than the grid: no widening it can show
         return tuple(float(value) for value in log_likelihood)
     weights = np.exp(log_likelihood - log_likelihood.max())
-    step = float(SHIFTS[1] - SHIFTS[0])
     half = int(math.ceil(6 * spread / step))
     kernel = stats.norm.pdf(np.arange(-half, half + 1) * step, 0.0, spread)
-    density = np.convolve(weights / weights.sum(), kernel / kernel.sum(), mode='same')
+    # the full convolution, entry i of the grid at i + half (a kernel wider than the grid
+    # too: mode='same' would return the kernel's length)
+    density = np.convolve(weights / weights.sum(), kernel / kernel.sum())[half:half + len(SHIFTS)]
     return tuple(float(value) for value in np.log(np.maximum(density, 1e-300)))
 
 
