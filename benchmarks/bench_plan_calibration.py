@@ -16,8 +16,10 @@ Wilson interval), the median width of the interval (high / low) and the median
 
 Cases: deviations drawn at the spread plan assumes (`question_sd`, from the terms' counts
 in CALIBRATION_COUNTS), at twice it (about the top of its likelihood interval), none (the
-group right), and one fixed miss of -0.8 (initial_pose_error at 15 deg on 10-cycle runs: 7 of
-16 checks named it where 72-79 % was predicted).
+group right), one fixed miss of -0.8 (initial_pose_error at 15 deg on 10-cycle runs: 7 of
+16 checks named it where 72-79 % was predicted); and deviations at the spread assumed on a
+true curve whose slope in ln runs is 0.6 or 1.6 times the predicted one's (the calibration
+shifts the curve, it does not bend it: a wrong slope is outside its model).
 
 Run: .venv/bin/python benchmarks/bench_plan_calibration.py [--questions 400] [--checks 16]
      [--term persistent_turning] [--seed 1]
@@ -36,7 +38,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from octoroach_model.diagnosis.power import (  # noqa: E402
-    Calibration, question_sd, shifted, SHIFTS, terms_log_likelihood)
+    Calibration, question_sd, SHIFTS, terms_log_likelihood)
 from octoroach_model.studies.plan_model import (  # noqa: E402
     after_check, answer_of, check_runs, PredictedCurve)
 
@@ -46,13 +48,22 @@ SLOPE = 1.2                     # probit units per unit of ln runs: 50 % to 80 %
 
 
 class KnownCurve(PredictedCurve):
-    """A predicted power curve of known form: a probit in ln runs, 80 % at 300 runs."""
+    """A power curve of known form: a probit in ln runs, 80 % at 300 runs, `slope` x SLOPE."""
+
+    slope: float = 1.0
 
     def predicted(self, runs: float) -> float:
         from scipy import special
 
         return float(special.ndtr(special.ndtri(TARGET)
-                                  + SLOPE * (math.log(runs) - math.log(300))))
+                                  + self.slope * SLOPE * (math.log(runs) - math.log(300))))
+
+
+def true_curve(slope: float) -> KnownCurve:
+    """Return the true curve of a case: the predicted one's form, its slope times `slope`."""
+    curve = KnownCurve((), 0.0, 0.0)
+    curve.slope = slope
+    return curve
 
 
 def group_shift(term: str, rng: np.random.Generator) -> float:
@@ -62,8 +73,8 @@ def group_shift(term: str, rng: np.random.Generator) -> float:
     return float(rng.choice(SHIFTS, p=weights / weights.sum()))
 
 
-def plan_once(term: str, spread: float | None, true_shift: float, checks: int,
-              rng: np.random.Generator) -> tuple[bool, float, float]:
+def plan_once(term: str, spread: float | None, true_shift: float, truth_curve: KnownCurve,
+              checks: int, rng: np.random.Generator) -> tuple[bool, float, float]:
     """Run plan's calibration and checks once; return covered, width ratio, |ln error|."""
     curve = KnownCurve((), 0.0, 0.0)
     calibration = Calibration.for_term(term, spread)
@@ -71,10 +82,10 @@ def plan_once(term: str, spread: float | None, true_shift: float, checks: int,
     for _ in range(checks):
         runs = check_runs(answer, MIN_RUNS, MAX_RUNS)
         predicted = curve.predicted(runs)
-        named = bool(rng.random() < shifted(predicted, true_shift))
+        named = bool(rng.random() < truth_curve.power(runs, true_shift))
         calibration, answer = after_check(curve, calibration, predicted, named, TARGET,
                                           MIN_RUNS, MAX_RUNS)
-    truth = curve.runs_for(TARGET, true_shift, MIN_RUNS, MAX_RUNS)
+    truth = truth_curve.runs_for(TARGET, true_shift, MIN_RUNS, MAX_RUNS)
     low, high = answer[1]
     return (low <= truth <= high, high / low if low > 0 else math.inf,
             abs(math.log(answer[0] / truth)))
@@ -102,23 +113,28 @@ def main() -> None:
           f'interval {min(inside):.2f} to {max(inside):.2f}); {arguments.questions} questions '
           'per line, '
           f'{arguments.checks} checks each, term {arguments.term}, seed {arguments.seed}')
-    cases = {f'deviation ~ N(0, {spread:.2f})': lambda rng: rng.normal(0.0, spread),
-             f'deviation ~ N(0, {2 * spread:.2f})': lambda rng: rng.normal(0.0, 2 * spread),
-             'no deviation': lambda rng: 0.0,
-             'deviation -0.8': lambda rng: -0.8}
-    print(f'{"case":<26} {"calibration":<18} {"coverage":>9} {"(95 %)":>14} '
+    normal = f'N(0, {spread:.2f})'
+    cases = [(f'deviation ~ {normal}', lambda rng: rng.normal(0.0, spread), 1.0),
+             (f'deviation ~ N(0, {2 * spread:.2f})', lambda rng: rng.normal(0.0, 2 * spread),
+              1.0),
+             ('no deviation', lambda rng: 0.0, 1.0),
+             ('deviation -0.8', lambda rng: -0.8, 1.0),
+             (f'{normal}, slope x 0.6', lambda rng: rng.normal(0.0, spread), 0.6),
+             (f'{normal}, slope x 1.6', lambda rng: rng.normal(0.0, spread), 1.6)]
+    print(f'{"case":<28} {"calibration":<18} {"coverage":>9} {"(95 %)":>14} '
           f'{"width":>6} {"|ln err|":>8}')
     started = time.perf_counter()
-    for case, deviation in cases.items():
+    for number, (case, deviation, slope) in enumerate(cases):
         for label, used in (('question shift', None), ('group shift only', 0.0)):
-            rng = np.random.default_rng([arguments.seed, len(case)])    # the same questions
+            rng = np.random.default_rng([arguments.seed, number])    # the same questions
             rows = []
             for _ in range(arguments.questions):
                 truth = group_shift(arguments.term, rng) + deviation(rng)
-                rows.append(plan_once(arguments.term, used, truth, arguments.checks, rng))
+                rows.append(plan_once(arguments.term, used, truth, true_curve(slope),
+                                      arguments.checks, rng))
             covered = sum(row[0] for row in rows)
             low, high = wilson(covered, len(rows))
-            print(f'{case:<26} {label:<18} {covered / len(rows):>9.3f} '
+            print(f'{case:<28} {label:<18} {covered / len(rows):>9.3f} '
                   f'{f"{low:.3f}-{high:.3f}":>14} {np.median([r[1] for r in rows]):>6.2f} '
                   f'{np.median([r[2] for r in rows]):>8.3f}', flush=True)
     print(f'{time.perf_counter() - started:.0f} s')
