@@ -7,8 +7,8 @@ probit scale (diagnosis/power.py): by its group's shift, measured by the studies
 (`question_sd`); each check then updates the question's shift, and the answer with it. Here
 the questions are simulated: a known predicted curve (a probit in ln runs, 80 % at 300 runs),
 a true shift that is a draw of the group's (from its posterior) plus a deviation, and plan's
-own calibration, check placement and updates (`Calibration.for_term`, `check_runs`,
-`after_check`) on outcomes drawn from the true curve. Printed per case: how often the
+own calibration, check placement and updates (`Calibration.for_term`,
+`plan_model.checked_answer`) on outcomes drawn from the true curve. Printed per case: how often the
 answer's 95 % interval holds the run count where the true curve reaches 80 % (with a 95 %
 Wilson interval), the median width of the interval (high / low) and the median
 |ln(answer / truth)|, beside the same with the group's shift taken as the question's
@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from octoroach_model.diagnosis.power import (  # noqa: E402
     Calibration, question_sd, SHIFTS, terms_log_likelihood)
 from octoroach_model.studies.plan_model import (  # noqa: E402
-    after_check, answer_of, check_runs, PredictedCurve)
+    checked_answer, PredictedCurve)
 
 TARGET = 0.8
 MIN_RUNS, MAX_RUNS = 40, 20_000
@@ -76,15 +76,9 @@ def group_shift(term: str, rng: np.random.Generator) -> float:
 def plan_once(term: str, spread: float | None, true_shift: float, truth_curve: KnownCurve,
               checks: int, rng: np.random.Generator) -> tuple[bool, float, float]:
     """Run plan's calibration and checks once; return covered, width ratio, |ln error|."""
-    curve = KnownCurve((), 0.0, 0.0)
-    calibration = Calibration.for_term(term, spread)
-    answer = answer_of(curve, calibration, TARGET, MIN_RUNS, MAX_RUNS)
-    for _ in range(checks):
-        runs = check_runs(answer, MIN_RUNS, MAX_RUNS)
-        predicted = curve.predicted(runs)
-        named = bool(rng.random() < truth_curve.power(runs, true_shift))
-        calibration, answer = after_check(curve, calibration, predicted, named, TARGET,
-                                          MIN_RUNS, MAX_RUNS)
+    _, answer = checked_answer(
+        KnownCurve((), 0.0, 0.0), Calibration.for_term(term, spread), TARGET, MIN_RUNS,
+        MAX_RUNS, checks, lambda runs: bool(rng.random() < truth_curve.power(runs, true_shift)))
     truth = truth_curve.runs_for(TARGET, true_shift, MIN_RUNS, MAX_RUNS)
     low, high = answer[1]
     return (low <= truth <= high, high / low if low > 0 else math.inf,

@@ -26,13 +26,12 @@ from octoroach_model.diagnosis.live import (
     calibration_mask, Levels, LiveDecision, Question)
 from octoroach_model.diagnosis.modelfit import SizeEstimate
 from octoroach_model.diagnosis.power import (
-    Calibration, fixed, PowerModel, question_sd, shifted, SHIFTS)
+    Calibration, fixed, PowerModel, question_sd, SHIFTS)
 from octoroach_model.diagnosis.records import NamedCause
 from octoroach_model.diagnosis.sequential import Boundary, mixture_precision, two_sided_z
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
-from octoroach_model.studies.plan_model import (
-    after_check, answer_of, check_runs, PredictedCurve)
+from octoroach_model.studies.plan_model import checked_answer, PredictedCurve
 
 SEED = int(os.environ.get('OCTOROACH_TEST_SEED', random.SystemRandom().randrange(10**6)))
 SMALL = {'moment_runs': 100, 'mean_path_runs': 60, 'score_runs': 300, 'bootstrap': 20}
@@ -210,14 +209,10 @@ def test_plans_interval_holds_the_true_runs_where_a_question_is_not_its_groups_a
         truth = curve.runs_for(0.8, true_shift, 40, 20_000)
         draws = rng.random(16)
         for spread in covered:        # the same question and outcome draws for both
-            calibration = Calibration.for_term('persistent_turning', spread)
-            answer = answer_of(curve, calibration, 0.8, 40, 20_000)
-            for draw in draws:
-                runs = check_runs(answer, 40, 20_000)
-                predicted = curve.predicted(runs)
-                calibration, answer = after_check(curve, calibration, predicted,
-                                                  draw < shifted(predicted, true_shift), 0.8,
-                                                  40, 20_000)
+            outcomes = iter(draws)
+            _, answer = checked_answer(
+                curve, Calibration.for_term('persistent_turning', spread), 0.8, 40, 20_000,
+                len(draws), lambda runs: next(outcomes) < curve.power(runs, true_shift))
             covered[spread] += answer[1][0] <= truth <= answer[1][1]
     assert covered[None] >= 0.85 * questions, (SEED, covered)
     assert covered[0.0] <= 0.82 * questions, (SEED, covered)

@@ -239,6 +239,24 @@ def after_check(curve: PredictedCurve, calibration: Calibration, predicted: floa
     return calibration, answer_of(curve, calibration, power, min_runs, max_runs)
 
 
+def checked_answer(curve: PredictedCurve, calibration: Calibration, power: float,
+                   min_runs: int, max_runs: int, checks: int,
+                   named_at: Callable[[int], bool]) -> tuple[Calibration, Answer]:
+    """
+    Return the calibration and answer after `checks` checks taken in turn, as `_check` does.
+
+    Each check goes where the current answer is (`check_runs`) and `named_at(runs)` says
+    whether it named the term: plan's sequence without its simulations, for the
+    benchmark and the test that measure its interval on questions of known truth.
+    """
+    answer = answer_of(curve, calibration, power, min_runs, max_runs)
+    for _ in range(checks):
+        runs = check_runs(answer, min_runs, max_runs)
+        calibration, answer = after_check(curve, calibration, curve.predicted(runs),
+                                          named_at(runs), power, min_runs, max_runs)
+    return calibration, answer
+
+
 def _check(spec: StudySpec, question: Question, curve: PredictedCurve,
            calibration: Calibration, answer: Answer, min_runs: int, max_runs: int,
            executor: Executor, workers: int, deadline: float, say: Progress
