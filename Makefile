@@ -3,7 +3,11 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
-JOBS ?= 2
+# three pytest workers on the two cores: the ROS and process tests wait on DDS and on child
+# processes (README's walk-through used a third of a core for its 32 s), and a third worker
+# fills those waits: 361 s against 393 s with two, at one seed ten minutes apart (2026-11-30;
+# docs/diagnosis.md, section 11, "The suite's time")
+JOBS ?= 3
 PYTEST_ARGS ?=
 
 # make demo writes DEMO and marks it as its own; a DEMO without the mark is a user's, never

@@ -152,8 +152,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--seed', type=int, default=4242,
                         help='the suite seed (OCTOROACH_TEST_SEED), the same for every run')
-    parser.add_argument('--jobs', type=int, nargs='+', default=[2],
-                        help='xdist worker counts to run, in turn (default 2, as make test)')
+    parser.add_argument('--jobs', type=int, nargs='+', default=[3],
+                        help='xdist worker counts to run, in turn (default 3, as make test)')
     arguments = parser.parse_args(argv)
     print('timing the reference diagnosis ...', file=sys.stderr, flush=True)
     references = [reference_seconds()]

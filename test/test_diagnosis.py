@@ -218,6 +218,7 @@ def test_every_feature_a_term_is_sized_or_started_from_is_scored():
     assert FeatureStatistic('heading_rate', Reading.TREND)(features) == pytest.approx(slope)
 
 
+@pytest.mark.long      # 7-56 s: the robot's samples are drawn (up to 1867 a run)
 def test_a_null_from_a_randomly_drawn_robot_names_no_cause():
     rng = random.Random(SEED * 10 + 8)
     robot, cycles, runs, scale = random_robot(rng)
