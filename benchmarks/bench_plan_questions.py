@@ -13,7 +13,8 @@ Run: .venv/bin/python benchmarks/bench_plan_questions.py TERM=SIZE [TERM=SIZE ..
      [--counts N,N,...] [--per 24]
 The README's figures ("How many runs: plan"): initial_pose_error=15 --counts 50,70,90,110
 (76 s), and lateral_slip=0.3 gait_frequency_variation=0.008 heading_random_walk=1.0
-run_order_drift:yaw_rate=6 periodic_heading=2.0 measurement_noise=0.015 (about 9 minutes).
+run_order_drift:yaw_rate=6 periodic_heading=2.0 measurement_noise=0.015 initial_pose_error=15
+persistent_turning=3 (about 13 minutes).
 """
 from __future__ import annotations
 

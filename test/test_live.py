@@ -26,7 +26,7 @@ from octoroach_model.diagnosis.live import (
     calibration_mask, Levels, LiveDecision, Question)
 from octoroach_model.diagnosis.modelfit import SizeEstimate
 from octoroach_model.diagnosis.power import (
-    Calibration, fixed, PowerModel, question_sd, SHIFTS)
+    Calibration, fixed, LOG_SLOPE_STEPS, PowerModel, question_sd, SHIFTS, SLOPE_SD)
 from octoroach_model.diagnosis.records import NamedCause
 from octoroach_model.diagnosis.sequential import Boundary, mixture_precision, two_sided_z
 from octoroach_model.errors import ParameterError
@@ -175,10 +175,22 @@ def test_a_questions_shift_widens_with_its_spread_and_follows_each_check(term, s
     calibration = narrow.updated([p for p, _ in checks], [named for _, named in checks], 'some')
     low, high = calibration.interval_95
     assert low <= calibration.shift <= high
-    # one more check at any predicted power: named never lowers the shift, missed never
-    # raises it (the likelihood of a named check rises with the shift)
-    assert calibration.updated([0.5], [True], 'named').shift >= calibration.shift - 1e-9
-    assert calibration.updated([0.5], [False], 'missed').shift <= calibration.shift + 1e-9
+    assert min(calibration.slope_interval_95) <= calibration.slope <= max(
+        calibration.slope_interval_95)
+    # one more check at any predicted power p: named never lowers the measured power the
+    # calibration gives at p, missed never raises it (a check's likelihood rises with that
+    # power, whatever the shift and slope that make it); with the slope held, likewise the
+    # shift
+    for predicted in (0.5, 0.8, 0.95):
+        now = calibration.power_band(predicted)[0]
+        assert calibration.updated([predicted], [True], 'named').power_band(predicted)[0] \
+            >= now - 1e-9
+        assert calibration.updated([predicted], [False], 'missed').power_band(predicted)[0] \
+            <= now + 1e-9
+    held = Calibration.for_term(term, spread, 0.0).updated(
+        [p for p, _ in checks], [named for _, named in checks], 'some')
+    assert held.updated([0.5], [True], 'named').shift >= held.shift - 1e-9
+    assert held.updated([0.5], [False], 'missed').shift <= held.shift + 1e-9
 
 
 class KnownCurve(PredictedCurve):
@@ -186,6 +198,42 @@ class KnownCurve(PredictedCurve):
 
     def predicted(self, runs: float) -> float:
         return float(special.ndtr(special.ndtri(0.8) + 1.2 * math.log(runs / 300)))
+
+
+def test_a_bent_calibration_answers_where_the_bent_curve_reaches_the_power():
+    """
+    All the posterior at one shift and one slope: the answer is where that curve reaches q.
+
+    The measured power where p is predicted is Phi(z80 + shift + slope (Phi^-1(p) - z80));
+    `target_shifts` turns it into the shift of the pilots' curve that reaches q at the same
+    runs, which the answer's search takes.
+    """
+    log_slopes = tuple(float(value) for value in LOG_SLOPE_STEPS * SLOPE_SD)
+    row, column = int(np.argmin(abs(SHIFTS - 0.5))), int(np.argmin(
+        abs(np.array(log_slopes) - math.log(0.5))))
+    table = np.full((len(SHIFTS), len(log_slopes)), -1e300)
+    table[row, column] = 0.0
+    calibration = Calibration(table, ('one point',), log_slopes)
+    shift, slope = float(SHIFTS[row]), math.exp(log_slopes[column])
+    assert calibration.shift == pytest.approx(shift, abs=0.01)
+    assert calibration.slope == pytest.approx(slope, rel=1e-6)
+    curve = KnownCurve((), 0.0, 0.0)
+    z80 = special.ndtri(0.8)
+
+    def measured(runs: float) -> float:
+        bent = slope * (special.ndtri(curve.predicted(runs)) - z80)
+        return float(special.ndtr(z80 + shift + bent))
+
+    for target in (0.6, 0.8, 0.9):
+        middle, (low, high) = calibration.target_shifts(target)
+        assert low == pytest.approx(middle) and high == pytest.approx(middle)
+        runs = curve.runs_for(target, middle, 2, 10 ** 6)
+        assert measured(runs) >= target - 1e-9 > measured(runs - 1), (target, runs)
+        assert calibration.power_band(curve.predicted(runs))[0] == pytest.approx(
+            measured(runs))
+    # a flatter curve puts the same shift further away in the runs (here 0.5 at slope 1/2
+    # is the shift 1.0 of the pilots' curve at 80 %)
+    assert calibration.target_shifts(0.8)[0] == pytest.approx(shift / slope)
 
 
 def test_plans_interval_holds_the_true_runs_where_a_question_is_not_its_groups_average():
@@ -198,20 +246,20 @@ def test_plans_interval_holds_the_true_runs_where_a_question_is_not_its_groups_a
     alone; at 100 questions the bounds are each more than 4 sd from those rates.
     """
     rng = np.random.default_rng([SEED, 41])
-    log_p = np.array(Calibration.for_term('persistent_turning', 0.0).log_likelihood)
-    weights = np.exp(log_p - log_p.max())
+    weights = Calibration.for_term('persistent_turning', 0.0, 0.0).shift_posterior()
     curve = KnownCurve((), 0.0, 0.0)
     covered = {None: 0, 0.0: 0}
     questions = 100
     for _ in range(questions):
-        true_shift = (float(rng.choice(SHIFTS, p=weights / weights.sum()))
+        true_shift = (float(rng.choice(SHIFTS, p=weights))
                       + rng.normal(0.0, question_sd()))
         truth = curve.runs_for(0.8, true_shift, 40, 20_000)
         draws = rng.random(16)
         for spread in covered:        # the same question and outcome draws for both
-            outcomes = iter(draws)
+            outcomes = iter(draws)        # (the group's alone: its shift, the slope held)
             _, answer = checked_answer(
-                curve, Calibration.for_term('persistent_turning', spread), 0.8, 40, 20_000,
+                curve, Calibration.for_term('persistent_turning', spread, spread), 0.8, 40,
+                20_000,
                 len(draws), lambda runs: next(outcomes) < curve.power(runs, true_shift))
             covered[spread] += answer[1][0] <= truth <= answer[1][1]
     assert covered[None] >= 0.85 * questions, (SEED, covered)

@@ -322,10 +322,10 @@ def decide(measured: Paths, held: Held, question: Question, settings: DiagnosisS
     n = measured.n_paths
     power_now, needed = math.nan, [math.inf] * 3
     if held.gains is not None:
-        power_now = model.power(n, levels.bound.z, levels.test.z, calibration.shift)
-        low_shift, high_shift = calibration.interval_95
-        needed = [model.runs_for(question.power, levels.bound.z, levels.test.z, shift)
-                  for shift in (calibration.shift, high_shift, low_shift)]
+        power_now = calibration.power_band(model.power(n, levels.bound.z, levels.test.z))[0]
+        shift, (low_shift, high_shift) = calibration.target_shifts(question.power)
+        needed = [model.runs_for(question.power, levels.bound.z, levels.test.z, value)
+                  for value in (shift, high_shift, low_shift)]
     return Look(
         n, n_cal, n_test, cause.name, cause.parameter, _stated(cause.name, estimate.size),
         confidence_sequence(estimate, n_cal, levels.bound.planned),

@@ -27,32 +27,45 @@ predicted the runs for 80 % power, and 16 data sets with the term at that size a
 were simulated and the term's first step taken on each, as the plan's checks take it
 (`benchmarks/bench_plan.py --calibrate`; README, "How many runs: plan"). The counts are
 `CALIBRATION_COUNTS`, per term. The measured power is modelled as Phi(Phi^-1(predicted) +
-shift): a shift on the probit scale per group of terms (the six causes pooled, each
-extension family apart; `group_counts`), with a normal prior N(0, 1) (the predictor is right
-within two probit units), updated by the group's counts. A question (a term at a size, on a
-robot) is not its group's average: its own shift is the group's plus a deviation of the
-spread the terms' shifts show about their mean (`question_sd`: the standard deviation that
-makes CALIBRATION_COUNTS most likely). So a question's prior is the
-group's posterior widened by that spread (`Calibration.for_term`), and the checks of the
-caller update the question's own shift (`Calibration.updated`): 16 checks that name the term
-far less often than predicted move it, where pooled with the group's 96 data sets they would
-not (initial_pose_error at 15 deg on 10-cycle runs: 7 of 16 named where 72-79 % was
-predicted; pooled, the shift stayed at +0.04, -0.22 to 0.31, and the answer below what the
-checks showed). Its 95 % posterior interval is what makes an answer's interval; how often
-that holds the true run count, through plan's checks, is measured by
-benchmarks/bench_plan_calibration.py.
+shift), bent by a slope (below): a shift on the probit scale per group of terms (the six
+causes pooled, each extension family apart; `group_counts`), with a normal prior N(0, 1)
+(the predictor is right within two probit units), updated by the group's counts. A
+question (a term at a size, on a robot) is not its group's average: its own shift is the
+group's plus a deviation of the spread the terms' shifts show about their mean
+(`question_sd`: the standard deviation that makes CALIBRATION_COUNTS most likely). So a
+question's prior is the group's posterior widened by that spread (`Calibration.for_term`),
+and the checks of the caller update the question's own shift (`Calibration.updated`): 16
+checks that name the term far less often than predicted move it, where pooled with the
+group's 96 data sets they would not (initial_pose_error at 15 deg on 10-cycle runs: 7 of 16
+named where 72-79 % was predicted; pooled, the shift stayed at +0.04, -0.22 to 0.31, and the
+answer below what the checks showed).
+
+**The slope.** A shift moves the predicted curve; a question's true curve may also rise
+with the runs more steeply or more slowly than the pilots' (measured on real questions: about
+1.4 times for initial_pose_error at 15 deg, far less for lateral_slip at 0.3 cm/s). So the
+measured power where p is predicted is Phi(z80 + shift + slope (Phi^-1(p) - z80)), z80 =
+Phi^-1(0.8): the slope bends the curve about the point where the pilots predict 80 %, where
+the studies' counts were measured and so say nothing of it. Its prior is ln slope ~ N(0,
+SLOPE_SD), 0.5 (a factor of 0.37 to 2.7 at 95 %; a judgement from the slopes seen, not a fit),
+and checks at other predicted powers update it with the shift. The runs for a power q are
+where the predicted power is Phi(z80 + (Phi^-1(q) - z80 - shift) / slope): a flatter curve
+puts a given shift further away in the runs, so the answer's interval widens where the slope
+is uncertain (`Calibration.target_shifts`). The posteriors' 95 % intervals make an answer's
+interval; how often that holds the true run count, through plan's checks, is measured by
+benchmarks/bench_plan_calibration.py (a true curve 0.6 times as steep as predicted: 87 %
+with the slope, 70 % with the shift alone).
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from functools import cache
+from functools import cache, lru_cache
 import math
 
 import numpy as np
 from scipy import optimize, special, stats
 
-from octoroach_model.arrays import FloatArray
+from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.causes import BY_NAME, EstimateKind
 from octoroach_model.diagnosis.decide import POWER
 from octoroach_model.diagnosis.limits import bound_power, held_out_gains, limit_base
@@ -89,6 +102,10 @@ RESAMPLED_RUNS = 2000                          # beyond: the t taken as normal
 RESAMPLE_SEED = 54
 PRIOR_SD = 1.0                                 # of the probit shift
 SHIFTS = np.linspace(-5.0, 5.0, 2001)          # the grid the shift's posterior is taken on
+# the prior's sd of ln slope (the calibration's bend; 0.5: a factor within 0.37-2.7 at 95 %),
+# and its grid in units of that sd
+SLOPE_SD = 0.5
+LOG_SLOPE_STEPS = np.linspace(-3.0, 3.0, 25)
 
 
 def calibration_group(term: str) -> str:
@@ -149,25 +166,42 @@ def question_sd() -> float:
 @dataclass(frozen=True)
 class Calibration:
     """
-    The probit shift between predicted and measured power (module docstring).
+    The probit shift and slope between predicted and measured power (module docstring).
 
-    `log_likelihood` is on the grid SHIFTS; `sources` says which counts it holds.
+    The measured power where p is predicted is Phi(z80 + shift + slope (Phi^-1(p) - z80)),
+    z80 = Phi^-1(0.8): `shift` moves the curve where the pilots predict 80 % (where the
+    studies measured it), `slope` bends it about that point (a true curve steeper or
+    flatter in the runs than the pilots' one). `log_likelihood` is on the grid SHIFTS x
+    `log_slopes` (ln slope; a 1-D one over SHIFTS holds the slope at 1); `sources` says which
+    counts it holds.
     """
 
-    log_likelihood: tuple[float, ...]
+    log_likelihood: FloatArray = field(repr=False, compare=False)
     sources: tuple[str, ...]
+    log_slopes: tuple[float, ...] = (0.0,)
+
+    def __post_init__(self) -> None:
+        table = np.asarray(self.log_likelihood, dtype=float).reshape(len(SHIFTS), -1)
+        if table.shape[1] != len(self.log_slopes):
+            raise ValueError(f'log_likelihood has {table.shape[1]} columns for '
+                             f'{len(self.log_slopes)} slopes')
+        object.__setattr__(self, 'log_likelihood', table)
 
     @classmethod
-    def for_term(cls, term: str, spread: float | None = None) -> Calibration:
+    def for_term(cls, term: str, spread: float | None = None,
+                 slope_sd: float | None = None) -> Calibration:
         """
-        Return the prior of a question's shift: its group's, widened by `spread`.
+        Return the prior of a question's shift and slope: its group's shift, widened.
 
         `spread` (probit units) is how far a question's shift may lie from its group's
-        (default `question_sd()`; 0 takes the group's shift as the question's).
+        (default `question_sd()`; 0 takes the group's shift as the question's); `slope_sd`
+        the prior's standard deviation of ln slope (default SLOPE_SD; 0 holds the slope at
+        1, the pilots' curve only shifted).
         """
         group = calibration_group(term)
         named, total = group_counts(group)
         spread = question_sd() if spread is None else float(spread)
+        slope_sd = SLOPE_SD if slope_sd is None else float(slope_sd)
         prior = stats.norm.logpdf(SHIFTS, 0.0, PRIOR_SD)
         counts = _binomial(named, total, np.full_like(SHIFTS, POWER))
         said = (f'calibration: {group} named in {named} of {total} data sets where 80 % was '
@@ -175,21 +209,41 @@ class Calibration:
                 'prior alone: the predictor right within two probit units)')
         question = (f'this question: its own shift, within {spread:.2f} probit units (one sd) '
                     "of the group's (the spread of the terms' shifts)")
-        return cls(_widened(prior + counts, spread), (said, question))
+        shift_log = np.array(_widened(prior + counts, spread))
+        if slope_sd <= 0:
+            return cls(shift_log, (said, question))
+        log_slopes = LOG_SLOPE_STEPS * slope_sd
+        bend = ("its slope: the pilots' curve steeper or flatter by a factor whose ln has "
+                f'sd {slope_sd:.2f}')
+        table = shift_log[:, None] + stats.norm.logpdf(log_slopes, 0.0, slope_sd)[None, :]
+        return cls(table, (said, question, bend), tuple(float(v) for v in log_slopes))
 
     def updated(self, predicted: Sequence[float], named: Sequence[bool], what: str
                 ) -> Calibration:
         """Return the calibration with outcomes of simulated checks at `predicted` powers."""
         total = np.array(self.log_likelihood)
         for power, outcome in zip(predicted, named):
-            total += _binomial(int(bool(outcome)), 1, np.full_like(SHIFTS, power))
-        return Calibration(tuple(total), (*self.sources, what))
+            probit = self._probits(power)
+            total += special.log_ndtr(probit if outcome else -probit)
+        return Calibration(total, (*self.sources, what), self.log_slopes)
 
-    def _posterior(self) -> FloatArray:
-        log_p = np.array(self.log_likelihood)
+    def _probits(self, predicted: float) -> FloatArray:
+        z = float(special.ndtri(min(max(float(predicted), 1e-12), 1 - 1e-12)))
+        z80 = float(special.ndtri(POWER))
+        slopes = np.exp(np.asarray(self.log_slopes))
+        probits: FloatArray = z80 + SHIFTS[:, None] + slopes[None, :] * (z - z80)
+        return probits
+
+    def _weights(self) -> FloatArray:
+        log_p = self.log_likelihood
         weights = np.exp(log_p - log_p.max())
         posterior: FloatArray = weights / weights.sum()
         return posterior
+
+    def shift_posterior(self) -> FloatArray:
+        """Return the shift's marginal posterior on SHIFTS (weights that sum to 1)."""
+        marginal: FloatArray = self._weights().sum(axis=1)
+        return marginal
 
     @property
     def shift(self) -> float:
@@ -202,8 +256,75 @@ class Calibration:
         return self.quantile(0.025), self.quantile(0.975)
 
     def quantile(self, q: float) -> float:
-        cumulative = np.cumsum(self._posterior())
+        """Return the shift's posterior quantile `q`."""
+        cumulative = np.cumsum(self.shift_posterior())
         return float(np.interp(q, cumulative, SHIFTS))
+
+    @property
+    def slope(self) -> float:
+        """Return the posterior median of the slope factor (1: the pilots' curve's)."""
+        return self.slope_quantile(0.5)
+
+    @property
+    def slope_interval_95(self) -> tuple[float, float]:
+        """Return the slope factor's equal-tailed 95 % posterior interval."""
+        return self.slope_quantile(0.025), self.slope_quantile(0.975)
+
+    def slope_quantile(self, q: float) -> float:
+        """Return the slope factor's posterior quantile `q`."""
+        if len(self.log_slopes) == 1:
+            return math.exp(self.log_slopes[0])
+        # the grid's own points (an interpolated quantile of a coarse grid is half a step
+        # off where the posterior sits on one point)
+        cumulative = np.cumsum(self._weights().sum(axis=0))
+        index = min(int(np.searchsorted(cumulative, q)), len(self.log_slopes) - 1)
+        return math.exp(self.log_slopes[index])
+
+    def target_shifts(self, target: float) -> tuple[float, tuple[float, float]]:
+        """
+        Return the shifts that put the pilots' curve where the measured one reaches `target`.
+
+        The runs a question needs for power `target` are where the predicted power is
+        Phi(z80 + (Phi^-1(target) - z80 - shift) / slope): where the pilots' curve, shifted by
+        Phi^-1(target) - that probit, reaches `target`. Returned: the posterior median of
+        that equivalent shift and its 95 % interval, so that a caller finds the answer and
+        its interval with the shifted pilots' curve (`shifted`).
+        """
+        if self.log_slopes == (0.0,):
+            return self.shift, self.interval_95
+        equivalent, order = _equivalent_shifts(float(target), self.log_slopes)
+        median, low, high = _weighted_quantiles(equivalent, order, self._weights().reshape(-1))
+        return median, (low, high)
+
+    def power_band(self, predicted: float) -> tuple[float, float, float]:
+        """Return the measured power's posterior median and 95 % interval where `predicted` is."""
+        probits = self._probits(predicted).reshape(-1)
+        quantiles = _weighted_quantiles(probits, np.argsort(probits, kind='stable'),
+                                        self._weights().reshape(-1))
+        median, low, high = (float(special.ndtr(value)) for value in quantiles)
+        return median, low, high
+
+
+def _weighted_quantiles(values: FloatArray, order: IntArray, weights: FloatArray
+                        ) -> tuple[float, float, float]:
+    """Return the median and the 2.5 and 97.5 % points of `values` under `weights`."""
+    cumulative = np.cumsum(weights[order])
+    last = len(order) - 1
+    median, low, high = (float(values[order[min(int(np.searchsorted(cumulative, q)), last)]])
+                         for q in (0.5, 0.025, 0.975))
+    return median, low, high
+
+
+@lru_cache(maxsize=8)       # a few powers asked (a validator's question may change)
+def _equivalent_shifts(target: float, log_slopes: tuple[float, ...]
+                       ) -> tuple[FloatArray, IntArray]:
+    """Return `Calibration.target_shifts`' shift at every grid point, and their order."""
+    z_target, z80 = float(special.ndtri(target)), float(special.ndtri(POWER))
+    slopes = np.exp(np.asarray(log_slopes))
+    equivalent: FloatArray = (z_target - z80 - (z_target - z80 - SHIFTS[:, None])
+                              / slopes[None, :]).reshape(-1)
+    order: IntArray = np.argsort(equivalent, kind='stable')
+    return equivalent, order
 
 
 def _widened(log_likelihood: FloatArray, spread: float) -> tuple[float, ...]:

@@ -116,7 +116,7 @@ class PowerPoint(NamedTuple):
 
 LOGISTIC_MODEL = 'power = 1 / (1 + exp(-(intercept + slope ln(runs))))'
 CALIBRATED_MODEL = ('P(size bound clears the floor) x P(held-out test significant) from the '
-                    'pilots, shifted on the probit scale (diagnosis/power.py)')
+                    'pilots, shifted and bent on the probit scale (diagnosis/power.py)')
 MODEL_PILOTS = ("null data sets of the robot; the term's first step on each gives the errors "
                 'of its size and the gains of its held-out test')
 
@@ -149,6 +149,8 @@ class CalibratedFit:
     model: str
     shift: float
     shift_interval_95: tuple[float, float]
+    slope: float
+    slope_interval_95: tuple[float, float]
     calibration: tuple[str, ...]
     curve: tuple[CurvePoint, ...]
 
@@ -341,7 +343,8 @@ def _model_result(base: StudySpec, cause: str, size: float, power: float, answer
         assert rate.rate is not None and rate.interval is not None
         curve.append(PowerPoint(runs, rate.successes, rate.trials, rate.rate, rate.interval))
     fit = CalibratedFit(CALIBRATED_MODEL, answer.shift, answer.shift_interval_95,
-                        answer.sources, tuple(CurvePoint(*point) for point in answer.curve))
+                        answer.slope, answer.slope_interval_95, answer.sources,
+                        tuple(CurvePoint(*point) for point in answer.curve))
     return PlanResult(cause, parameter, size, power, needed, (low, high), status, statement,
                       tuple(curve), fit, ModelPilots(answer.pilots, MODEL_PILOTS), base.robot,
                       len(checks), seed,
@@ -542,7 +545,7 @@ def plot_model_curve(result: PlanResult, path: Path) -> None:
     runs = np.array([point.runs for point in points])
     axis.fill_between(runs, [point.low for point in points],
                       [point.high for point in points], color='tab:blue', alpha=0.15,
-                      label='95 % band (calibration shift)')
+                      label='95 % band (calibration)')
     axis.plot(runs, [point.power for point in points], color='tab:blue',
               label='predicted power, calibrated')
     if result.curve:

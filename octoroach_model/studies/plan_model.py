@@ -13,14 +13,16 @@ How it decides (docs/studies.md, "How plan decides"):
 2. **Calibration.** The predicted power is shifted on the probit scale by the question's
    shift: its group's, measured by the studies where 80 % was predicted
    (power.CALIBRATION_COUNTS), widened by how far a question may lie from its group
-   (power.question_sd); the answer is where the shifted curve reaches the requested power,
-   its 95 % interval where the curve does with the shift at the ends of its interval.
+   (power.question_sd); and bent about the pilots' 80 % point by a slope factor with a prior
+   (power.SLOPE_SD). The answer is where the calibrated curve reaches the requested power at
+   the posterior median, its 95 % interval where it does at the ends of the posterior's
+   (`Calibration.target_shifts`).
 3. **Checks, as time allows** (`budget_s`, the plan's whole time). Data sets with the
    effect at the requested size are simulated at the current answer (`check_runs`) and the
    term's first step taken on each, at the diagnosis's levels; each outcome updates the
-   question's shift (`after_check`), and with it the answer, its interval and where the next
-   checks go. A check starts only when it can end within the budget (its expected time from the
-   checks so far).
+   question's shift and slope (`after_check`), and with them the answer, its interval and
+   where the next checks go. A check starts only when it can end within the budget (its
+   expected time from the checks so far).
 
 What it leaves out, and the reason: the full diagnosis of each check (a minute each with
 every candidate in the race); the first step of C alone is what names C when it is the only
@@ -83,6 +85,8 @@ class ModelAnswer:
     interval: tuple[float, float]
     shift: float
     shift_interval_95: tuple[float, float]
+    slope: float
+    slope_interval_95: tuple[float, float]
     sources: tuple[str, ...]
     pilots: tuple[PilotDataSet, ...]
     checks: tuple[CheckOutcome, ...]
@@ -199,7 +203,8 @@ def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_run
     answer = answer_of(curve, calibration, question.power, min_runs, max_runs)
     say(0.3, f'pilots done ({time.monotonic() - started:.1f} s): predicted '
              f'{_runs_text(answer[0])} runs (95 % {_runs_text(answer[1][0])} to '
-             f'{_runs_text(answer[1][1])}), calibration shift {calibration.shift:+.2f}')
+             f'{_runs_text(answer[1][1])}), calibration shift {calibration.shift:+.2f}, '
+             f'slope x{calibration.slope:.2f}')
     checks = _check(spec, question, curve, calibration, answer, min_runs, max_runs, executor,
                     workers, started + budget_s, say)
     if checks:
@@ -210,7 +215,8 @@ def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_run
             f'{sum(check.status == Status.OK for check in checks)} simulated data sets')
         answer = answer_of(curve, calibration, question.power, min_runs, max_runs)
     return ModelAnswer(answer[0], answer[1], calibration.shift, calibration.interval_95,
-                       calibration.sources, tuple(info for _, info in pilots), tuple(checks),
+                       calibration.slope, calibration.slope_interval_95, calibration.sources,
+                       tuple(info for _, info in pilots), tuple(checks),
                        _curve_points(curve, calibration, answer, min_runs, max_runs),
                        tuple(curve.models))
 
@@ -218,8 +224,8 @@ def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_run
 def answer_of(curve: PredictedCurve, calibration: Calibration, power: float, min_runs: int,
               max_runs: int) -> Answer:
     """Return the runs where the calibrated curve reaches `power`, and their 95 % interval."""
-    low_shift, high_shift = calibration.interval_95
-    middle = curve.runs_for(power, calibration.shift, min_runs, max_runs)
+    shift, (low_shift, high_shift) = calibration.target_shifts(power)
+    middle = curve.runs_for(power, shift, min_runs, max_runs)
     # a larger shift means more power, so fewer runs: the interval's low end is the high shift
     return middle, (curve.runs_for(power, high_shift, min_runs, max_runs),
                     curve.runs_for(power, low_shift, min_runs, max_runs))
@@ -306,11 +312,9 @@ def _curve_points(curve: PredictedCurve, calibration: Calibration,
     finite = [value for value in (answer[0], *answer[1]) if math.isfinite(value)]
     low = max(min(finite or [min_runs]) / 2, min_runs)
     high = min(max(finite or [max_runs]) * 2, 4 * max_runs)
-    low_shift, high_shift = calibration.interval_95
     points = []
     for runs in np.geomspace(low, max(high, low * 1.01), CURVE_POINTS):
-        points.append((float(runs), curve.power(runs, calibration.shift),
-                       curve.power(runs, low_shift), curve.power(runs, high_shift)))
+        points.append((float(runs), *calibration.power_band(curve.predicted(runs))))
     return tuple(points)
 
 
