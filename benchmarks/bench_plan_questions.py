@@ -30,14 +30,40 @@ FIRST_REPLICATE = 7000
 
 
 def question(text: str) -> tuple[str, float]:
+    """Return (term, size) of a TERM=SIZE argument; refuse anything else in argparse's way."""
+    from octoroach_model.limit_setting import RACED_TERMS
+
     term, _, size = text.partition('=')
-    return term, float(size)
+    if term not in RACED_TERMS:
+        raise argparse.ArgumentTypeError(f'{term[:60]!r} is not a term: one of '
+                                         f'{", ".join(RACED_TERMS)}')
+    try:
+        value = float(size)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text[:60]!r}: the size after = is not a number') \
+            from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f'{text[:60]!r}: the size must be a positive number')
+    return term, value
+
+
+def counts_of(text: str) -> list[int]:
+    """Return the sorted run counts of a comma-separated --counts (each at least 40)."""
+    try:
+        counts = sorted({int(value) for value in text.split(',')})
+    except ValueError:
+        raise argparse.ArgumentTypeError('--counts takes whole numbers, comma-separated') \
+            from None
+    if not counts or counts[0] < 40 or counts[-1] > 100_000:
+        raise argparse.ArgumentTypeError('--counts: each count between 40 and 100000')
+    return counts
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
-    parser.add_argument('questions', nargs='+', metavar='TERM=SIZE')
-    parser.add_argument('--counts', default=None, help='run counts, comma-separated')
+    parser.add_argument('questions', nargs='+', metavar='TERM=SIZE', type=question)
+    parser.add_argument('--counts', default=None, type=counts_of,
+                        help='run counts, comma-separated')
     parser.add_argument('--per', type=int, default=24, help='data sets at each count')
     arguments = parser.parse_args()
     import octoroach_model as om
@@ -47,14 +73,14 @@ def main() -> int:
     from octoroach_model.studies.summary import wilson
     from octoroach_model.workers import executor_for
 
-    for term, size in map(question, arguments.questions):
+    for term, size in arguments.questions:
         started = time.perf_counter()
         result = om.plan_runs(term, size, workers=2)
         low, high = result.runs_needed_interval_95
         print(f'{term}={size:g}: {result.statement} ({time.perf_counter() - started:.1f} s)',
               flush=True)
         if arguments.counts:
-            counts = sorted({int(value) for value in arguments.counts.split(',')})
+            counts = arguments.counts
         elif result.runs_needed is None or low is None or high is None \
                 or not math.isfinite(high):
             continue

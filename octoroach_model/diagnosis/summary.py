@@ -210,9 +210,13 @@ def spread_ceiling_line(report: DiagnosisReport) -> str | None:
 
     if held_out < 2 or not short(held_out):
         return None
-    needed = held_out
-    while short(needed) and needed < MAX_HELD_OUT:
-        needed += 1
+    # the fewest held-out runs that are not short (short falls away as the runs grow: the
+    # ceiling rises, the critical t falls), by bisection between held_out and MAX_HELD_OUT
+    low, needed = held_out, MAX_HELD_OUT
+    if not short(needed):
+        while needed - low > 1:
+            middle = (low + needed) // 2
+            low, needed = (middle, needed) if short(middle) else (low, middle)
     ceiling, critical = math.sqrt(held_out / 2), float(stats.t.isf(level, held_out - 1))
     power = f'{POWER * 100:.0f} % power'
     reach = 'be named at any size' if ceiling < critical else f'reach {power} at any size'
@@ -224,7 +228,7 @@ def spread_ceiling_line(report: DiagnosisReport) -> str | None:
             f'noise of its own, can pass with fewer (docs/diagnosis.md, section 12).')
 
 
-# where `spread_ceiling_line` stops counting (the held-out runs a spread needs are ~40)
+# where `spread_ceiling_line` stops looking (the held-out runs a spread needs are ~40)
 MAX_HELD_OUT = 10_000
 
 
