@@ -5,35 +5,52 @@ For each question TERM=SIZE (Table II's robot, as `plan` takes it by default): `
 (`--method model`, two workers) answers with a run count and a 95 % interval; then the
 term's first step is taken as plan's checks take it (`plan_model.check_task`: the term at
 the size, the diagnosis's levels) on PER new data sets (replicates from 7000, seeds plan
-never uses) at the interval's ends and at the answer, or at `--counts`. Printed: the answer,
-and the share named at each count with its Wilson interval. Where the interval holds the
-true 80 % point, the share at its low end is below 80 % and at its high end above.
+never uses) at the interval's ends and at the answer, or at the counts given
+(TERM=SIZE@N,N,... for one question, `--counts` for all). Printed: the answer, and the share
+named at each count with its Wilson interval, beside the power the pilots predicted there
+(before the calibration). Where the interval holds the true 80 % point, the share at its low
+end is below 80 % and at its high end above.
 
-Run: .venv/bin/python benchmarks/bench_plan_questions.py TERM=SIZE [TERM=SIZE ...]
+Then the calibration's slope, measured (diagnosis/power.py: the measured power where p is
+predicted is Phi(z80 + shift + slope (Phi^-1(p) - z80))): each question's shift and slope
+fitted to its counts (their posterior medians under wide priors, N(0, 1) on both the shift
+and ln slope), and the spread of ln slope across the questions that makes all the counts
+most likely (type II maximum likelihood, each question's shift integrated over N(0, 1)),
+with its likelihood interval: what power.SLOPE_SD should be.
+
+Run: .venv/bin/python benchmarks/bench_plan_questions.py TERM=SIZE[@N,N,...] [...]
      [--counts N,N,...] [--per 24]
-The README's figures ("How many runs: plan"): initial_pose_error=15 --counts 50,70,90,110
-(76 s), and lateral_slip=0.3 gait_frequency_variation=0.008 heading_random_walk=1.0
-run_order_drift:yaw_rate=6 periodic_heading=2.0 measurement_noise=0.015 initial_pose_error=15
+The README's figures ("How many runs: plan"): lateral_slip=0.3
+gait_frequency_variation=0.008 heading_random_walk=1.0 run_order_drift:yaw_rate=6
+periodic_heading=2.0 measurement_noise=0.015 initial_pose_error=15@50,70,90,110
 persistent_turning=3 (about 13 minutes).
 """
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 import math
 from pathlib import Path
 import sys
 import time
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from octoroach_model.arrays import FloatArray  # noqa: E402
+from octoroach_model.diagnosis.power import SLOPE_SD  # noqa: E402
+from octoroach_model.studies.plan import CalibratedFit, CurvePoint  # noqa: E402
 
 FIRST_REPLICATE = 7000
 
 
-def question(text: str) -> tuple[str, float]:
-    """Return (term, size) of a TERM=SIZE argument; refuse anything else in argparse's way."""
+def question(text: str) -> tuple[str, float, list[int] | None]:
+    """Return (term, size, counts) of a TERM=SIZE[@N,N,...] argument, or refuse it in one line."""
     from octoroach_model.limit_setting import RACED_TERMS
 
-    term, _, size = text.partition('=')
+    asked, _, counts = text.partition('@')
+    term, _, size = asked.partition('=')
     if term not in RACED_TERMS:
         raise argparse.ArgumentTypeError(f'{term[:60]!r} is not a term: one of '
                                          f'{", ".join(RACED_TERMS)}')
@@ -44,7 +61,7 @@ def question(text: str) -> tuple[str, float]:
             from None
     if not math.isfinite(value) or value <= 0:
         raise argparse.ArgumentTypeError(f'{text[:60]!r}: the size must be a positive number')
-    return term, value
+    return term, value, counts_of(counts) if counts else None
 
 
 def counts_of(text: str) -> list[int]:
@@ -73,14 +90,15 @@ def main() -> int:
     from octoroach_model.studies.summary import wilson
     from octoroach_model.workers import executor_for
 
-    for term, size in arguments.questions:
+    observed: list[list[tuple[int, int, float]]] = []     # per question: named, of, predicted
+    for term, size, own_counts in arguments.questions:
         started = time.perf_counter()
         result = om.plan_runs(term, size, workers=2)
         low, high = result.runs_needed_interval_95
         print(f'{term}={size:g}: {result.statement} ({time.perf_counter() - started:.1f} s)',
               flush=True)
-        if arguments.counts:
-            counts = arguments.counts
+        if own_counts or arguments.counts:
+            counts = own_counts or arguments.counts
         elif result.runs_needed is None or low is None or high is None \
                 or not math.isfinite(high):
             continue
@@ -88,6 +106,9 @@ def main() -> int:
             counts = sorted({max(40, round(low)), int(result.runs_needed), round(high)})
         spec = _base_spec(term, size, None, None, 6, 0, None, 40, 2000, 0.8)
         asked = Question(term, size)
+        assert isinstance(result.fit, CalibratedFit)
+        points = result.fit.curve
+        rows = []
         with executor_for(None, 2) as pool:
             futures = {runs: [pool.submit(check_task, spec, asked, runs,
                                           FIRST_REPLICATE + replicate)
@@ -97,11 +118,88 @@ def main() -> int:
                 ok = [outcome for outcome in done if outcome.status == 'ok']
                 rate = wilson(sum(outcome.named for outcome in ok), len(ok))
                 assert rate.rate is not None and rate.interval is not None
+                predicted = predicted_at(points, runs)
+                rows.append((rate.successes, rate.trials, predicted))
                 print(f'    {runs} runs: named in {rate.successes}/{rate.trials} = '
-                      f'{rate.rate:.0%} ({rate.interval[0]:.0%}-{rate.interval[1]:.0%})',
-                      flush=True)
-        print(f'    ({time.perf_counter() - started:.0f} s)', flush=True)
+                      f'{rate.rate:.0%} ({rate.interval[0]:.0%}-{rate.interval[1]:.0%}); the '
+                      f'pilots predicted {predicted:.0%}', flush=True)
+        observed.append(rows)
+        shift, slope = question_fit(rows)
+        print(f'    shift {shift:+.2f}, slope x{slope:.2f} (posterior medians, wide priors); '
+              f'{time.perf_counter() - started:.0f} s', flush=True)
+    if observed:
+        spread, (low_spread, high_spread) = slope_spread(observed)
+        print(f'ln slope spread across these {len(observed)} questions: {spread:.2f} '
+              f'(likelihood interval {low_spread:.2f} to {high_spread:.2f}); power.SLOPE_SD '
+              f'is {SLOPE_SD}', flush=True)
     return 0
+
+
+def predicted_at(points: Sequence[CurvePoint], runs: int) -> float:
+    """Return the pilots' power at `runs`: the plan curve's probit, linear in ln runs."""
+    from scipy import special
+
+    ln_runs = np.log([point.runs for point in points])
+    probits = special.ndtri(np.clip([point.predicted for point in points], 1e-9, 1 - 1e-9))
+    return float(special.ndtr(np.interp(math.log(runs), ln_runs, probits)))
+
+
+# wide priors of a question's own shift and ln slope; the grids they are integrated on
+WIDE_SD = 1.0
+SHIFT_GRID = np.linspace(-4.0, 4.0, 161)
+HERMITE = np.polynomial.hermite_e.hermegauss(41)
+
+
+def log_counts(rows: Sequence[tuple[int, int, float]], log_slope: FloatArray) -> FloatArray:
+    """Return log P(rows) on SHIFT_GRID x log_slope (binomial coefficients left out)."""
+    from scipy import special
+
+    z80 = float(special.ndtri(0.8))
+    total = np.zeros((len(SHIFT_GRID), len(log_slope)))
+    for named, trials, predicted in rows:
+        z = float(special.ndtri(min(max(predicted, 1e-9), 1 - 1e-9)))
+        probit = z80 + SHIFT_GRID[:, None] + np.exp(log_slope)[None, :] * (z - z80)
+        total += named * special.log_ndtr(probit) + (trials - named) * special.log_ndtr(-probit)
+    return total
+
+
+def question_fit(rows: Sequence[tuple[int, int, float]]) -> tuple[float, float]:
+    """Return one question's shift and slope: posterior medians under the wide priors."""
+    from scipy import stats
+
+    log_slope = np.linspace(-4.0, 4.0, 321)
+    log_p = (log_counts(rows, log_slope) + stats.norm.logpdf(SHIFT_GRID, 0, WIDE_SD)[:, None]
+             + stats.norm.logpdf(log_slope, 0, WIDE_SD)[None, :])
+    weights = np.exp(log_p - log_p.max())
+    weights /= weights.sum()
+    shift = float(np.interp(0.5, np.cumsum(weights.sum(axis=1)), SHIFT_GRID))
+    slope = math.exp(float(np.interp(0.5, np.cumsum(weights.sum(axis=0)), log_slope)))
+    return shift, slope
+
+
+def spread_log_likelihood(observed: Sequence[Sequence[tuple[int, int, float]]],
+                          spread: float) -> float:
+    """Return log P(all counts) with ln slope ~ N(0, spread), each shift ~ N(0, WIDE_SD)."""
+    from scipy import special, stats
+
+    nodes, weights = HERMITE
+    weights = weights / weights.sum()
+    step = float(SHIFT_GRID[1] - SHIFT_GRID[0])
+    shift_prior = stats.norm.logpdf(SHIFT_GRID, 0, WIDE_SD) + math.log(step)
+    total = 0.0
+    for rows in observed:
+        table = log_counts(rows, spread * nodes) + shift_prior[:, None]
+        total += float(special.logsumexp(table + np.log(weights)[None, :]))
+    return total
+
+
+def slope_spread(observed: Sequence[Sequence[tuple[int, int, float]]]
+                 ) -> tuple[float, tuple[float, float]]:
+    """Return the spread of ln slope that makes `observed` most likely, and its interval."""
+    grid = np.linspace(0.0, 2.0, 201)
+    values = np.array([spread_log_likelihood(observed, spread) for spread in grid])
+    inside = grid[values >= values.max() - 1.92]        # chi-squared(1) 95 % / 2
+    return float(grid[int(np.argmax(values))]), (float(inside.min()), float(inside.max()))
 
 
 if __name__ == '__main__':

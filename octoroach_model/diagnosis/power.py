@@ -42,12 +42,14 @@ answer below what the checks showed).
 
 **The slope.** A shift moves the predicted curve; a question's true curve may also rise
 with the runs more steeply or more slowly than the pilots' (measured on real questions: about
-1.4 times for initial_pose_error at 15 deg, far less for lateral_slip at 0.3 cm/s). So the
+1.5 times for initial_pose_error at 15 deg, 0.4 for lateral_slip at 0.3 cm/s). So the
 measured power where p is predicted is Phi(z80 + shift + slope (Phi^-1(p) - z80)), z80 =
 Phi^-1(0.8): the slope bends the curve about the point where the pilots predict 80 %, where
 the studies' counts were measured and so say nothing of it. Its prior is ln slope ~ N(0,
-SLOPE_SD), 0.5 (a factor of 0.37 to 2.7 at 95 %; a judgement from the slopes seen, not a fit),
-and checks at other predicted powers update it with the shift. The runs for a power q are
+SLOPE_SD), 0.5 (a factor of 0.37 to 2.7 at 95 %); the spread that makes the counts of eight
+real questions most likely, each at three or four run counts, is 0.41 (likelihood interval
+0.12 to 1.04; benchmarks/bench_plan_questions.py). Checks at other predicted powers update
+it with the shift. The runs for a power q are
 where the predicted power is Phi(z80 + (Phi^-1(q) - z80 - shift) / slope): a flatter curve
 puts a given shift further away in the runs, so the answer's interval widens where the slope
 is uncertain (`Calibration.target_shifts`). The posteriors' 95 % intervals make an answer's
@@ -102,8 +104,9 @@ RESAMPLED_RUNS = 2000                          # beyond: the t taken as normal
 RESAMPLE_SEED = 54
 PRIOR_SD = 1.0                                 # of the probit shift
 SHIFTS = np.linspace(-5.0, 5.0, 2001)          # the grid the shift's posterior is taken on
-# the prior's sd of ln slope (the calibration's bend; 0.5: a factor within 0.37-2.7 at 95 %),
-# and its grid in units of that sd
+# the prior's sd of ln slope (the calibration's bend; 0.5: a factor within 0.37-2.7 at 95 %;
+# benchmarks/bench_plan_questions.py measured 0.41, likelihood interval 0.12-1.04, over eight
+# real questions: 0.5 errs wide, as question_sd does), and its grid in units of that sd
 SLOPE_SD = 0.5
 LOG_SLOPE_STEPS = np.linspace(-3.0, 3.0, 25)
 

@@ -134,12 +134,13 @@ class LogisticFit:
 
 @dataclass(frozen=True)
 class CurvePoint:
-    """The calibrated power at one run count, with its 95 % band."""
+    """The calibrated power at one run count, with its 95 % band, and the pilots' own."""
 
     runs: float
     power: float
     low: float
     high: float
+    predicted: float            # the pilots' power before the calibration
 
 
 @dataclass(frozen=True)
@@ -548,6 +549,8 @@ def plot_model_curve(result: PlanResult, path: Path) -> None:
                       label='95 % band (calibration)')
     axis.plot(runs, [point.power for point in points], color='tab:blue',
               label='predicted power, calibrated')
+    axis.plot(runs, [point.predicted for point in points], color='tab:blue', linestyle=':',
+              label="the pilots' prediction, before the calibration")
     if result.curve:
         checked = np.array([point.runs for point in result.curve], dtype=float)
         rates = np.array([point.power for point in result.curve])

@@ -90,7 +90,8 @@ class ModelAnswer:
     sources: tuple[str, ...]
     pilots: tuple[PilotDataSet, ...]
     checks: tuple[CheckOutcome, ...]
-    curve: tuple[tuple[float, float, float, float], ...]   # runs, power, low, high
+    curve: tuple[tuple[float, float, float, float, float], ...]  # runs, power, low, high,
+    #                                                     and the pilots' (uncalibrated) power
     models: tuple[PowerModel, ...] = field(default=(), metadata={'json': False}, repr=False)
 
 
@@ -307,14 +308,15 @@ def _check(spec: StudySpec, question: Question, curve: PredictedCurve,
 
 def _curve_points(curve: PredictedCurve, calibration: Calibration,
                   answer: Answer, min_runs: int, max_runs: int
-                  ) -> tuple[tuple[float, float, float, float], ...]:
-    """Return the calibrated curve (runs, power, and its 95 % band) around the answer."""
+                  ) -> tuple[tuple[float, float, float, float, float], ...]:
+    """Return the calibrated curve (runs, power, its 95 % band, the pilots') by the answer."""
     finite = [value for value in (answer[0], *answer[1]) if math.isfinite(value)]
     low = max(min(finite or [min_runs]) / 2, min_runs)
     high = min(max(finite or [max_runs]) * 2, 4 * max_runs)
     points = []
     for runs in np.geomspace(low, max(high, low * 1.01), CURVE_POINTS):
-        points.append((float(runs), *calibration.power_band(curve.predicted(runs))))
+        predicted = curve.predicted(runs)
+        points.append((float(runs), *calibration.power_band(predicted), predicted))
     return tuple(points)
 
 
