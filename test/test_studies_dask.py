@@ -293,3 +293,17 @@ def test_plan_answers_with_a_power_curve_a_plot_and_json(tmp_path):
     assert (tmp_path / 'model' / 'power_curve.png').stat().st_size > 10_000
     with pytest.raises(ParameterError, match='--method simulate'):
         om.plan_runs('persistent_turning', 1.0, run_counts=[40, 80], workers=0)
+    # a number of checks instead of a time budget: the same answer, check for check, again
+    again = [om.plan_runs('measurement_noise', 0.2, robot={'cycles': 5}, max_runs=80,
+                          diagnosis=FEW_SIMULATED_RUNS, seed=SEED, workers=2, checks=3)
+             for _ in range(2)]
+    assert [len(plan.checks) for plan in again] == [3, 3]
+    assert again[0].runs_needed == again[1].runs_needed and \
+        again[0].runs_needed_interval_95 == again[1].runs_needed_interval_95
+    assert [(c.runs, c.named, c.estimate) for c in again[0].checks] == \
+        [(c.runs, c.named, c.estimate) for c in again[1].checks]
+    with pytest.raises(ParameterError, match='goes with --method model'):
+        om.plan_runs('persistent_turning', 1.0, run_counts=[40, 80], workers=0, checks=3,
+                     method='simulate')
+    with pytest.raises(ParameterError, match='checks must lie in'):
+        om.plan_runs('persistent_turning', 1.0, workers=0, checks=-1)

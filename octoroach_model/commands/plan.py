@@ -6,7 +6,7 @@ from pathlib import Path
 import sys
 
 from octoroach_model.commands.common import (
-    add_setting, finite_float, OneLineParser, positive_int, Progress)
+    add_setting, finite_float, nonnegative_int, OneLineParser, positive_int, Progress)
 from octoroach_model.commands.simulate import OrderedEffectAction
 from octoroach_model.commands.study import add_where_arguments
 from octoroach_model.errors import ParameterError
@@ -54,6 +54,7 @@ def parser() -> argparse.ArgumentParser:
     search = result.add_argument_group('search')
     add_setting(search, PlanSettings, 'method')
     add_setting(search, PlanSettings, 'budget_s')
+    add_setting(search, PlanSettings, 'checks', type=nonnegative_int, metavar='N')
     add_setting(search, PlanSettings, 'replicates')
     search.add_argument('--runs', type=positive_int, nargs='+', default=None, metavar='N',
                         help='for --method simulate: start from these run counts instead of '
@@ -107,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
                        max_runs=args.max_runs, seed=args.seed, scheduler=args.scheduler,
                        workers=args.workers, progress=progress_lines(), out=args.out,
                        connect_timeout_s=args.connect_timeout_s, method=args.method,
-                       budget_s=args.budget_s)
+                       budget_s=args.budget_s, checks=args.checks)
     sys.stderr.write(f'plan: {result.statement}\n')
     print(dumps(result, indent=2))
     return 0

@@ -38,7 +38,7 @@ import numpy as np
 from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
-from octoroach_model.settings import setting
+from octoroach_model.settings import check_value, setting, settings_of
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.power_curve import fit_power_curve, INTERVAL_METHOD, PowerFit
@@ -55,6 +55,7 @@ if TYPE_CHECKING:
 
 PILOT_RUNS = 200
 BUDGET_S = 15.0             # method 'model': seconds a plan may take, pilots and checks
+MOST_CHECKS = 1000          # method 'model': the most checks --checks may ask
 MAX_ROUNDS = 3
 Progress = Callable[[float, str], None]
 
@@ -95,6 +96,10 @@ class PlanSettings:
                           choices=METHODS)
     budget_s: float = setting(BUDGET_S, 'for --method model: seconds the plan may take, pilots '
                               'and checks', unit='s', low=0.0, open_low=True)
+    checks: int | None = setting(None, 'for --method model: take exactly this many checks, '
+                                 'however long they take, instead of as many as --budget-s '
+                                 'allows: the same answer for the same seed and workers, every '
+                                 'time', low=0, high=MOST_CHECKS)
     replicates: int = setting(6, 'for --method simulate: data sets per run count (more on a '
                               'cluster: tighter intervals)', low=1)
     max_runs: int = setting(2000, 'the largest run count tried', low=MIN_RUNS)
@@ -218,7 +223,7 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
               scheduler: str | None = None, workers: int | None = None,
               progress: Progress | None = None, out: str | Path | None = None,
               connect_timeout_s: float = CONNECT_TIMEOUT_S, method: str = PLAN.method,
-              budget_s: float = PLAN.budget_s) -> PlanResult:
+              budget_s: float = PLAN.budget_s, checks: int | None = PLAN.checks) -> PlanResult:
     """
     Find the number of runs needed to name `cause` at `size` with probability `power`.
 
@@ -228,7 +233,8 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
     writes plan.json, the data sets (table.csv, or checks.csv for the model) and
     power_curve.png there.
 
-    `method`: 'model' (module docstring; `budget_s` bounds its time, pilots and checks) or
+    `method`: 'model' (module docstring; `budget_s` bounds its time, pilots and checks, unless
+    `checks` fixes how many checks it takes, which makes the answer repeat for a seed) or
     'simulate', where `replicates` data sets are diagnosed at each run count, `run_counts`
     skips the pilot and starts from these counts and `rounds` bounds the refinement rounds
     after the coarse grid.
@@ -246,14 +252,18 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
         if not (math.isfinite(budget_s) and budget_s > 0):
             raise ParameterError(f'the time budget must be a positive number of seconds, got '
                                  f'{budget_s:g}')
+        if checks is not None:
+            check_value('checks', checks, settings_of(PlanSettings)['checks'][1])
         check_where(client, scheduler, workers)
         out_dir = _check_out(out)
         result = _plan_by_model(base, cause, size, power, min_runs, max_runs, seed, client,
-                                scheduler, workers, connect_timeout_s, budget_s, say,
+                                scheduler, workers, connect_timeout_s, budget_s, checks, say,
                                 started)
         if out_dir is not None:
             write_plan(result, out_dir)
         return result
+    if checks is not None:
+        raise ParameterError('a number of checks (--checks) goes with --method model')
     if run_counts is not None:
         run_counts = sorted({int(n) for n in run_counts})
         if not run_counts or run_counts[0] < min_runs or run_counts[-1] > max_runs:
@@ -298,7 +308,7 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
 def _plan_by_model(base: StudySpec, cause: str, size: float, power: float, min_runs: int,
                    max_runs: int, seed: int, client: Any | None, scheduler: str | None,
                    workers: int | None, connect_timeout_s: float, budget_s: float,
-                   say: Progress, started: float) -> PlanResult:
+                   checks: int | None, say: Progress, started: float) -> PlanResult:
     """Plan with the calibrated power model (plan_model.py), on a pool or a Dask cluster."""
     from octoroach_model.diagnosis.live import Question
     from octoroach_model.studies.plan_model import plan_by_model
@@ -307,7 +317,7 @@ def _plan_by_model(base: StudySpec, cause: str, size: float, power: float, min_r
     with executor_where(client, scheduler, workers, connect_timeout_s) as (executor, count):
         answer = plan_by_model(base, question, min_runs=min_runs, max_runs=max_runs,
                                executor=executor, workers=count, budget_s=budget_s,
-                               progress=say)
+                               checks=checks, progress=say)
     return _model_result(base, cause, size, power, answer, seed, min_runs, max_runs,
                          time.perf_counter() - started)
 

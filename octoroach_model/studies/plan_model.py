@@ -33,7 +33,7 @@ both answers side by side.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, FIRST_COMPLETED, Future, wait
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass, field, replace
 import math
 import time
@@ -186,7 +186,7 @@ class PredictedCurve:
 
 def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_runs: int,
                   executor: Executor, workers: int, budget_s: float,
-                  progress: Progress | None = None) -> ModelAnswer:
+                  checks: int | None = None, progress: Progress | None = None) -> ModelAnswer:
     """Answer the plan by the calibrated power model and checks (module docstring)."""
     say = progress or (lambda fraction, message: None)
     started = time.monotonic()
@@ -206,18 +206,19 @@ def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_run
              f'{_runs_text(answer[0])} runs (95 % {_runs_text(answer[1][0])} to '
              f'{_runs_text(answer[1][1])}), calibration shift {calibration.shift:+.2f}, '
              f'slope x{calibration.slope:.2f}')
-    checks = _check(spec, question, curve, calibration, answer, min_runs, max_runs, executor,
-                    workers, started + budget_s, say)
-    if checks:
+    deadline = started + budget_s if checks is None else math.inf
+    done = _check(spec, question, curve, calibration, answer, min_runs, max_runs, executor,
+                  workers, deadline, say, checks)
+    if done:
         calibration = calibration.updated(
-            [check.predicted for check in checks if check.status == Status.OK],
-            [check.named for check in checks if check.status == Status.OK],
-            f'checks: named in {sum(check.named for check in checks)} of '
-            f'{sum(check.status == Status.OK for check in checks)} simulated data sets')
+            [check.predicted for check in done if check.status == Status.OK],
+            [check.named for check in done if check.status == Status.OK],
+            f'checks: named in {sum(check.named for check in done)} of '
+            f'{sum(check.status == Status.OK for check in done)} simulated data sets')
         answer = answer_of(curve, calibration, question.power, min_runs, max_runs)
     return ModelAnswer(answer[0], answer[1], calibration.shift, calibration.interval_95,
                        calibration.slope, calibration.slope_interval_95, calibration.sources,
-                       tuple(info for _, info in pilots), tuple(checks),
+                       tuple(info for _, info in pilots), tuple(done),
                        _curve_points(curve, calibration, answer, min_runs, max_runs),
                        tuple(curve.models))
 
@@ -266,9 +267,14 @@ def checked_answer(curve: PredictedCurve, calibration: Calibration, power: float
 
 def _check(spec: StudySpec, question: Question, curve: PredictedCurve,
            calibration: Calibration, answer: Answer, min_runs: int, max_runs: int,
-           executor: Executor, workers: int, deadline: float, say: Progress
-           ) -> list[CheckOutcome]:
-    """Run checks at the current answer until the deadline (module docstring)."""
+           executor: Executor, workers: int, deadline: float, say: Progress,
+           most: int | None = None) -> list[CheckOutcome]:
+    """
+    Run checks at the current answer until the deadline, or `most` of them (module docstring).
+
+    The outcomes update the answer in the order the checks were placed, not as they end, so
+    that the same checks (a seed, a count, the workers) give the same answer every time.
+    """
     done: list[CheckOutcome] = []
     running: dict[Future, tuple[int, float]] = {}
     replicate = PILOTS
@@ -282,28 +288,27 @@ def _check(spec: StudySpec, question: Question, curve: PredictedCurve,
     while True:
         runs = check_runs(answer, min_runs, max_runs)
         now = time.monotonic()
-        while len(running) < max(workers, 1) and now + expected_cost(runs) <= deadline:
+        while (len(running) < max(workers, 1) and now + expected_cost(runs) <= deadline
+               and (most is None or replicate - PILOTS < most)):
             future = executor.submit(check_task, spec, question, runs, replicate)
             running[future] = (runs, curve.power(runs))
             replicate += 1
         if not running:
             return done
-        finished, _ = wait(list(running), return_when=FIRST_COMPLETED)
-        for future in finished:
-            runs_done, predicted = running.pop(future)
-            outcome = replace(future.result(), predicted=predicted)
-            done.append(outcome)
-            if outcome.status == Status.OK:
-                costs.append(outcome.elapsed_s / max(runs_done, 1))
-                calibration, answer = after_check(curve, calibration, predicted,
-                                                  outcome.named, question.power, min_runs,
-                                                  max_runs)
-            say(min(0.3 + 0.6 * len(done) / (len(done) + 2), 0.95),
-                f'check {len(done)}: {runs_done} runs, '
-                + ('named' if outcome.named else 'not named' if outcome.status == Status.OK
-                   else f'failed ({outcome.note})')
-                + f' (predicted power {predicted:.0%}); answer now {_runs_text(answer[0])} '
-                  f'runs (95 % {_runs_text(answer[1][0])} to {_runs_text(answer[1][1])})')
+        oldest = next(iter(running))          # dicts keep the order the checks were placed
+        runs_done, predicted = running.pop(oldest)
+        outcome = replace(oldest.result(), predicted=predicted)
+        done.append(outcome)
+        if outcome.status == Status.OK:
+            costs.append(outcome.elapsed_s / max(runs_done, 1))
+            calibration, answer = after_check(curve, calibration, predicted, outcome.named,
+                                              question.power, min_runs, max_runs)
+        say(min(0.3 + 0.6 * len(done) / (len(done) + 2), 0.95),
+            f'check {len(done)}: {runs_done} runs, '
+            + ('named' if outcome.named else 'not named' if outcome.status == Status.OK
+               else f'failed ({outcome.note})')
+            + f' (predicted power {predicted:.0%}); answer now {_runs_text(answer[0])} '
+              f'runs (95 % {_runs_text(answer[1][0])} to {_runs_text(answer[1][1])})')
 
 
 def _curve_points(curve: PredictedCurve, calibration: Calibration,
