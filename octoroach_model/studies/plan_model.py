@@ -17,12 +17,13 @@ How it decides (docs/studies.md, "How plan decides"):
    (power.SLOPE_SD). The answer is where the calibrated curve reaches the requested power at
    the posterior median, its 95 % interval where it does at the ends of the posterior's
    (`Calibration.target_shifts`).
-3. **Checks, as time allows** (`budget_s`, the plan's whole time). Data sets with the
-   effect at the requested size are simulated at the current answer (`check_runs`) and the
-   term's first step taken on each, at the diagnosis's levels; each outcome updates the
-   question's shift and slope (`after_check`), and with them the answer, its interval and
-   where the next checks go. A check starts only when it can end within the budget (its
-   expected time from the checks so far).
+3. **Checks, as time allows** (`budget_s`, the plan's whole time), or exactly `checks` of
+   them. Data sets with the effect at the requested size are simulated at the current
+   answer (`check_runs`) and the term's first step taken on each, at the diagnosis's
+   levels; each outcome, in the order the checks were placed, updates the question's shift
+   and slope (`after_check`), and with them the answer, its interval and where the next
+   checks go. A check starts only when it can end within the budget (its expected time from
+   the checks so far).
 
 What it leaves out, and the reason: the full diagnosis of each check (a minute each with
 every candidate in the race); the first step of C alone is what names C when it is the only
