@@ -307,3 +307,5 @@ def test_plan_answers_with_a_power_curve_a_plot_and_json(tmp_path):
                      method='simulate')
     with pytest.raises(ParameterError, match='checks must lie in'):
         om.plan_runs('persistent_turning', 1.0, workers=0, checks=-1)
+    with pytest.raises(ParameterError, match='checks must be a whole number'):
+        om.plan_runs('persistent_turning', 1.0, workers=0, checks=2.5)

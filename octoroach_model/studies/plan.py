@@ -29,6 +29,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from enum import StrEnum
 import math
+import numbers
 from pathlib import Path
 import time
 from typing import Any, NamedTuple, TYPE_CHECKING
@@ -253,7 +254,10 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
             raise ParameterError(f'the time budget must be a positive number of seconds, got '
                                  f'{budget_s:g}')
         if checks is not None:
-            check_value('checks', checks, settings_of(PlanSettings)['checks'][1])
+            if isinstance(checks, bool) or not isinstance(checks, numbers.Integral):
+                raise ParameterError(f'checks must be a whole number, got {checks!r}')
+            check_value('checks', int(checks), settings_of(PlanSettings)['checks'][1])
+            checks = int(checks)
         check_where(client, scheduler, workers)
         out_dir = _check_out(out)
         result = _plan_by_model(base, cause, size, power, min_runs, max_runs, seed, client,
