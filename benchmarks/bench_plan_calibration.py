@@ -26,7 +26,7 @@ lateral_slip's first step at 0.3 cm/s on Table II's robot).
 
 Run: .venv/bin/python benchmarks/bench_plan_calibration.py [--questions 400] [--checks 16]
      [--term persistent_turning] [--seed 1]
-The figures in docs/studies.md ("How plan decides") come from the default call (~1 min).
+The figures in docs/studies.md ("How plan decides") come from the default call (about 95 s).
 """
 from __future__ import annotations
 
