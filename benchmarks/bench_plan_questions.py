@@ -39,7 +39,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from octoroach_model.arrays import FloatArray  # noqa: E402
-from octoroach_model.diagnosis.power import SLOPE_SD  # noqa: E402
+from octoroach_model.diagnosis.power import (  # noqa: E402
+    count_log_likelihood, measured_probit, SLOPE_SD)
 from octoroach_model.studies.plan import CalibratedFit, CurvePoint  # noqa: E402
 
 FIRST_REPLICATE = 7000
@@ -152,14 +153,10 @@ HERMITE = np.polynomial.hermite_e.hermegauss(41)
 
 def log_counts(rows: Sequence[tuple[int, int, float]], log_slope: FloatArray) -> FloatArray:
     """Return log P(rows) on SHIFT_GRID x log_slope (binomial coefficients left out)."""
-    from scipy import special
-
-    z80 = float(special.ndtri(0.8))
     total = np.zeros((len(SHIFT_GRID), len(log_slope)))
     for named, trials, predicted in rows:
-        z = float(special.ndtri(min(max(predicted, 1e-9), 1 - 1e-9)))
-        probit = z80 + SHIFT_GRID[:, None] + np.exp(log_slope)[None, :] * (z - z80)
-        total += named * special.log_ndtr(probit) + (trials - named) * special.log_ndtr(-probit)
+        probit = measured_probit(predicted, SHIFT_GRID, np.exp(log_slope))
+        total += count_log_likelihood(named, trials, probit)
     return total
 
 

@@ -145,7 +145,7 @@ def terms_log_likelihood(spread: float) -> float:
     probit = special.ndtri(POWER) + means[:, None] + spread * nodes
     total_log = stats.norm.logpdf(means, 0.0, PRIOR_SD)
     for named, total in CALIBRATION_COUNTS.values():
-        per_node = named * special.log_ndtr(probit) + (total - named) * special.log_ndtr(-probit)
+        per_node = count_log_likelihood(named, total, probit)
         total_log = total_log + special.logsumexp(per_node, b=weights / weights.sum(), axis=1)
     return float(special.logsumexp(total_log))
 
@@ -206,13 +206,13 @@ class Calibration:
         spread = question_sd() if spread is None else float(spread)
         slope_sd = SLOPE_SD if slope_sd is None else float(slope_sd)
         prior = stats.norm.logpdf(SHIFTS, 0.0, PRIOR_SD)
-        counts = _binomial(named, total, np.full_like(SHIFTS, POWER))
+        counts = count_log_likelihood(named, total, special.ndtri(POWER) + SHIFTS)
         said = (f'calibration: {group} named in {named} of {total} data sets where 80 % was '
                 'predicted' if total else f'calibration: none measured for {group} yet (the '
                 'prior alone: the predictor right within two probit units)')
         question = (f'this question: its own shift, within {spread:.2f} probit units (one sd) '
                     "of the group's (the spread of the terms' shifts)")
-        shift_log = np.array(_widened(prior + counts, spread))
+        shift_log = _widened(prior + counts, spread)
         if slope_sd <= 0:
             return cls(shift_log, (said, question))
         log_slopes = LOG_SLOPE_STEPS * slope_sd
@@ -226,16 +226,11 @@ class Calibration:
         """Return the calibration with outcomes of simulated checks at `predicted` powers."""
         total = np.array(self.log_likelihood)
         for power, outcome in zip(predicted, named):
-            probit = self._probits(power)
-            total += special.log_ndtr(probit if outcome else -probit)
+            total += count_log_likelihood(int(bool(outcome)), 1, self._probits(power))
         return Calibration(total, (*self.sources, what), self.log_slopes)
 
     def _probits(self, predicted: float) -> FloatArray:
-        z = float(special.ndtri(min(max(float(predicted), 1e-12), 1 - 1e-12)))
-        z80 = float(special.ndtri(POWER))
-        slopes = np.exp(np.asarray(self.log_slopes))
-        probits: FloatArray = z80 + SHIFTS[:, None] + slopes[None, :] * (z - z80)
-        return probits
+        return measured_probit(predicted, SHIFTS, np.exp(np.asarray(self.log_slopes)))
 
     def _weights(self) -> FloatArray:
         log_p = self.log_likelihood
@@ -330,28 +325,39 @@ def _equivalent_shifts(target: float, log_slopes: tuple[float, ...]
     return equivalent, order
 
 
-def _widened(log_likelihood: FloatArray, spread: float) -> tuple[float, ...]:
+def measured_probit(predicted: float, shifts: FloatArray, slopes: FloatArray) -> FloatArray:
+    """
+    Return Phi^-1 of the measured power where `predicted` is: (shifts, slopes) (module doc).
+
+    z80 + shift + slope (Phi^-1(predicted) - z80), z80 = Phi^-1(0.8), a row per shift and a
+    column per slope.
+    """
+    z = float(special.ndtri(min(max(float(predicted), 1e-12), 1 - 1e-12)))
+    z80 = float(special.ndtri(POWER))
+    probits: FloatArray = z80 + shifts[:, None] + slopes[None, :] * (z - z80)
+    return probits
+
+
+def count_log_likelihood(named: int, total: int, probit: FloatArray) -> FloatArray:
+    """Return log P(`named` of `total`) at the powers Phi(probit), binomial coefficient out."""
+    log_likelihood: FloatArray = (named * special.log_ndtr(probit)
+                                  + (total - named) * special.log_ndtr(-probit))
+    return log_likelihood
+
+
+def _widened(log_likelihood: FloatArray, spread: float) -> FloatArray:
     """Return the log density of a shift that is one of `log_likelihood` plus N(0, spread)."""
     step = float(SHIFTS[1] - SHIFTS[0])
     if 6 * spread < step:          # narrower than the grid: no widening it can show
-        return tuple(float(value) for value in log_likelihood)
+        return np.asarray(log_likelihood, dtype=float)
     weights = np.exp(log_likelihood - log_likelihood.max())
     half = int(math.ceil(6 * spread / step))
     kernel = stats.norm.pdf(np.arange(-half, half + 1) * step, 0.0, spread)
     # the full convolution, entry i of the grid at i + half (a kernel wider than the grid
     # too: mode='same' would return the kernel's length)
     density = np.convolve(weights / weights.sum(), kernel / kernel.sum())[half:half + len(SHIFTS)]
-    return tuple(float(value) for value in np.log(np.maximum(density, 1e-300)))
-
-
-def _binomial(named: int, total: int, predicted: FloatArray) -> FloatArray:
-    """Log-likelihood over SHIFTS of `named` of `total` at the shifted predicted powers."""
-    probability = stats.norm.cdf(stats.norm.ppf(np.clip(predicted, 1e-12, 1 - 1e-12))
-                                 + SHIFTS)
-    probability = np.clip(probability, 1e-300, 1 - 1e-16)
-    log_likelihood: FloatArray = named * np.log(probability) + (total - named) * np.log1p(
-        -probability)
-    return log_likelihood
+    widened: FloatArray = np.log(np.maximum(density, 1e-300))
+    return widened
 
 
 def shifted(power: float, shift: float) -> float:

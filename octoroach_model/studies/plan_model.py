@@ -292,7 +292,7 @@ def _check(spec: StudySpec, question: Question, curve: PredictedCurve,
         while (len(running) < max(workers, 1) and now + expected_cost(runs) <= deadline
                and (most is None or replicate - PILOTS < most)):
             future = executor.submit(check_task, spec, question, runs, replicate)
-            running[future] = (runs, curve.power(runs))
+            running[future] = (runs, curve.predicted(runs))
             replicate += 1
         if not running:
             return done
