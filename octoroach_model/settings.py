@@ -12,15 +12,26 @@ unit and range a user reads are the ones in force, wherever they read them.
 
 A setting used by several records (the axes of the poses, the gap that splits runs, the wait
 for subscribers) is one `Setting` constant given to each field.
+
+A value is checked for its kind as well as its range (`check_fields`, `check_setting`): the
+field's annotation says it (int: a whole number, float: a number, str, bool, each with None
+where the annotation allows it), so that `DiagnosisSettings(bootstrap=2.5)` or `seed='1'`
+through the Python API is refused in one line, as the programs' options and the nodes'
+parameter types refuse them.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, Field, field, fields, MISSING
+import functools
+import math
+import numbers
+import types
+import typing
 from typing import Any
 
 from octoroach_model.errors import ParameterError
 
-__all__ = ['Setting', 'check_fields', 'check_value', 'setting', 'settings_of']
+__all__ = ['Setting', 'check_fields', 'check_setting', 'check_value', 'setting', 'settings_of']
 
 METADATA_KEY = 'setting'
 
@@ -61,11 +72,13 @@ class Setting:
         return ''
 
     def allows(self, value: Any) -> bool:
-        """Tell whether `value` lies in the range (numbers) or among the choices (strings)."""
+        """Tell whether `value` lies in the range (finite numbers) or among the choices."""
         if self.choices:
             return value in self.choices
         if not isinstance(value, (int, float)) or isinstance(value, bool):
             return True
+        if not math.isfinite(value):            # NaN lies in no range; no setting is infinite
+            return False
         if self.low is not None and (value <= self.low if self.open_low else value < self.low):
             return False
         return self.high is None or not (value >= self.high if self.open_high
@@ -84,6 +97,10 @@ class Setting:
         if self.low == 0 and self.high is None:
             return 'be positive' if self.open_low else 'be non-negative'
         unit = f' {self.unit}' if self.unit else ''
+        if self.high is None and self.low is not None:
+            return f'be {"above" if self.open_low else "at least"} {number_text(self.low)}{unit}'
+        if self.low is None and self.high is not None:
+            return f'be {"below" if self.open_high else "at most"} {number_text(self.high)}{unit}'
         return f'lie in {self.range_text()}{unit}'
 
 
@@ -126,12 +143,72 @@ def settings_of(record: Any) -> dict[str, tuple[Any, Setting]]:
 
 
 def check_fields(record: Any) -> None:
-    """Raise ParameterError with a one-line reason for the first field outside its range."""
-    for name, (_, described) in settings_of(record).items():
-        check_value(name, getattr(record, name), described)
+    """Raise ParameterError with a one-line reason for the first field of a wrong kind or range."""
+    for name in settings_of(record):
+        check_setting(type(record), name, getattr(record, name))
+
+
+def check_setting(record_type: type, name: str, value: Any) -> None:
+    """Raise ParameterError when `value` is not of the kind or range of `record_type.name`."""
+    kind = field_kinds(record_type).get(name)
+    if kind is not None and not kind.holds(value):
+        raise ParameterError(f'{name} must be {kind.words}, got {shown(value)}')
+    check_value(name, value, settings_of(record_type)[name][1])
+
+
+@dataclass(frozen=True)
+class Kind:
+    """The values a field's annotation allows: its types, in words for an error message."""
+
+    types: tuple[type, ...]
+    words: str
+    optional: bool = False
+
+    def holds(self, value: Any) -> bool:
+        """Tell whether `value` is of the kind (a bool is not a number, though Python says so)."""
+        if value is None:
+            return self.optional
+        if isinstance(value, bool) and bool not in self.types:
+            return False
+        return isinstance(value, self.types)
+
+
+KINDS = {int: Kind((numbers.Integral,), 'a whole number'),
+         float: Kind((numbers.Real,), 'a number'),
+         str: Kind((str,), 'text'),
+         bool: Kind((bool,), 'true or false')}
+
+
+@functools.lru_cache(maxsize=None)
+def field_kinds(record_type: type) -> dict[str, Kind]:
+    """Return {field name: Kind} of the fields whose annotation is a plain kind (or it | None)."""
+    try:
+        hints = typing.get_type_hints(record_type)
+    except (NameError, TypeError):       # a name only for type checkers: its kinds unchecked
+        return {}
+    found = {}
+    for name, hint in hints.items():
+        parts = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
+        plain = [part for part in parts if part is not type(None)]
+        if len(plain) == 1 and plain[0] in KINDS:
+            kind = KINDS[plain[0]]
+            found[name] = Kind(kind.types, kind.words + (' or none' if len(parts) > 1 else ''),
+                               len(parts) > 1)
+    return found
+
+
+def shown(value: Any) -> str:
+    """Show a refused value: a number, bool or None as written, anything else by its type."""
+    if value is None or isinstance(value, (bool, numbers.Number)):
+        return repr(value)
+    if isinstance(value, str):
+        return f'text ({len(value)} characters, not shown)'
+    return f'a {type(value).__name__}'
 
 
 def check_value(name: str, value: Any, described: Setting) -> None:
     """Raise ParameterError when `value` of setting `name` is not allowed: 'NAME must ...'."""
     if not described.allows(value):
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ParameterError(f'{name} must be a finite number, got {value!r}')
         raise ParameterError(f'{name} must {described.demand()}, got {value!r}')

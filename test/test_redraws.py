@@ -261,7 +261,7 @@ def test_a_number_of_draws_outside_its_range_is_refused_before_any_work(tmp_path
         DiagnosisSettings(simulation_draws=0)
     with pytest.raises(ParameterError, match='simulation_draws must lie in'):
         DiagnosisSettings(simulation_draws=21)
-    with pytest.raises(ParameterError, match=r'close_call_factor must lie in >= 1, got 0'):
+    with pytest.raises(ParameterError, match=r'close_call_factor must be at least 1, got 0'):
         DiagnosisSettings(close_call_factor=0)
     # the command checks it before it reads any input (this one does not exist)
     result = subprocess.run(

@@ -9,8 +9,11 @@ with a range of its own, a node parameter with no source.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 import re
 
+from hypothesis import given, settings as hypothesis_settings, strategies as st
 import pytest
 
 from octoroach_model.commands import diagnose, plan, simulate, validate
@@ -126,7 +129,9 @@ def options(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:
 # simulate's --cycles may be fractional, its --seed seeds every draw of the one call, and its
 # --effect and --extension repeat, each with its parameters (the simulator node publishes
 # whole cycles, its seed -1 means fresh entropy for each run, and it adds one effect).
-PROGRAMS_OWN = {'cycles', 'seed', 'effect', 'extension'}
+# diagnose's --workers sizes the pool the diagnosis is given (0: none, all in the program's
+# process), where DiagnosisSettings.workers is the processes diagnose() starts itself.
+PROGRAMS_OWN = {simulate: {'cycles', 'seed', 'effect', 'extension'}, diagnose: {'workers'}}
 
 
 @pytest.mark.parametrize('program, records, least', [
@@ -142,7 +147,7 @@ def test_every_option_of_a_setting_has_its_fields_range_and_default(program, rec
     for record in records:
         for name, (default, described) in settings_of(record).items():
             action = found.get(name)
-            if action is None or (program is simulate and name in PROGRAMS_OWN):
+            if action is None or name in PROGRAMS_OWN.get(program, ()):
                 continue
             checked += 1
             assert described.description in action.help, (name, action.help)
@@ -203,3 +208,76 @@ def test_a_descriptor_is_closed_and_says_its_ends_are_excluded():
     assert 'ends excluded' in descriptor.additional_constraints
     seed = next(spec for spec in node_specs()['validator']() if spec.name == 'seed')
     assert seed.descriptor().integer_range[0].from_value == 0
+
+
+@pytest.mark.parametrize('record, values, reason', [
+    (DiagnosisSettings, {'bootstrap': 2.5}, 'bootstrap must be a whole number, got 2.5'),
+    (DiagnosisSettings, {'score_runs': True}, 'score_runs must be a whole number, got True'),
+    (DiagnosisSettings, {'alpha': '0.01'},
+     r'alpha must be a number, got text \(4 characters, not shown\)'),
+    (DiagnosisSettings, {'alpha': math.nan}, 'alpha must be a finite number, got nan'),
+    (DiagnosisSettings, {'min_gain': math.inf}, 'min_gain must be a finite number, got inf'),
+    (DiagnosisSettings, {'decision_alpha': 1.0}, r'decision_alpha must lie in \(0, 1\), got 1.0'),
+    (DiagnosisSettings, {'validate_models': 1}, 'validate_models must be true or false, got 1'),
+    (DiagnosisSettings, {'split_seed': -1}, 'split_seed must be non-negative, got -1'),
+    (DiagnosisSettings, {'rounds': 0}, 'rounds must be at least 1, got 0'),
+    (DiagnosisSettings, {'validation': {'rho': 0.1}},
+     'validation must be a ValidationSettings, got a dict'),
+    (ValidationSettings, {'k': 3.0}, 'k must be a whole number, got 3.0'),
+    (ValidationSettings, {'seed': [1]}, 'seed must be a whole number, got a list'),
+])
+def test_a_setting_of_the_wrong_kind_or_outside_its_range_is_refused_in_one_line(
+        record, values, reason):
+    """The Python API refuses what the programs' options and the nodes' parameters refuse."""
+    with pytest.raises(ParameterError, match=f'^{reason}$'):
+        record(**values)
+
+
+def test_every_knob_of_the_diagnosis_is_a_setting_with_its_range():
+    """A knob that is not a Setting would go unchecked: all are, but the nested records."""
+    names = {item.name for item in dataclasses.fields(DiagnosisSettings)}
+    assert set(settings_of(DiagnosisSettings)) == names - {'validation', 'limit_terms'}
+    assert DiagnosisSettings(split_seed=None, alpha=1e-3, heading_weight_m=0).split_seed is None
+
+
+def test_plan_refuses_a_setting_of_the_wrong_kind_before_any_work():
+    from octoroach_model.studies.plan import plan_runs
+
+    for values, reason in (({'power': 'most'}, 'power must be a number'),
+                           ({'seed': 1.5}, 'seed must be a whole number, got 1.5'),
+                           ({'budget_s': math.nan}, 'budget_s must be a finite number'),
+                           ({'max_runs': 10}, 'max_runs must be at least 40, got 10')):
+        with pytest.raises(ParameterError, match=reason):
+            plan_runs('persistent_turning', 1.0, workers=0, **values)
+
+
+def test_the_diagnosis_docs_list_every_setting_with_its_default_unit_and_range():
+    text = (REPO / 'docs' / 'diagnosis.md').read_text()
+    section = text[text.index('## 14. Its settings'):]
+    for name, (default, described) in settings_of(DiagnosisSettings).items():
+        row = re.search(rf'^\| `{name}` \| ([^|]*) \| ([^|]*) \| ([^|]*) \| ([^|]*) \|$', section,
+                        re.MULTILINE)
+        assert row is not None, name
+        written = 'none' if default is None else str(default).lower()     # True: true
+        assert [part.strip() for part in row.groups()] == [
+            written, described.unit, described.range_text(), described.description], name
+
+
+ANY_VALUE = st.one_of(st.none(), st.booleans(), st.integers(-10 ** 12, 10 ** 12),
+                      st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=20),
+                      st.lists(st.integers(), max_size=2), st.binary(max_size=4))
+
+
+@hypothesis_settings(max_examples=150, deadline=None)
+@given(data=st.data())
+def test_any_value_of_any_setting_is_taken_or_refused_in_one_line(data):
+    """Through the Python API a record takes a value or says why not: never a traceback."""
+    record = data.draw(st.sampled_from([DiagnosisSettings, ValidationSettings, RunSettings]))
+    name = data.draw(st.sampled_from(sorted(settings_of(record))))
+    value = data.draw(ANY_VALUE)
+    try:
+        made = record(**{name: value})
+    except ParameterError as error:
+        assert '\n' not in str(error) and str(error).startswith(name), str(error)
+        return
+    assert getattr(made, name) == value, (name, value)     # NaN among them: never taken

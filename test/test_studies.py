@@ -126,7 +126,7 @@ def test_limit_multiples_bring_the_null_data_sets_they_are_read_from():
     ('robot: {touchdown_offset_deg: {low: -50, high: 5}}', 'must lie in'),
     ('damage: {cut_share: 1.5}', 'cut_share'),
     ('diagnosis: {speed: 3}', "no setting 'speed'"),
-    ('diagnosis: {bootstrap: 0}', 'at least 1'),
+    ('diagnosis: {bootstrap: 0}', 'diagnosis.bootstrap must be at least 2, got 0'),
     ('robot: [1, 2]', 'must be a mapping'),
     ('diagnosis: {limit_terms: lateral_slip}', 'must be a list of term names'),
     ('diagnosis: {limit_terms: [wobble]}', "'wobble' is no term"),

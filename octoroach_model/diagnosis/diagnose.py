@@ -55,7 +55,7 @@ from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, pooled_scores, position_points_cm, score_model, Scores,
     t_scoring_se)
 from octoroach_model.diagnosis.stages import StageClock
-from octoroach_model.errors import DataError
+from octoroach_model.errors import DataError, ParameterError
 from octoroach_model.fitting import fit_nominal, mean_start_pose, NominalFitSettings
 from octoroach_model.fitting.gait import stride_frequency_estimate
 from octoroach_model.fitting.target import average_target
@@ -83,48 +83,57 @@ class DiagnosisSettings:
     """
     Knobs of the diagnosis; the defaults are what README's figures use.
 
-    alpha: family level of the held-out tests (divided among the candidates of a step);
-    decision_alpha: family level of the size bounds (likewise); min_gain: smallest held-out
-    gain (feature log score, nats per run) a cause must bring; adequacy_alpha:
-    family level over the discrepancy statistics; moment_runs / mean_path_runs / score_runs:
-    simulated runs per moment point / per mean path / per scored model; discrepancy_runs: the
-    fewest simulated runs a model's statistics are compared with (as many as the data where
-    they are more); workers: processes
-    (1: in this process), ignored when an executor is passed to `diagnose`; detection_limits:
-    compute the limit of the whole decision (limits.py; without it `detectable` is the size
-    bound's own limit, and the method says so) of every candidate, or of those named in
-    limit_terms alone (most of a whole diagnosis's time is the limits: docs/diagnosis.md,
-    section 11); split_seed: the seed of the split
-    into halves alone (None: `seed`), so that the simulations can be drawn again on the same
-    halves (benchmarks/bench_seed_agreement.py); simulation_draws: the decision made this many
-    times on the same halves with the simulations drawn again, the report saying how many
-    agree (redraws.py).
+    Each field says what it is, its unit and its range (`settings.setting`), checked with its
+    kind when the record is made (docs/diagnosis.md, section 14, lists them): a spread needs
+    two simulated runs (one moment or mean-path run left a half of none and failed deep in a
+    fit). Most of a whole diagnosis's time is the detection limits (docs/diagnosis.md,
+    section 11); split_seed lets the simulations be drawn again on the same halves
+    (benchmarks/bench_seed_agreement.py); simulation_draws: redraws.py.
     """
 
     seed: int = setting(0, 'seed of the split, the simulations and the bootstrap', low=0)
-    alpha: float = 0.01
-    decision_alpha: float = 0.05
-    min_gain: float = 0.0
-    adequacy_alpha: float = 0.01
-    moment_runs: int = 400
-    mean_path_runs: int = 300
-    score_runs: int = 1200
-    discrepancy_runs: int = 1000
-    bootstrap: int = 100
-    heading_weight_m: float = 0.13
-    rounds: int = 2
+    alpha: float = setting(0.01, 'family level of the held-out tests, divided among the '
+                           'candidates of a step', low=0.0, high=1.0, open_low=True,
+                           open_high=True)
+    decision_alpha: float = setting(0.05, 'family level of the size bounds, divided among the '
+                                    'candidates of a step', low=0.0, high=1.0, open_low=True,
+                                    open_high=True)
+    min_gain: float = setting(0.0, 'smallest held-out gain a cause must bring (feature log '
+                              'score)', unit='nats per run', low=0.0)
+    adequacy_alpha: float = setting(0.01, 'family level over the discrepancy statistics',
+                                    low=0.0, high=1.0, open_low=True, open_high=True)
+    moment_runs: int = setting(400, 'simulated runs per moment point of a fit', low=2)
+    mean_path_runs: int = setting(300, 'simulated runs per mean path of a geometry fit',
+                                  low=2)
+    score_runs: int = setting(1200, 'simulated runs per scored model', low=2)
+    discrepancy_runs: int = setting(1000, "the fewest simulated runs a model's statistics are "
+                                    'compared with (as many as the data where they are more)',
+                                    low=2)
+    bootstrap: int = setting(100, 'bootstrap resamples of the size estimates', low=2)
+    heading_weight_m: float = setting(0.13, "the heading's weight beside the position in a "
+                                      'geometry fit', unit='m', low=0.0)
+    rounds: int = setting(2, 'rounds of the joint refit of the causes named', low=1)
     validation: ValidationSettings = field(default_factory=ValidationSettings)
-    validate_models: bool = True
-    detection_limits: bool = True
+    validate_models: bool = setting(True, 'validate the baseline and extended models at the '
+                                    "paper's settings")
+    detection_limits: bool = setting(True, 'compute the limit of the whole decision (limits.py) '
+                                     'of every candidate, or of those in limit_terms alone; '
+                                     "without it a candidate's detectable size is its size "
+                                     "bound's own limit, and the method says so")
     limit_terms: tuple[str, ...] = ()
-    workers: int = 2
-    split_seed: int | None = None
+    workers: int = setting(2, 'processes (1: in this process); ignored when an executor is '
+                           'passed to diagnose', low=1)
+    split_seed: int | None = setting(None, 'seed of the split into halves alone (none: seed)',
+                                     low=0)
     simulation_draws: int = setting(1, SIMULATION_DRAWS)
     close_call_factor: int = setting(4, 'times score_runs a close call is scored again on '
                                         '(1: never scored again)', low=1)
 
     def __post_init__(self) -> None:
         check_fields(self)
+        if not isinstance(self.validation, ValidationSettings):
+            raise ParameterError('validation must be a ValidationSettings, got a '
+                                 f'{type(self.validation).__name__}')
         check_term_names(self.limit_terms, 'limit_terms')
         object.__setattr__(self, 'limit_terms', tuple(self.limit_terms))
 

@@ -29,7 +29,6 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from enum import StrEnum
 import math
-import numbers
 from pathlib import Path
 import time
 from typing import Any, NamedTuple, TYPE_CHECKING
@@ -39,7 +38,7 @@ import numpy as np
 from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
-from octoroach_model.settings import check_value, setting, settings_of
+from octoroach_model.settings import check_setting, setting
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.power_curve import fit_power_curve, INTERVAL_METHOD, PowerFit
@@ -242,6 +241,9 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
     """
     started = time.perf_counter()
     say = progress or (lambda fraction, message: None)
+    for name, value in (('power', power), ('budget_s', budget_s), ('replicates', replicates),
+                        ('max_runs', max_runs), ('seed', seed)):
+        check_setting(PlanSettings, name, value)
     min_runs = max(MIN_RUNS, min_runs or MIN_RUNS)
     if method not in METHODS:
         raise ParameterError(f'method must be one of {", ".join(METHODS)}, got {method!r}')
@@ -254,9 +256,7 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
             raise ParameterError(f'the time budget must be a positive number of seconds, got '
                                  f'{budget_s:g}')
         if checks is not None:
-            if isinstance(checks, bool) or not isinstance(checks, numbers.Integral):
-                raise ParameterError(f'checks must be a whole number, got {checks!r}')
-            check_value('checks', int(checks), settings_of(PlanSettings)['checks'][1])
+            check_setting(PlanSettings, 'checks', checks)
             checks = int(checks)
         check_where(client, scheduler, workers)
         out_dir = _check_out(out)

@@ -522,7 +522,7 @@ def _diagnosis(values: Mapping[str, Any]) -> tuple[tuple[str, Any], ...]:
     settable = {f.name: getattr(defaults, f.name) for f in dataclasses.fields(DiagnosisSettings)
                 if f.name != 'seed' and isinstance(getattr(defaults, f.name), (bool, int, float))}
     settable['limit_terms'] = ()
-    checked = []
+    checked: list[tuple[str, Any]] = []
     for key, value in values.items():
         if key == 'limit_terms':
             checked.append((key, _limit_terms(value)))
@@ -531,16 +531,13 @@ def _diagnosis(values: Mapping[str, Any]) -> tuple[tuple[str, Any], ...]:
             raise ParameterError(f'diagnosis: no setting {key!r}; settable: '
                                  f'{", ".join(sorted(settable))}')
         default = settable[key]
-        if isinstance(default, bool):
-            if not isinstance(value, bool):
-                raise ParameterError(f'diagnosis.{key} must be true or false, got {value!r}')
-        elif isinstance(default, int):
-            value = _whole(value, f'diagnosis.{key}', minimum=1)
-        else:
-            value = _number(value, f'diagnosis.{key}')
-            if value < 0:
-                raise ParameterError(f'diagnosis.{key} must not be negative, got {value:g}')
+        if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)            # YAML's 1 for 1.0: the same spec, the same hash
         checked.append((str(key), value))
+    try:                                # each value's kind and range: the settings' own checks
+        DiagnosisSettings(**dict(checked))
+    except ParameterError as error:
+        raise ParameterError(f'diagnosis.{error}') from None
     return tuple(sorted(checked))
 
 
