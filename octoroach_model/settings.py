@@ -75,8 +75,8 @@ class Setting:
         """Tell whether `value` lies in the range (finite numbers) or among the choices."""
         if self.choices:
             return value in self.choices
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            return True
+        if not isinstance(value, numbers.Real) or isinstance(value, bool):
+            return True                         # numpy's numbers too; kinds: check_setting
         if not math.isfinite(value):            # NaN lies in no range; no setting is infinite
             return False
         if self.low is not None and (value <= self.low if self.open_low else value < self.low):
@@ -198,9 +198,17 @@ def field_kinds(record_type: type) -> dict[str, Kind]:
 
 
 def shown(value: Any) -> str:
-    """Show a refused value: a number, bool or None as written, anything else by its type."""
-    if value is None or isinstance(value, (bool, numbers.Number)):
+    """
+    Show a refused value: a number, bool or None as written, anything else by its kind.
+
+    A text may come from a file (a params file, a study spec): an error never quotes it.
+    """
+    if value is None or isinstance(value, bool):
         return repr(value)
+    if isinstance(value, numbers.Integral):     # numpy's as Python's: -1, not np.int64(-1)
+        return repr(int(value))
+    if isinstance(value, numbers.Real):
+        return repr(float(value))
     if isinstance(value, str):
         return f'text ({len(value)} characters, not shown)'
     return f'a {type(value).__name__}'
@@ -210,5 +218,5 @@ def check_value(name: str, value: Any, described: Setting) -> None:
     """Raise ParameterError when `value` of setting `name` is not allowed: 'NAME must ...'."""
     if not described.allows(value):
         if isinstance(value, float) and not math.isfinite(value):
-            raise ParameterError(f'{name} must be a finite number, got {value!r}')
-        raise ParameterError(f'{name} must {described.demand()}, got {value!r}')
+            raise ParameterError(f'{name} must be a finite number, got {shown(value)}')
+        raise ParameterError(f'{name} must {described.demand()}, got {shown(value)}')

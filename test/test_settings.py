@@ -14,6 +14,7 @@ import math
 import re
 
 from hypothesis import given, settings as hypothesis_settings, strategies as st
+import numpy as np
 import pytest
 
 from octoroach_model.commands import diagnose, plan, simulate, validate
@@ -224,6 +225,7 @@ def test_a_descriptor_is_closed_and_says_its_ends_are_excluded():
     (DiagnosisSettings, {'validation': {'rho': 0.1}},
      'validation must be a ValidationSettings, got a dict'),
     (ValidationSettings, {'k': 3.0}, 'k must be a whole number, got 3.0'),
+    (ValidationSettings, {'seed': np.int64(-1)}, 'seed must be non-negative, got -1'),
     (ValidationSettings, {'seed': [1]}, 'seed must be a whole number, got a list'),
 ])
 def test_a_setting_of_the_wrong_kind_or_outside_its_range_is_refused_in_one_line(
