@@ -25,7 +25,8 @@ from octoroach_model.jsonio import dumps
 from octoroach_model.recordings.runs.run_set import RunSet
 from octoroach_model.studies.damage import cut_runs_short, damage_paths, drop_frames
 from octoroach_model.studies.design import build_tasks, draw_robot, draw_signs
-from octoroach_model.studies.plan import _coarse_grid, _next_counts
+from octoroach_model.studies.plan import (_coarse_grid, _next_counts, _power_text,
+                                          _runs_interval_text)
 from octoroach_model.studies.power_curve import fit_power_curve
 from octoroach_model.studies.replicate import read_report, task_settings
 from octoroach_model.studies.rows import Status, StudyRow, TermOutcome
@@ -648,3 +649,12 @@ def test_plan_takes_an_extension_term_as_its_cause():
     spec = _base_spec(args.cause, args.size, None, None, 2, 0, None, 40, 400, 0.8)
     assert [arm.label for arm in spec.arms] == ['run_order_drift:yaw_rate=4']
     assert spec.arms[0].effect_dict() == {'run_order_drift:yaw_rate': {'change': 4.0}}
+
+
+def test_plans_statement_says_the_power_asked_and_an_open_interval_in_words():
+    """99.9999 % is not rounded to 100 %, and an interval open above reads as words."""
+    assert [_power_text(p) for p in (0.8, 0.95, 0.999999, 0.5)] == [
+        '80%', '95%', '99.9999%', '50%']
+    assert _runs_interval_text(150.2, 399.6) == '150 to 400 runs'
+    assert _runs_interval_text(352, math.inf) == '352 runs to more than any run count tried'
+    assert _runs_interval_text(math.inf, math.inf) == 'more than any run count tried'

@@ -341,16 +341,16 @@ def _model_result(base: StudySpec, cause: str, size: float, power: float, answer
     if not math.isfinite(answer.runs) or answer.runs > max_runs:
         status, needed = PlanStatus.ABOVE_MAX_RUNS, None
         statement = (f'more than {max_runs} runs are needed to name {what} with '
-                     f'{power:.0%} power ({basis})')
+                     f'{_power_text(power)} power ({basis})')
     elif answer.runs <= min_runs:
         status, needed = PlanStatus.AT_MIN_RUNS, min_runs
         statement = (f'{min_runs} runs (the fewest the diagnosis takes) already name {what} '
-                     f'with at least {power:.0%} power ({basis})')
+                     f'with at least {_power_text(power)} power ({basis})')
     else:
         status, needed = PlanStatus.FOUND, int(math.ceil(answer.runs))
-        statement = (f'about {needed} runs name {what} with {power:.0%} power (95 % '
-                     f'interval {_runs_text(low or math.inf)} to '
-                     f'{_runs_text(high or math.inf)} runs; {basis})')
+        statement = (f'about {needed} runs name {what} with {_power_text(power)} power (95 % '
+                     f'interval {_runs_interval_text(low or math.inf, high or math.inf)}; '
+                     f'{basis})')
     curve = []
     for runs in sorted({check.runs for check in checks}):
         group = [check for check in checks if check.runs == runs]
@@ -468,18 +468,18 @@ def _result(base: StudySpec, cause: str, size: float, power: float,
     if answer > max_runs or not math.isfinite(answer):
         status, needed = PlanStatus.ABOVE_MAX_RUNS, None
         statement = (f'more than {max_runs} runs are needed to name {what} with '
-                     f'{power:.0%} power (at {fit.counts[-1]} runs: '
+                     f'{_power_text(power)} power (at {fit.counts[-1]} runs: '
                      f'{curve[-1].power:.0%} of {curve[-1].data_sets} data sets)')
     elif answer <= min_runs:
         status, needed = PlanStatus.AT_MIN_RUNS, min_runs
         statement = (f'{min_runs} runs (the fewest the diagnosis takes) already name {what} '
-                     f'with at least {power:.0%} power')
+                     f'with at least {_power_text(power)} power')
     else:
         status, needed = PlanStatus.FOUND, int(math.ceil(answer))
         low, high = (max(value, min_runs) for value in fit.interval_95)
-        statement = (f'about {needed} runs name {what} with {power:.0%} power (95 % '
-                     f'interval {_runs_text(low)} to {_runs_text(high)} runs, from '
-                     f'{len(rows)} diagnosed data sets)')
+        statement = (f'about {needed} runs name {what} with {_power_text(power)} power (95 % '
+                     f'interval {_runs_interval_text(low, high)}, from {len(rows)} diagnosed '
+                     'data sets)')
     interval_low, interval_high = (float(max(v, min_runs)) if math.isfinite(v) else None
                                    for v in fit.interval_95)
     logistic = LogisticFit(LOGISTIC_MODEL, fit.intercept, fit.slope,
@@ -491,8 +491,18 @@ def _result(base: StudySpec, cause: str, size: float, power: float,
                       tuple(sorted(rows, key=lambda row: (row.runs, row.replicate))))
 
 
-def _runs_text(value: float) -> str:
-    return f'{value:.0f}' if math.isfinite(value) else 'more than any run count tried'
+def _runs_interval_text(low: float, high: float) -> str:
+    """Say an interval of run counts: '150 to 400 runs', '150 runs to more than any tried'."""
+    if math.isfinite(high):
+        return f'{low:.0f} to {high:.0f} runs'
+    if math.isfinite(low):
+        return f'{low:.0f} runs to more than any run count tried'
+    return 'more than any run count tried'
+
+
+def _power_text(power: float) -> str:
+    """Say a requested power as given: 80%, 95%, 99.9999% (not rounded up to 100%)."""
+    return f'{100 * power:.6g}%'
 
 
 def _check_out(out: str | Path | None) -> Path | None:
@@ -573,7 +583,7 @@ def plot_model_curve(result: PlanResult, path: Path) -> None:
         axis.errorbar(checked, rates, yerr=[below, above], fmt='o', capsize=4,
                       color='tab:green', label='checks: share named (95 % Wilson)')
     axis.axhline(result.power, color='grey', linestyle='--',
-                 label=f'requested power {result.power:.0%}')
+                 label=f'requested power {_power_text(result.power)}')
     if result.runs_needed is not None:
         axis.axvline(result.runs_needed, color='tab:red',
                      label=f'answer: {result.runs_needed} runs')
@@ -608,7 +618,7 @@ def plot_power_curve(result: PlanResult, path: Path) -> None:
     fitted = 1 / (1 + np.exp(-(result.fit.intercept + result.fit.slope * np.log(grid))))
     axis.plot(grid, fitted, color='tab:blue', alpha=0.7, label='logistic fit in ln(runs)')
     axis.axhline(result.power, color='grey', linestyle='--',
-                 label=f'requested power {result.power:.0%}')
+                 label=f'requested power {_power_text(result.power)}')
     if result.runs_needed is not None:
         axis.axvline(result.runs_needed, color='tab:red',
                      label=f'answer: {result.runs_needed} runs')
