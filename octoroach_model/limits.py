@@ -35,6 +35,9 @@ MAX_BODY_MARKERS = 256
 MAX_FOLDER_DEPTH = 32
 # studies: data sets (tasks) one study may hold
 MAX_STUDY_TASKS = 1_000_000
+# simulate(): runs x samples per run in one call (about 144 bytes a sample at its peak, so
+# some 5.4 GiB; 500 runs of 10 cycles at 50 Hz are 125 500)
+MAX_SIMULATED_SAMPLES = 40_000_000
 
 
 def size_words(count: float) -> str:

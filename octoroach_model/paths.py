@@ -126,3 +126,12 @@ class Paths:
         cut = index[None, :] >= np.asarray(lengths)[:, None]
         poses = np.where(cut[..., None], np.nan, self.poses)
         return Paths(self.t, poses, dict(self.info))
+
+
+def check_paths(value: object) -> None:
+    """Refuse what is not Paths in one line: the API's entry points take runs, not file names."""
+    if not isinstance(value, Paths):
+        from octoroach_model.errors import ParameterError
+
+        raise ParameterError(f'the runs must be Paths (om.load_measured reads them from files, '
+                             f'om.simulate makes them), got a {type(value).__name__}')

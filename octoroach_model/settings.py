@@ -31,7 +31,8 @@ from typing import Any
 
 from octoroach_model.errors import ParameterError
 
-__all__ = ['Setting', 'check_fields', 'check_setting', 'check_value', 'setting', 'settings_of']
+__all__ = ['Setting', 'check_fields', 'check_setting', 'check_value', 'number', 'setting',
+           'settings_of', 'shown']
 
 METADATA_KEY = 'setting'
 
@@ -77,12 +78,13 @@ class Setting:
             return value in self.choices
         if not isinstance(value, numbers.Real) or isinstance(value, bool):
             return True                         # numpy's numbers too; kinds: check_setting
-        if not math.isfinite(value):            # NaN lies in no range; no setting is infinite
+        number = float(value)
+        if not math.isfinite(number):           # NaN lies in no range; no setting is infinite
             return False
-        if self.low is not None and (value <= self.low if self.open_low else value < self.low):
+        if self.low is not None and (number <= self.low if self.open_low else number < self.low):
             return False
-        return self.high is None or not (value >= self.high if self.open_high
-                                         else value > self.high)
+        return self.high is None or not (number >= self.high if self.open_high
+                                         else number > self.high)
 
     def help_text(self) -> str:
         """Return an option's help: 'description [unit]; range' (choices: argparse lists them)."""
@@ -197,6 +199,13 @@ def field_kinds(record_type: type) -> dict[str, Kind]:
     return found
 
 
+def number(name: str, value: Any) -> float:
+    """Return `value` as a float, or raise ParameterError: a text, a bool or a list is not one."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ParameterError(f'{name} must be a number, got {shown(value)}')
+    return float(value)
+
+
 def shown(value: Any) -> str:
     """
     Show a refused value: a number, bool or None as written, anything else by its kind.
@@ -210,7 +219,7 @@ def shown(value: Any) -> str:
     if isinstance(value, numbers.Real):
         return repr(float(value))
     if isinstance(value, str):
-        return f'text ({len(value)} characters, not shown)'
+        return f'text ({len(value)} character{"" if len(value) == 1 else "s"}, not shown)'
     return f'a {type(value).__name__}'
 
 

@@ -27,12 +27,14 @@ from collections.abc import Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 import contextlib
 import multiprocessing
+import numbers
 import os
 import signal
 import threading
 from typing import Any
 
 from octoroach_model.errors import OctoroachError, ParameterError
+from octoroach_model.settings import shown
 
 CONNECT_TIMEOUT_S = 10.0
 
@@ -192,8 +194,10 @@ def check_where(client: Any | None, scheduler: str | None, workers: int | None) 
     if (client is not None or scheduler) and workers is not None:
         raise ParameterError('with a Dask client or scheduler the cluster has its own workers; '
                              'leave --workers out')
-    if workers is not None and workers < 0:
-        raise ParameterError(f'workers must be 0 (in this process) or more, got {workers}')
+    if workers is not None and (isinstance(workers, bool)
+                                or not isinstance(workers, numbers.Integral) or workers < 0):
+        raise ParameterError(f'workers must be a whole number, 0 (in this process) or more, '
+                             f'got {shown(workers)}')
 
 
 def where_to_run(client: Any | None = None, scheduler: str | None = None,

@@ -62,7 +62,7 @@ from octoroach_model.fitting.target import average_target
 from octoroach_model.limit_setting import check_term_names
 from octoroach_model.model import ModelParameters
 from octoroach_model.model.extensions import family_form
-from octoroach_model.paths import Paths
+from octoroach_model.paths import check_paths, Paths
 from octoroach_model.redraw_setting import SIMULATION_DRAWS
 from octoroach_model.settings import check_fields, setting
 from octoroach_model.validation import chernoff_sample_size, ValidationSettings
@@ -180,6 +180,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     the candidates of each step, the refits and the validations side by side; without one, a
     local process pool of `settings.workers`.
     """
+    check_paths(measured)
     settings = settings or DiagnosisSettings()
     say = progress or (lambda fraction, message: None)
     started = time.monotonic()

@@ -52,7 +52,7 @@ from octoroach_model.fitting.target import (
 from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
 from octoroach_model.model.kinematics import integrate_stances
 from octoroach_model.model.parameters import ParameterTable, StartPoseTable
-from octoroach_model.paths import Paths
+from octoroach_model.paths import check_paths, Paths
 
 VECTOR_NAMES = ('leg_length', 'touchdown_angle_1', 'touchdown_angle_2', 'touchdown_angle_3',
                 'touchdown_angle_4', 'stride_frequency')
@@ -251,6 +251,7 @@ def stride_frequency_guess(average_path: FloatArray, t: FloatArray, fallback: fl
 
 def check_measured(measured: Paths) -> None:
     """Refuse runs the nominal fit cannot use (DataError, with what is missing)."""
+    check_paths(measured)
     if measured.n_paths < 1 or len(measured.t) < 3:
         raise DataError('the nominal fit needs at least one run of three samples')
     if not measured.well_formed:

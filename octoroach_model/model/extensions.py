@@ -44,6 +44,7 @@ from scipy import special
 
 from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
+from octoroach_model.settings import number
 
 DRIFT = 'run_order_drift'
 DRIFTED = ('stride_frequency', 'yaw_rate', 'lateral_velocity')
@@ -108,7 +109,7 @@ class ExtensionTerm:
                                  f'{", ".join(self.parameters)}')
         checked = {}
         for key, (low, high) in zip(self.parameters, self.ranges):
-            value = float(values.get(key, self.defaults.get(key, 0.0)))
+            value = number(f'{self.name}.{key}', values.get(key, self.defaults.get(key, 0.0)))
             if not (math.isfinite(value) and low <= value <= high):
                 raise ParameterError(f'{self.name}.{key} = {value} is outside [{low}, {high}]')
             checked[key] = value

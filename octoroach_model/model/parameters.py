@@ -129,10 +129,13 @@ class ModelParameters:
         """Seconds that `cycles` gait cycles take."""
         return cycles / self.stride_frequency
 
+    def samples(self, cycles: float) -> int:
+        """Return how many samples a run of `cycles` cycles has, both ends included."""
+        return int(round(self.duration(cycles) * self.sample_rate)) + 1
+
     def time_grid(self, cycles: float) -> FloatArray:
         """Sample times of a run of `cycles` cycles, both ends included, at sample_rate."""
-        n_samples = int(round(self.duration(cycles) * self.sample_rate)) + 1
-        return np.arange(n_samples) / self.sample_rate
+        return np.arange(self.samples(cycles)) / self.sample_rate
 
     def table(self) -> ParameterTable:
         """Give the parameters as the paper prints them (cm, deg), for reports."""

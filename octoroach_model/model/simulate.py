@@ -11,11 +11,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
 import math
+import numbers
 
 import numpy as np
 
 from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
+from octoroach_model.limits import MAX_SIMULATED_SAMPLES
 from octoroach_model.model.effects import (
     apply_pose_effects, check_effects, Effects, MODEL_TERMS, TIME_WARPS, warped_time)
 from octoroach_model.model.extensions import (
@@ -23,6 +25,7 @@ from octoroach_model.model.extensions import (
 from octoroach_model.model.kinematics import integrate_stances, stance_angles
 from octoroach_model.model.parameters import ModelParameters, nominal_sigmas, SIGMA_LIMIT
 from octoroach_model.paths import Paths
+from octoroach_model.settings import number, shown
 
 DRAWS = ('stance', 'run')
 DEFAULT_START_POSE = (0.0, 0.0, math.pi / 2)
@@ -167,22 +170,42 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
     """
     parameters = parameters or ModelParameters.nominal()
     default_sigma1, default_sigma2 = nominal_sigmas()
-    sigma1 = default_sigma1 if sigma1 is None else float(sigma1)
-    sigma2 = default_sigma2 if sigma2 is None else float(sigma2)
-    if n_paths < 1 or int(n_paths) != n_paths:
-        raise ParameterError(f'n_paths must be a positive whole number, got {n_paths}')
+    sigma1 = default_sigma1 if sigma1 is None else number('sigma1', sigma1)
+    sigma2 = default_sigma2 if sigma2 is None else number('sigma2', sigma2)
+    if (isinstance(n_paths, bool) or not isinstance(n_paths, numbers.Real)
+            or not n_paths >= 1 or int(n_paths) != n_paths):
+        raise ParameterError(f'n_paths must be a positive whole number, got {shown(n_paths)}')
+    if isinstance(seed, (bool, float, str)):
+        raise ParameterError(f'seed must be a non-negative whole number or None, got '
+                             f'{shown(seed)}')
     if not (0 <= sigma1 < SIGMA_LIMIT and 0 <= sigma2 < SIGMA_LIMIT):
         raise ParameterError(f'sigma1, sigma2 must lie in [0, {SIGMA_LIMIT}) rad, '
                              f'got {sigma1}, {sigma2}')
     if draws not in DRAWS:
-        raise ParameterError(f'draws must be one of {DRAWS}, got {draws!r}')
-    if not cycles > 0:
-        raise ParameterError(f'cycles must be positive, got {cycles}')
+        raise ParameterError(f'draws must be one of {DRAWS}, got {shown(draws)}')
+    cycles = number('cycles', cycles)
+    if not (cycles > 0 and math.isfinite(cycles)):
+        raise ParameterError(f'cycles must be a positive finite number, got {cycles}')
     checked = check_effects(effects)
     terms = family_terms(extensions)
     checked.update(terms)
-    t = parameters.time_grid(cycles) if t is None else np.asarray(t, dtype=float)
-    streams = RandomStreams(seed)
+    if t is not None:
+        t = np.asarray(t, dtype=float)
+        if t.ndim != 1 or not len(t) or not np.all(np.isfinite(t)):
+            raise ParameterError(f't must be a 1-D array of finite sample times, got shape '
+                                 f'{t.shape}')
+    samples = int(n_paths) * (parameters.samples(cycles) if t is None else len(t))
+    if samples > MAX_SIMULATED_SAMPLES:
+        raise ParameterError(f'{int(n_paths)} runs of {samples // int(n_paths)} samples are '
+                             f'{samples} samples, above the {MAX_SIMULATED_SAMPLES} one call '
+                             'simulates (limits.py): simulate fewer or shorter runs, or in '
+                             'batches with seeds of their own')
+    t = parameters.time_grid(cycles) if t is None else t
+    try:
+        streams = RandomStreams(seed)
+    except (TypeError, ValueError) as error:    # numpy's SeedSequence refused it
+        raise ParameterError("seed must be a non-negative whole number (or numpy's seed "
+                             f'forms) or None: {error}') from None
     if positions is not None:
         positions = np.asarray(positions, dtype=float)
         if positions.shape != (int(n_paths),) or not np.all((positions >= 0) & (positions <= 1)):

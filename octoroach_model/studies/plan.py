@@ -38,7 +38,7 @@ import numpy as np
 from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
-from octoroach_model.settings import check_setting, setting
+from octoroach_model.settings import check_setting, number, setting, shown
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.power_curve import fit_power_curve, INTERVAL_METHOD, PowerFit
@@ -47,7 +47,7 @@ from octoroach_model.studies.spec import (
     Arm, ArmKind, nominal_robot, NULL, parse_spec, robot_spec, RobotSpec, StudySpec)
 from octoroach_model.studies.summary import wilson
 from octoroach_model.studies.table import write_table
-from octoroach_model.studies.terms import main_parameter, null_value
+from octoroach_model.studies.terms import main_parameter, null_value, TERMS
 from octoroach_model.workers import check_where, CONNECT_TIMEOUT_S, executor_where, where_to_run
 
 if TYPE_CHECKING:
@@ -244,6 +244,11 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
     for name, value in (('power', power), ('budget_s', budget_s), ('replicates', replicates),
                         ('max_runs', max_runs), ('seed', seed)):
         check_setting(PlanSettings, name, value)
+    if cause not in TERMS:
+        raise ParameterError(f'cause must be a cause of the table or an extension term '
+                             f'({", ".join(TERMS)}), got {shown(cause)}')
+    if not math.isfinite(number('size', size)):
+        raise ParameterError(f'size must be a finite number, got {shown(size)}')
     min_runs = max(MIN_RUNS, min_runs or MIN_RUNS)
     if method not in METHODS:
         raise ParameterError(f'method must be one of {", ".join(METHODS)}, got {method!r}')

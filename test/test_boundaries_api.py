@@ -1,0 +1,95 @@
+"""
+The Python API's entry points take a value or refuse it in one line, before any work.
+
+The programs' options and the nodes' parameters are typed and ranged where they are parsed;
+`om.simulate`, `om.diagnose`, `om.fit_nominal`, `om.validate` and `om.plan_runs` are called
+with whatever a script holds, so each checks its own arguments and raises a ParameterError
+whose one line says what to give (never a TypeError or AttributeError from deep inside, and
+never an allocation the machine cannot hold: limits.MAX_SIMULATED_SAMPLES).
+"""
+from __future__ import annotations
+
+import math
+import tracemalloc
+
+import numpy as np
+import pytest
+
+import octoroach_model as om
+from octoroach_model.errors import ParameterError
+from octoroach_model.limits import MAX_SIMULATED_SAMPLES
+
+
+@pytest.mark.parametrize('arguments, reason', [
+    ({'n_paths': 2.5}, 'n_paths must be a positive whole number, got 2.5'),
+    ({'n_paths': '3'}, 'n_paths must be a positive whole number, got text'),
+    ({'n_paths': True}, 'n_paths must be a positive whole number, got True'),
+    ({'seed': math.nan}, 'seed must be a non-negative whole number or None, got nan'),
+    ({'seed': -1}, 'seed must be a non-negative whole number'),
+    ({'sigma1': 'wide'}, 'sigma1 must be a number, got text'),
+    ({'cycles': math.inf}, 'cycles must be a positive finite number, got inf'),
+    ({'t': [[0.0, 0.02]]}, 't must be a 1-D array of finite sample times'),
+    ({'effects': ['lateral_slip']}, 'effects must be a mapping'),
+    ({'effects': {'lateral_slip': [1.0]}}, "effect 'lateral_slip': its parameters must be a "
+                                           'mapping'),
+    ({'effects': {'lateral_slip': {'velocity_cm_s': 'fast'}}},
+     'lateral_slip.velocity_cm_s must be a number, got text'),
+    ({'effects': {'heading_random_walk': {'step_std_deg': None}}},
+     'heading_random_walk.step_std_deg must be a number, got None'),
+])
+def test_simulate_refuses_a_bad_argument_in_one_line(arguments, reason):
+    arguments = {'n_paths': 3, **arguments}
+    with pytest.raises(ParameterError, match=reason) as caught:
+        om.simulate(arguments.pop('n_paths'), **arguments)
+    assert '\n' not in str(caught.value)
+
+
+def test_simulate_takes_numpy_numbers_and_numpys_seed_forms():
+    runs = om.simulate(np.int64(2), seed=np.int64(7), cycles=np.float64(3.0))
+    assert runs.poses.shape[0] == 2
+    assert np.array_equal(om.simulate(2, seed=[7, 1], cycles=3).poses,
+                          om.simulate(2, seed=[7, 1], cycles=3).poses)
+
+
+def test_a_simulation_too_large_for_one_call_is_refused_before_it_allocates():
+    """A billion runs (894 GiB) or a billion cycles used to fail in numpy's allocation."""
+    tracemalloc.start()
+    try:
+        for arguments in ({'n_paths': 10 ** 9}, {'n_paths': 2, 'cycles': 1e9}):
+            with pytest.raises(ParameterError, match=f'above the {MAX_SIMULATED_SAMPLES} one '
+                                                     'call simulates'):
+                om.simulate(**arguments)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 16 << 20, peak
+    # the largest a real session needs is far inside the limit
+    assert 5000 * om.ModelParameters.nominal().samples(60) < MAX_SIMULATED_SAMPLES
+
+
+@pytest.mark.parametrize('call', [
+    lambda: om.diagnose('bags/'),
+    lambda: om.fit_nominal(None),
+    lambda: om.validate(np.zeros((3, 10, 3))),
+])
+def test_the_entry_points_that_take_runs_refuse_anything_else(call):
+    with pytest.raises(ParameterError, match='the runs must be Paths .*om.load_measured'):
+        call()
+
+
+def test_validate_refuses_a_model_that_is_not_a_plug_in():
+    with pytest.raises(ParameterError, match='model must be a plug-in'):
+        om.validate(om.simulate(3, seed=1), model='four_bar')
+
+
+@pytest.mark.parametrize('arguments, reason', [
+    ({'cause': 'wobble'}, 'cause must be a cause of the table or an extension term'),
+    ({'size': 'large'}, 'size must be a number, got text'),
+    ({'size': math.nan}, 'size must be a finite number, got nan'),
+    ({'workers': 2.5}, 'workers must be a whole number, 0 .* or more, got 2.5'),
+    ({'workers': -1}, 'workers must be a whole number, 0 .* or more, got -1'),
+])
+def test_plan_refuses_a_bad_question_before_any_work(arguments, reason):
+    arguments = {'cause': 'persistent_turning', 'size': 3.0, 'workers': 0, **arguments}
+    with pytest.raises(ParameterError, match=reason):
+        om.plan_runs(arguments.pop('cause'), arguments.pop('size'), **arguments)
