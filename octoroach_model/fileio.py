@@ -32,8 +32,8 @@ from typing import BinaryIO, TextIO, Union
 from octoroach_model.errors import OutputError
 
 __all__ = ['appended_lines', 'atomic_directory', 'atomic_file', 'check_writable', 'folder_lock',
-           'is_empty_directory', 'write_bytes_atomic', 'write_text_atomic', 'LOCK_NAME',
-           'PARTIAL_SUFFIX']
+           'is_empty_directory', 'user_path', 'write_bytes_atomic', 'write_text_atomic',
+           'LOCK_NAME', 'PARTIAL_SUFFIX']
 
 PathLike = Union[str, 'os.PathLike[str]']
 PARTIAL_SUFFIX = '.partial'
@@ -44,6 +44,17 @@ DIRECTORY_MODE = 0o755
 def _temporary_name(target: Path) -> str:
     """Prefix of a hidden temporary name that says which output it will become."""
     return f'.{target.name}.'
+
+
+def user_path(value: object, what: str) -> Path:
+    """Return `value` as a Path, or ParameterError in one line: a name is text or a Path."""
+    if isinstance(value, (str, os.PathLike)):
+        return Path(value)
+    from octoroach_model.errors import ParameterError
+    from octoroach_model.settings import shown
+
+    raise ParameterError(f'{what} must be a file or folder name (text or a pathlib.Path), got '
+                         f'{shown(value)}')
 
 
 def check_writable(path: PathLike, what: str) -> Path:

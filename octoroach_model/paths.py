@@ -132,6 +132,7 @@ def check_paths(value: object) -> None:
     """Refuse what is not Paths in one line: the API's entry points take runs, not file names."""
     if not isinstance(value, Paths):
         from octoroach_model.errors import ParameterError
+        from octoroach_model.settings import shown
 
         raise ParameterError(f'the runs must be Paths (om.load_measured reads them from files, '
-                             f'om.simulate makes them), got a {type(value).__name__}')
+                             f'om.simulate makes them), got {shown(value)}')

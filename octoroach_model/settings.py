@@ -220,7 +220,8 @@ def shown(value: Any) -> str:
         return repr(float(value))
     if isinstance(value, str):
         return f'text ({len(value)} character{"" if len(value) == 1 else "s"}, not shown)'
-    return f'a {type(value).__name__}'
+    name = type(value).__name__
+    return f'{"an" if name[0] in "aeiouAEIOU" else "a"} {name}'
 
 
 def check_value(name: str, value: Any, described: Setting) -> None:

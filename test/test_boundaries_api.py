@@ -93,3 +93,25 @@ def test_plan_refuses_a_bad_question_before_any_work(arguments, reason):
     arguments = {'cause': 'persistent_turning', 'size': 3.0, 'workers': 0, **arguments}
     with pytest.raises(ParameterError, match=reason):
         om.plan_runs(arguments.pop('cause'), arguments.pop('size'), **arguments)
+
+
+@pytest.mark.parametrize('call, reason', [
+    (lambda: om.write_report(None, 'out'), 'report must be a DiagnosisReport'),
+    (lambda: om.save_dataset(5, om.simulate(2, seed=1)),
+     'the data set file must be a file or folder name .*, got 5'),
+    (lambda: om.save_dataset('runs.npz', None), 'the runs must be Paths'),
+    (lambda: om.load_dataset(None), 'the data set file must be a file or folder name'),
+    (lambda: om.write_paths_bag(['bag'], om.simulate(2, seed=1)),
+     'the bag folder must be a file or folder name .*, got a list'),
+    (lambda: om.load_measured(5), 'the inputs must be a file or folder name, or a list of them'),
+    (lambda: om.load_measured([None]), 'an input must be a file or folder name'),
+    (lambda: om.read_runs(3.5), 'the inputs must be a file or folder name'),
+    (lambda: om.run_study({}, 7), 'the study folder must be a file or folder name'),
+])
+def test_the_entry_points_that_take_file_names_refuse_anything_else(call, reason, tmp_path,
+                                                                    monkeypatch):
+    monkeypatch.chdir(tmp_path)             # nothing may be written, but never in the repo
+    with pytest.raises(ParameterError, match=reason) as caught:
+        call()
+    assert '\n' not in str(caught.value)
+    assert not any(tmp_path.iterdir())

@@ -161,8 +161,21 @@ def test_a_spec_file_that_is_not_yaml_or_missing_is_a_one_line_error(tmp_path):
     bad.write_text('runs: [50\nseed: 1\n')
     with pytest.raises(ParameterError, match='not valid YAML'):
         om.load_spec(bad)
-    with pytest.raises(ParameterError, match='cannot read the spec'):
+    with pytest.raises(ParameterError, match='the spec .*missing.yaml: cannot read'):
         om.load_spec(tmp_path / 'missing.yaml')
+    # a spec is read no further than the YAML limit (/dev/zero states no size), and aliases,
+    # which a 2 KB "billion laughs" expands to gigabytes, are refused
+    with pytest.raises(ParameterError, match='the spec /dev/zero: larger than the 4 MiB'):
+        om.load_spec('/dev/zero')
+    laughs = tmp_path / 'laughs.yaml'
+    levels = 'abcdefghi'
+    laughs.write_text('a: &a [x, x, x, x, x, x, x, x, x]\n' + ''.join(
+        f'{name}: &{name} [' + ', '.join(['*' + below] * 9) + ']\n'
+        for below, name in zip(levels, levels[1:])))
+    with pytest.raises(ParameterError, match=r'YAML aliases are not accepted \(line 2\)'):
+        om.load_spec(laughs)
+    with pytest.raises(ParameterError, match='the spec must be a file or folder name'):
+        om.load_spec(5)
 
 
 # --------------------------------------------------------------------------------------------

@@ -11,9 +11,11 @@ from typing import Any
 
 from octoroach_model.diagnosis.records import DiagnosisReport
 from octoroach_model.diagnosis.summary import summary_text
-from octoroach_model.fileio import atomic_directory, write_text_atomic
+from octoroach_model.errors import ParameterError
+from octoroach_model.fileio import atomic_directory, user_path, write_text_atomic
 from octoroach_model.jsonio import dumps
-from octoroach_model.paths import Paths
+from octoroach_model.paths import check_paths, Paths
+from octoroach_model.settings import shown
 
 
 def write_report(report: DiagnosisReport, out_dir: Path | str, measured: Paths | None = None,
@@ -26,7 +28,12 @@ def write_report(report: DiagnosisReport, out_dir: Path | str, measured: Paths |
     nothing; out_dir must be new or an empty directory. A plot that cannot be drawn is said
     in summary.md, never at the cost of the report.
     """
-    out = Path(out_dir)
+    if not isinstance(report, DiagnosisReport):
+        raise ParameterError(f'report must be a DiagnosisReport (om.diagnose returns one), got '
+                             f'{shown(report)}')
+    out = user_path(out_dir, 'the report folder')
+    if measured is not None:
+        check_paths(measured)
     with atomic_directory(out, what='report folder') as folder:
         written: dict[str, Any] = {'report': folder / 'report.json',
                                    'summary': folder / 'summary.md'}

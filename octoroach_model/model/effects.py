@@ -24,7 +24,7 @@ from octoroach_model.errors import ParameterError
 from octoroach_model.model.extensions import (
     NormalSource, positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext)
 from octoroach_model.model.trig import cos_sin
-from octoroach_model.settings import number
+from octoroach_model.settings import number, shown
 
 # Canonical order of application; also the order of their random streams.
 EFFECT_PARAMETERS: dict[str, tuple[str, ...]] = {
@@ -69,13 +69,13 @@ def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
     Names are causes of the table or extension terms (extensions.py, their own defaults).
     """
     if effects is not None and not isinstance(effects, Mapping):
-        raise ParameterError('effects must be a mapping {cause: {parameter: value}}, got a '
-                             f'{type(effects).__name__}')
+        raise ParameterError('effects must be a mapping {cause: {parameter: value}}, got '
+                             f'{shown(effects)}')
     checked: dict[str, dict[str, float]] = {}
     for name, params in (effects or {}).items():
         if not isinstance(params, Mapping):
             raise ParameterError(f'effect {name!r}: its parameters must be a mapping '
-                                 f'{{parameter: value}}, got a {type(params).__name__}')
+                                 f'{{parameter: value}}, got {shown(params)}')
         if name in TERM_BY_NAME:
             checked[name] = TERM_BY_NAME[name].checked(params)
             continue

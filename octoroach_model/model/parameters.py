@@ -180,13 +180,10 @@ def nominal_sigmas(path: str | os.PathLike[str] | None = None) -> tuple[float, f
 @lru_cache(maxsize=8)
 def _read_nominal(path: str, mtime_ns: int, size: int) -> NominalValues:
     """Parse and check one version of the file (the cache key changes when the file does)."""
-    import yaml
+    from octoroach_model.safe_yaml import load_yaml_file
 
-    try:
-        document = yaml.safe_load(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
-        reason = ' '.join(str(error).split())
-        raise ParameterError(f'cannot read nominal parameters from {path}: {reason}') from None
+    document = load_yaml_file(Path(path), ParameterError,
+                              f'cannot read nominal parameters from {path}')
     section = document.get(CONFIG_SECTION) if isinstance(document, dict) else None
     if not isinstance(section, dict):
         raise ParameterError(f'{path}: no {CONFIG_SECTION!r} section with the nominal values')

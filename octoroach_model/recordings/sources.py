@@ -21,7 +21,8 @@ from pathlib import Path
 import re
 from typing import Union
 
-from octoroach_model.errors import BagError
+from octoroach_model.errors import BagError, ParameterError
+from octoroach_model.fileio import user_path
 from octoroach_model.limits import MAX_FOLDER_DEPTH
 from octoroach_model.recordings.bagio.bag_files import (
     is_bag_directory,
@@ -31,6 +32,7 @@ from octoroach_model.recordings.bagio.bag_files import (
     ROS2_SUFFIXES,
 )
 from octoroach_model.recordings.mocap.tables import detect_table
+from octoroach_model.settings import shown
 
 Sources = Union[PathLike, Iterable[PathLike]]
 
@@ -78,9 +80,12 @@ def expand_sources(sources: Sources, *,
     """
     if isinstance(sources, (str, os.PathLike)):
         sources = [sources]
+    elif not isinstance(sources, Iterable):
+        raise ParameterError('the inputs must be a file or folder name, or a list of them, got '
+                             f'{shown(sources)}')
     found: list[Path] = []
     for source in sources:
-        path = Path(source)
+        path = user_path(source, 'an input')
         if not path.exists():
             raise BagError(f'{path}: no such file or directory')
         if path.is_file() or is_bag_directory(path):

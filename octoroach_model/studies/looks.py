@@ -119,10 +119,10 @@ class LooksSpec:
 def load_looks(path: str | Path) -> LooksSpec:
     """Read a looks spec: a study spec with a `looks:` mapping (every, planned_runs, questions)."""
     from octoroach_model.diagnosis.causes import CANDIDATES
-    from octoroach_model.recordings.bagio.safe_yaml import load_yaml_file
+    from octoroach_model.safe_yaml import load_yaml_file
 
     path = Path(path)
-    data = load_yaml_file(path)
+    data = load_yaml_file(path, ParameterError)
     if not isinstance(data, dict) or not isinstance(data.get('looks'), dict):
         raise ParameterError(f'{path}: a looks spec is a study spec with a looks: mapping')
     data = dict(data)

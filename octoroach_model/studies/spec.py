@@ -252,19 +252,11 @@ MAX_SIGMA_RAD = 1.5
 
 def load_spec(path: str | Path) -> StudySpec:
     """Read and check a spec file; one-line ParameterError for anything wrong."""
-    import yaml
+    from octoroach_model.fileio import user_path
+    from octoroach_model.safe_yaml import load_yaml_file
 
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as error:
-        raise ParameterError(f'cannot read the spec {path}: {error.strerror or error}') from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, 'problem_mark', None)
-        where = f' (line {mark.line + 1})' if mark is not None else ''
-        raise ParameterError(f'{path} is not valid YAML{where}') from None
+    path = user_path(path, 'the spec')
+    data = load_yaml_file(path, ParameterError, f'the spec {path}')
     spec = parse_spec(data, default_name=path.stem)
     return dataclasses.replace(spec, source=str(path))
 

@@ -21,7 +21,8 @@ import time
 from typing import Any
 
 from octoroach_model.errors import DataError, OutputError, ParameterError
-from octoroach_model.fileio import check_writable, folder_lock, LOCK_NAME, write_text_atomic
+from octoroach_model.fileio import (check_writable, folder_lock, LOCK_NAME, user_path,
+                                    write_text_atomic)
 from octoroach_model.jsonio import dumps
 from octoroach_model.limits import MAX_STUDY_TASKS
 from octoroach_model.studies.design import build_tasks
@@ -76,7 +77,7 @@ def run_study(spec: StudySpec | str | Path | Mapping[str, Any], out: str | Path,
     per core); `workers=0` runs every task in this process, one after another.
     """
     spec = as_spec(spec)
-    out = Path(out)
+    out = user_path(out, 'the study folder')
     check_where(client, scheduler, workers)
     check_size(spec)
     tasks = build_tasks(spec)

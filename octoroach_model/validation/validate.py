@@ -23,7 +23,7 @@ from octoroach_model.jsonio import fields_jsonable
 from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
 from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.paths import check_paths, Paths
-from octoroach_model.settings import check_fields, setting
+from octoroach_model.settings import check_fields, setting, shown
 from octoroach_model.validation.multisample import chernoff_sample_size, disjoint_multisamples
 from octoroach_model.validation.region import prediction_region, t_multiplier, violations
 
@@ -247,7 +247,7 @@ def validate(measured: Paths, settings: ValidationSettings | None = None,
     model = model or FourBarModel()
     if not callable(model):
         raise ParameterError('model must be a plug-in: a FourBarModel, or a callable (sigmas, '
-                             f'seed, n_runs, t) -> poses, got a {type(model).__name__}')
+                             f'seed, n_runs, t) -> poses, got {shown(model)}')
     validation = Validation(measured, settings)
     if sigmas is not None:
         violation = validation.violation(model, sigmas)

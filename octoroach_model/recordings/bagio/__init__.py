@@ -8,5 +8,6 @@ Bag I/O: rosbag2 (MCAP, sqlite3) and ROS 1 bags read and written, message by mes
 - `writer.BagWriter`: rosbag2 Jazzy bags on mcap's Writer, with a crash-safe mode;
 - `recording.Recording`: the recorder's bag (reception order, periodic flush);
 - `repair`: a bag left by a killed recorder made complete;
-- `qos`, `msgtypes`, `safe_yaml`: QoS profiles, message types and YAML as bags keep them.
+- `qos`, `msgtypes`: QoS profiles and message types as bags keep them (their YAML is read
+  by the package's `safe_yaml`).
 """

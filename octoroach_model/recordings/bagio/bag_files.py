@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import NamedTuple, Union
 
 from octoroach_model.errors import BagError
-from octoroach_model.recordings.bagio.safe_yaml import load_yaml_file
+from octoroach_model.safe_yaml import load_yaml_file
 
 PathLike = Union[str, 'os.PathLike[str]']
 

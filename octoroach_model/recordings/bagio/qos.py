@@ -164,7 +164,7 @@ def load_profiles(value: str | Sequence[Mapping[str, Any]] | None) -> tuple[QosP
         return ()
     entries: Any = value  # YAML text parses to anything: checked below
     if isinstance(value, str):
-        from octoroach_model.recordings.bagio.safe_yaml import load_yaml_text
+        from octoroach_model.safe_yaml import load_yaml_text
 
         entries = load_yaml_text(value, 'offered_qos_profiles')
         if not entries:

@@ -36,7 +36,6 @@ from octoroach_model.recordings.bagio.bag_files import (
 )
 from octoroach_model.recordings.bagio.qos import load_profiles
 from octoroach_model.recordings.bagio.reader import FileDamage, iter_mcap_records, TRUNCATION_KEY
-from octoroach_model.recordings.bagio.safe_yaml import load_yaml_file
 from octoroach_model.recordings.bagio.writer import (
     FileRecord,
     McapFileWriter,
@@ -44,6 +43,7 @@ from octoroach_model.recordings.bagio.writer import (
     TopicRecord,
     write_metadata_yaml,
 )
+from octoroach_model.safe_yaml import load_yaml_file
 
 DAMAGED_SUFFIX = '.damaged'
 

@@ -23,9 +23,9 @@ import zipfile
 import numpy as np
 
 from octoroach_model.errors import DataError, OutputError
-from octoroach_model.fileio import atomic_file
+from octoroach_model.fileio import atomic_file, user_path
 from octoroach_model.jsonio import jsonable
-from octoroach_model.paths import Paths
+from octoroach_model.paths import check_paths, Paths
 from octoroach_model.recordings.runs.npz_check import check_arrays
 
 FORMAT_NAME = 'octoroach_model.dataset'
@@ -43,7 +43,8 @@ def save_dataset(path: PathLike, paths: Paths, *, replace: bool = False) -> Path
     never leaves half a file; an existing file is replaced only with `replace` (else
     OutputError), and no symbolic link is followed.
     """
-    target = Path(path)
+    target = user_path(path, 'the data set file')
+    check_paths(paths)
     info = jsonable(dict(paths.info))
     info.update({
         'format': FORMAT_NAME,
@@ -76,7 +77,7 @@ def is_dataset_file(path: PathLike) -> bool:
 
 def load_dataset(path: PathLike) -> Paths:
     """Read a data set file; a file of any other kind raises DataError saying why."""
-    source = Path(path)
+    source = user_path(path, 'the data set file')
     if not source.is_file():
         raise DataError(f'{source}: no such data set file')
     check_arrays(source, ('t', 'poses'), ('info_json',))   # sizes before allocating

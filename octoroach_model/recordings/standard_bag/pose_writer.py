@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 
 from octoroach_model.errors import BagError, DataError
-from octoroach_model.paths import HEADING, Paths, X, Y
+from octoroach_model.fileio import user_path
+from octoroach_model.paths import check_paths, HEADING, Paths, X, Y
 from octoroach_model.recordings.bagio.bag_files import PathLike
 from octoroach_model.recordings.bagio.msgtypes import jazzy_types
 from octoroach_model.recordings.bagio.qos import History, QosProfile
@@ -193,6 +194,8 @@ def write_paths_bag(out_path: PathLike, paths: Paths, *, topic: str = DEFAULT_PO
     Returns the bag directory. `bag_name`: `out_path` is a new empty folder that becomes the
     bag of that name when complete (BagWriter).
     """
+    out_path = user_path(out_path, 'the bag folder')
+    check_paths(paths)
     if not gap_s >= 1.0:
         raise DataError(f'{out_path}: gap between runs must be at least 1 s, got {gap_s}')
     times = np.asarray(paths.t, dtype=float)
