@@ -31,8 +31,8 @@ from typing import Any
 
 from octoroach_model.errors import ParameterError
 
-__all__ = ['Setting', 'check_fields', 'check_setting', 'check_value', 'number', 'setting',
-           'settings_of', 'shown']
+__all__ = ['Setting', 'check_fields', 'check_kinds', 'check_setting', 'check_value', 'number',
+           'setting', 'settings_of', 'shown']
 
 METADATA_KEY = 'setting'
 
@@ -78,13 +78,13 @@ class Setting:
             return value in self.choices
         if not isinstance(value, numbers.Real) or isinstance(value, bool):
             return True                         # numpy's numbers too; kinds: check_setting
-        number = float(value)
-        if not math.isfinite(number):           # NaN lies in no range; no setting is infinite
+        real = float(value)
+        if not math.isfinite(real):             # NaN lies in no range; no setting is infinite
             return False
-        if self.low is not None and (number <= self.low if self.open_low else number < self.low):
+        if self.low is not None and (real <= self.low if self.open_low else real < self.low):
             return False
-        return self.high is None or not (number >= self.high if self.open_high
-                                         else number > self.high)
+        return self.high is None or not (real >= self.high if self.open_high
+                                         else real > self.high)
 
     def help_text(self) -> str:
         """Return an option's help: 'description [unit]; range' (choices: argparse lists them)."""
@@ -148,6 +148,15 @@ def check_fields(record: Any) -> None:
     """Raise ParameterError with a one-line reason for the first field of a wrong kind or range."""
     for name in settings_of(record):
         check_setting(type(record), name, getattr(record, name))
+
+
+def check_kinds(record: Any) -> None:
+    """Raise ParameterError for the first field of a plain kind (int, str, ...) holding another."""
+    record_type: type = type(record)
+    for name, kind in field_kinds(record_type).items():
+        value = getattr(record, name)
+        if not kind.holds(value):
+            raise ParameterError(f'{name} must be {kind.words}, got {shown(value)}')
 
 
 def check_setting(record_type: type, name: str, value: Any) -> None:

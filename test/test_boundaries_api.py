@@ -115,3 +115,18 @@ def test_the_entry_points_that_take_file_names_refuse_anything_else(call, reason
         call()
     assert '\n' not in str(caught.value)
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize('values, reason', [
+    ({'accept_loose_fit': 'no'}, 'accept_loose_fit must be true or false, got text'),
+    ({'topic': 5}, 'topic must be text or none, got 5'),
+    ({'markers': 'LF,RF,B'}, r'markers must be a list of marker names \(not one text'),
+    ({'markers': 3}, 'markers must be a list of marker names'),
+])
+def test_read_options_refuse_a_value_of_another_kind(values, reason):
+    """'no' would have read as true, and 'A,B' as the markers A, ',' and B."""
+    from octoroach_model.recordings.options import ReadOptions
+
+    with pytest.raises(ParameterError, match=reason):
+        ReadOptions(**values)
+    assert ReadOptions(markers=['LF', 'RF']).markers == ('LF', 'RF')

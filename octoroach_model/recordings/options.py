@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.recordings.conventions.axes import forward_angle_rad, FORWARD_AXES, UP_AXES
-from octoroach_model.settings import Setting, setting
+from octoroach_model.settings import check_kinds, Setting, setting
 
 # Settings of reading that programs and nodes share (`settings`: one source for each)
 TOPIC = Setting('pose topic; empty or not given: the VICON one, or the only pose topic')
@@ -55,6 +55,12 @@ class ReadOptions:
     accept_loose_fit: bool = False
 
     def __post_init__(self) -> None:
+        check_kinds(self)        # accept_loose_fit='no' would read as true, topic=5 fail late
+        if not isinstance(self.markers, (list, tuple)) or not all(isinstance(name, str)
+                                                                  for name in self.markers):
+            raise ParameterError('markers must be a list of marker names (not one text: '
+                                 "['A', 'B'], not 'A,B')")
+        object.__setattr__(self, 'markers', tuple(self.markers))
         if self.forward_axis not in FORWARD_AXES:
             raise ParameterError(f'forward axis must be one of {", ".join(FORWARD_AXES)}, '
                                  f'got {self.forward_axis!r}')
