@@ -41,6 +41,16 @@ class Paths:
     info: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        for name in ('t', 'poses'):         # a user's lists of numbers, as arrays of floats
+            value = getattr(self, name)
+            if not isinstance(value, np.ndarray):
+                try:
+                    object.__setattr__(self, name, np.asarray(value, dtype=float))
+                except (TypeError, ValueError):
+                    raise ValueError(f'{name} must be an array of numbers, got a '
+                                     f'{type(value).__name__}') from None
+        if self.t.ndim != 1:
+            raise ValueError(f't must be (T,), got {self.t.shape}')
         if self.poses.ndim != 3 or self.poses.shape[2] != 3:
             raise ValueError(f'poses must be (n, T, 3), got {self.poses.shape}')
         if self.poses.shape[1] != self.t.shape[0]:

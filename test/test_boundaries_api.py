@@ -130,3 +130,15 @@ def test_read_options_refuse_a_value_of_another_kind(values, reason):
     with pytest.raises(ParameterError, match=reason):
         ReadOptions(**values)
     assert ReadOptions(markers=['LF', 'RF']).markers == ('LF', 'RF')
+
+
+def test_paths_take_lists_of_numbers_and_say_in_one_line_what_they_need():
+    """A user's own arrays (their motion capture, read their way) become Paths directly."""
+    runs = om.Paths([0.0, 0.02], [[[0.0, 0.0, 1.57], [0.001, 0.0, 1.57]]])
+    assert runs.poses.dtype == float and runs.n_paths == 1
+    for t, poses, reason in (([0.0, 0.02], [[[0.0, 0.0]] * 2], r'poses must be \(n, T, 3\)'),
+                             ([[0.0, 0.02]], np.zeros((1, 2, 3)), r't must be \(T,\)'),
+                             ('t', np.zeros((1, 2, 3)), 't must be an array of numbers'),
+                             ([0.0], np.zeros((1, 2, 3)), '1 times but 2 samples per run')):
+        with pytest.raises(ValueError, match=reason):
+            om.Paths(t, poses)
