@@ -4,7 +4,8 @@
 Runs colcon from the venv on the checkout, into a temporary build/install/log base so the
 tree is left alone, then looks at the install space: executables in lib/<package>, the ament
 index marker, package.xml, the Table II config, the nodes' params files and the launch file in
-share/<package> (every file the launch file names resolves there); and runs one installed
+share/<package> (every file the launch file names resolves there), the PEP 561 marker
+py.typed beside the modules; and runs one installed
 executable against the installed copy (AMENT_PREFIX_PATH, PYTHONPATH) to see it find them.
 """
 from __future__ import annotations
@@ -55,6 +56,7 @@ def test_colcon_build_installs_executables_index_and_share_files(tmp_path):
         assert named and all(path.is_file() for path in named), node
 
     site = next(prefix.glob('lib/python3*/site-packages'))
+    assert (site / PACKAGE / 'py.typed').is_file()     # PEP 561: users' mypy sees the types
     run_env = dict(env, AMENT_PREFIX_PATH=str(prefix), PYTHONPATH=str(site))
     helped = subprocess.run(
         [str(prefix / 'lib' / PACKAGE / 'simulator'), '--help'], cwd=tmp_path, env=run_env,
