@@ -117,6 +117,11 @@ class NamedStreams(Mapping[str, NormalSource]):
         return len(self._index)
 
 
+def _count(value: float) -> str:
+    """Write a count as people read it: 40 000 000, or 2.51e+11 past a trillion."""
+    return f'{int(value):,}'.replace(',', ' ') if value < 1e12 else f'{value:.3g}'
+
+
 def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = None,
              sigma2: float | None = None, cycles: float = 10,
              parameters: ModelParameters | None = None,
@@ -173,7 +178,7 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
     sigma1 = default_sigma1 if sigma1 is None else number('sigma1', sigma1)
     sigma2 = default_sigma2 if sigma2 is None else number('sigma2', sigma2)
     if (isinstance(n_paths, bool) or not isinstance(n_paths, numbers.Real)
-            or not n_paths >= 1 or int(n_paths) != n_paths):
+            or not (1 <= n_paths < math.inf) or int(n_paths) != n_paths):
         raise ParameterError(f'n_paths must be a positive whole number, got {shown(n_paths)}')
     if isinstance(seed, (bool, float, str)):
         raise ParameterError(f'seed must be a non-negative whole number or None, got '
@@ -196,10 +201,11 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
                                  f'{t.shape}')
     samples = int(n_paths) * (parameters.samples(cycles) if t is None else len(t))
     if samples > MAX_SIMULATED_SAMPLES:
-        raise ParameterError(f'{int(n_paths)} runs of {samples // int(n_paths)} samples are '
-                             f'{samples} samples, above the {MAX_SIMULATED_SAMPLES} one call '
-                             'simulates (limits.py): simulate fewer or shorter runs, or in '
-                             'batches with seeds of their own')
+        raise ParameterError(f'{_count(n_paths)} runs of {_count(samples // int(n_paths))} '
+                             f'samples are {_count(samples)} samples, above the '
+                             f'{_count(MAX_SIMULATED_SAMPLES)} one call simulates (limits.py): '
+                             'simulate fewer or shorter runs, or in batches with seeds of '
+                             'their own')
     t = parameters.time_grid(cycles) if t is None else t
     try:
         streams = RandomStreams(seed)
