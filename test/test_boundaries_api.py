@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 import tracemalloc
 
+from hidden_effects import SEED
+from hypothesis import given, seed, settings, strategies as st
 import numpy as np
 import pytest
 
@@ -142,3 +144,27 @@ def test_paths_take_lists_of_numbers_and_say_in_one_line_what_they_need():
                              ([0.0], np.zeros((1, 2, 3)), '1 times but 2 samples per run')):
         with pytest.raises(ValueError, match=reason):
             om.Paths(t, poses)
+
+
+ODD = st.one_of(st.none(), st.booleans(), st.text(max_size=4), st.lists(st.integers(), max_size=2),
+                st.floats(allow_nan=True, allow_infinity=True), st.integers(-10, 10))
+NAMES = st.sampled_from([*om.EFFECT_NAMES, 'heading_random_walk', 'wobble'])
+
+
+@seed(SEED)                                      # the suite's: OCTOROACH_TEST_SEED replays it
+@settings(max_examples=120, deadline=None, database=None)
+@given(n_paths=st.one_of(st.integers(1, 6), ODD), run_seed=st.one_of(st.integers(0, 99), ODD),
+       cycles=st.one_of(st.floats(0.5, 6.0), ODD), sigma1=st.one_of(st.floats(0.0, 0.3), ODD),
+       effects=st.one_of(ODD, st.dictionaries(NAMES, st.one_of(ODD, st.dictionaries(
+           st.sampled_from(['velocity_cm_s', 'fraction', 'step_std_deg', 'x']), ODD)),
+           max_size=2)))
+def test_simulate_returns_runs_or_refuses_in_one_line_whatever_it_is_given(
+        n_paths, run_seed, cycles, sigma1, effects):
+    """Any mix of odd arguments: runs of the asked shape, or one ParameterError line."""
+    try:
+        runs = om.simulate(n_paths, seed=run_seed, cycles=cycles, sigma1=sigma1,
+                           effects=effects)
+    except ParameterError as error:
+        assert '\n' not in str(error) and str(error), repr(error)
+        return
+    assert runs.poses.shape[0] == n_paths and np.all(np.isfinite(runs.poses[:, 0]))
