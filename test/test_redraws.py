@@ -163,7 +163,9 @@ def test_a_close_call_is_decided_on_runs_scored_again(monkeypatch):
     resamples 400 times. The bound is the hidden cause's (persistent_turning: 0.34-0.75 over
     70 seeds, median 0.52): a term not in the runs that a test decides on (at 3 of those 70
     seeds) fell less, to 0.85-0.88 (speed_decay, change_point; 0.855 failed this bound at
-    suite seed 90009), and is held to falling at all.
+    suite seed 90009), and is held to falling at all. Its gain is mostly scoring noise (t's
+    error about 2 where t is 0.2-2.6), and a t is scale-free: a t of noise keeps an error of
+    order one however many runs are scored.
     """
     import importlib
 
