@@ -23,6 +23,7 @@ from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
 from octoroach_model.limit_setting import check_term_names
 from octoroach_model.model.effects import parameter_range
+from octoroach_model.settings import number as real_number
 from octoroach_model.studies.terms import (
     main_parameter, parameters as term_parameters, signed, term_named, term_of, TERMS)
 
@@ -578,11 +579,10 @@ def _draw(value: Any, where: str) -> Draw:
 
 
 def _number(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ParameterError(f'{where} must be a number, got {value!r}')
-    if not math.isfinite(value):
-        raise ParameterError(f'{where} must be finite, got {value}')
-    return float(value)
+    number = real_number(where, value)          # the kind; a text is not quoted from the file
+    if not math.isfinite(number):
+        raise ParameterError(f'{where} must be finite, got {number}')
+    return number
 
 
 def _whole(value: Any, where: str, minimum: int, why: str = '') -> int:
