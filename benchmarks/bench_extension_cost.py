@@ -9,7 +9,7 @@ The earlier release is copied out of this repository's history into a temporary 
 environment; the two programs alternate, REPEATS times each, so that a busy machine slows
 both alike. Prints the median wall time of each and their ratio (issue 23 asks for at most
 1.5). `--candidate REV` times another commit in place of this checkout (copied out the same
-way), so that a figure about two past commits can be measured again (README, "Speed":
+way), so that a figure about two past commits can be measured again (docs/speed.md:
 c5602ef against 878b61e).
 
 Run: .venv/bin/python benchmarks/bench_extension_cost.py [--baseline REV] [--candidate REV]

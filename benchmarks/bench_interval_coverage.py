@@ -12,8 +12,9 @@ standardised errors (estimate - truth) / reported standard error: near 1 where t
 errors are right; a mean far from 0 is a bias the interval does not count.
 
 Why: studies/ramp_limits.yaml's intervals held the truth in 13 of 17 rows, two robots
-(replicates 7 and 9) off by the same amount at both multiples (README, "What the diagnosis
-can find"); whether their errors are too small or those were two unlucky draws was open.
+(replicates 7 and 9) off by the same amount at both multiples (docs/measured.md,
+"yaw_rate_ramp, the newest family"); whether their errors are too small or those were two
+unlucky draws was open.
 
 With `--tables`, it reads studies' tables instead (out/studies/*/table.csv) and prints, per
 study and term, how many named terms' intervals held the truth and the mean and spread of their

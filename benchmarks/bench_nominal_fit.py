@@ -5,7 +5,7 @@ For robots around Table II (touchdown angles within 5 deg, spreads 0.5-1.2 x Tab
 runs each: the error of the fitted touchdown angles when eq. 9 matches the deterministic path
 (every angle at its nominal value) to the average path, and when the mean of simulated runs
 at the true spreads is matched instead, as the diagnosis does (with the sway within a stride,
-in the data's standard errors). Prints a table for README.
+in the data's standard errors). Prints the table of docs/speed.md, "The nominal fit".
 
 A second table: the paper's fit as `validate` makes it (`fit_nominal`'s defaults) on runs of
 Table II/III of growing length (LENGTHS cycles, RUNS_BY_LENGTH runs, three data seeds each):

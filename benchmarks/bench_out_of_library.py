@@ -30,9 +30,9 @@ finishes); a stopped run resumes where it stopped.
 Run: .venv/bin/python benchmarks/bench_out_of_library.py [--replicates 6] [--workers 2]
      [--effects none speed_wobble yaw_ramp] [--out out/studies/out_of_library_scored/rows.jsonl]
      [--report-only]
-(README's rows: out/studies/out_of_library_scored, with the ramp's signature scored; those of
-out/studies/out_of_library_ramp are from before that, with the family yaw_rate_ramp, and those
-of out/studies/out_of_library from before the family.)
+(docs/measured.md's rows: out/studies/out_of_library_scored, with the ramp's signature
+scored; those of out/studies/out_of_library_ramp are from before that, with the family
+yaw_rate_ramp, and those of out/studies/out_of_library from before the family.)
 A data set takes 14-426 s of one core (a null the least, a swinging gait speed the most).
 """
 from __future__ import annotations
@@ -129,7 +129,7 @@ def read_rows(path: Path) -> list[dict]:
 
 
 def table(rows: list[dict]) -> str:
-    """Return the README's table: per effect, what the reports said."""
+    """Return the table of docs/measured.md: per effect, what the reports said."""
     from octoroach_model.studies.summary import wilson
 
     lines = ['| effect | data sets | reported not adequate | nothing named | its own family '

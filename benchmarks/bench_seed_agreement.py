@@ -15,7 +15,7 @@ diagnosis is checked against the study's row.
 
 Arms at 1x a detection limit are where it matters: the limit is the size named in 80 % of data
 sets, so some of them sit near the decision's threshold. Null data sets are left out (their
-limits double the cost; a named term on them is rare, README "False positives").
+limits double the cost; a named term on them is rare, docs/measured.md, "False positives").
 
 Every diagnosis is appended to `--results` (JSON lines, with the commit it ran at) as it ends;
 one already there is not run again (unless `--again`), so an interrupted run resumes and

@@ -8,9 +8,9 @@ Two parts:
   64-core cluster would diagnose, derived from these (64 workers at the measured per-worker
   efficiency). With `--limit-terms TERM ...` the null data sets compute those terms' detection
   limits alone (a study that reads no others), not every term's.
-- `--studies` (hours on this machine): runs the README's studies (false_positives, power,
-  limits, two_causes, wide_robots in studies/) into out/studies/NAME, resuming any that an
-  earlier call left unfinished, and prints the README tables from their summary.json. With
+- `--studies` (hours on this machine): runs the studies of docs/measured.md (false_positives,
+  power, limits, two_causes, wide_robots in studies/) into out/studies/NAME, resuming any that an
+  earlier call left unfinished, and prints their tables from their summary.json. With
   `--report-only` it prints the tables of the studies already in out/studies, also of a study
   kept under another name after a change (`--studies ramp_limits_7358d86`: the spec named in
   its study.json, which must still be the one in studies/). With `--compare OTHER` it then

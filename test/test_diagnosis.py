@@ -6,13 +6,12 @@ every failure message; `OCTOROACH_TEST_SEED=N make test` replays a run):
 - one random cause at a time, twice: it alone is named, its size within 40 %;
 - two causes at once: both named (and nothing else), each within 40 %;
 - a null from the paper's model (Table II), and one from a robot drawn at random from the
-  robot space of README's false-positive table: no cause named;
+  robot space of the false-positive study (docs/measured.md): no cause named;
 - an effect outside the table (a slow yaw wobble, `wobble` below, written independently of
   the package's simulator): the extension family periodic_heading finds and sizes it, and no
   cause of the table is named for it (test_extensions.py hides every family; an effect that
   neither the table nor the library names is left unexplained there).
-Sizes come from HIDDEN_RANGE, where 300 runs of 10 cycles find a cause reliably (README,
-"What the diagnosis can find").
+Sizes come from HIDDEN_RANGE, where 300 runs of 10 cycles find a cause reliably (docs/measured.md).
 """
 from __future__ import annotations
 
@@ -98,7 +97,7 @@ def test_two_causes_at_once_are_both_named_with_their_sizes():
     found = named_sizes(report)
     message = f'{replay(f"hidden {effects}")}: named {found}'
     # both named, as the diagnosis must; a third, spurious cause beside two large ones is a
-    # known weakness (README), tolerated here but not a fourth
+    # known weakness (docs/measured.md), tolerated here but not a fourth
     assert {first, second} <= set(found) and len(found) <= 3, message
     for cause in (first, second):
         truth = effects[cause][main_parameter(cause)]
@@ -110,7 +109,7 @@ def test_two_causes_at_once_are_both_named_with_their_sizes():
 
 def random_robot(rng: random.Random) -> tuple[om.ModelParameters, int, int, float]:
     """
-    Draw a robot of README's false-positive table.
+    Draw a robot of the false-positive study's space (docs/measured.md).
 
     Touchdown angles within 5 deg of Table II, leg 1.8-2.6 cm, strides 1.5-3.5 Hz, 8-14
     cycles, 50/100/200 Hz, 150-600 runs (up to 1000 in the benchmark; fewer here for time),

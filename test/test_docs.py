@@ -22,7 +22,7 @@ DOCS = REPO / 'docs'
 OWN_PAGES = ('index.md', 'model.md', 'validation.md', 'causes.md', 'extensions.md')
 # Pages other parts of the project write; a link to one is checked once the page exists.
 OTHER_PAGES = ('diagnosis.md', 'report.md', 'ros.md', 'bags.md', 'formats.md',
-               'formats_mocap.md', 'studies.md')
+               'formats_mocap.md', 'studies.md', 'measured.md', 'speed.md')
 LINK = re.compile(r'\]\(([^)\s]+)\)')
 CHECKED_BLOCK = re.compile(
     r'<!-- test/test_docs\.py runs the next Python block.*?-->\s*'

@@ -66,8 +66,7 @@ spread's, and no mixture at that limit was named: 0 of 8.)
 
 The limit solves P1(s) P2(s) P3(s) = POWER (P3 = 1 but for run_mixture), at the levels of the
 first step (every candidate in the race: the strictest). Whether limits computed this way hold
-is measured by studies/limits.yaml and studies/open_world.yaml (README: "What the diagnosis can
-find").
+is measured by studies/limits.yaml and studies/open_world.yaml (docs/measured.md).
 """
 from __future__ import annotations
 

@@ -5,8 +5,8 @@ Everything a diagnosis decides from is partly simulated: the mean paths the geom
 to, the lines sizes are read off, the runs the held-out half is scored against. On the same
 measured runs, another draw of those simulations can change a decision that sits near its
 threshold: at a detection limit, a study's data sets named the same terms at two seeds, the
-halves kept, on 7 of 11 (run_mixture) and 10 of 12 (heading_random_walk) (README, "The same
-runs, another seed"). A decision that changes with the draw rests partly on it.
+halves kept, on 7 of 11 (run_mixture) and 10 of 12 (heading_random_walk) (docs/measured.md,
+"The same runs, another seed"). A decision that changes with the draw rests partly on it.
 
 With `DiagnosisSettings.simulation_draws` K > 1, the diagnosis is made K - 1 more times on
 the same halves (`split_seed` held at the report's), the simulations drawn from seed + 1, ...,
