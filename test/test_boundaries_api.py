@@ -39,6 +39,10 @@ from octoroach_model.limits import MAX_SIMULATED_SAMPLES
      'lateral_slip.velocity_cm_s must be a number, got text'),
     ({'effects': {'heading_random_walk': {'step_std_deg': None}}},
      'heading_random_walk.step_std_deg must be a number, got None'),
+    ({'extensions': {'change_point': {'time_s': 1.0, 'speed_factor': '0.9'}}},
+     r'change_point.speed_factor must be a number, got text \(3 characters, not shown\)'),
+    ({'extensions': [('run_order_drift', {'parameter': 'yaw_rate', 'change': True})]},
+     'run_order_drift:yaw_rate.change must be a number, got True'),
 ])
 def test_simulate_refuses_a_bad_argument_in_one_line(arguments, reason):
     arguments = {'n_paths': 3, **arguments}

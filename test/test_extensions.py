@@ -225,6 +225,14 @@ def test_simulate_writes_runs_with_an_extension_in_recording_order(tmp_path):
          'parameter=speed'], capture_output=True, text=True, timeout=60)
     assert bad.returncode != 0 and bad.stderr.count('\n') == 1 and 'Traceback' not in bad.stderr
     assert 'run_order_drift needs parameter' in bad.stderr
+    not_a_number = subprocess.run(
+        [sys.executable, '-m', 'octoroach_model', 'simulate', '--paths', '2', '--out',
+         str(tmp_path / 'bad'), '--extension', 'change_point', '--extension-param',
+         'speed_factor=slow'], capture_output=True, text=True, timeout=60)
+    assert not_a_number.returncode == 1, not_a_number.stderr
+    assert not_a_number.stderr == ("error: simulate: --extension-param speed_factor=slow: 'slow' "
+                                   'is not a number\n')
+    assert not (tmp_path / 'bad').exists()
 
 
 def test_a_data_set_and_shuffled_inputs_keep_the_recording_order(tmp_path):

@@ -39,14 +39,16 @@ def parse_effects(pairs: list[tuple[str, str]]) -> dict[str, dict[str, float]]:
     return effects
 
 
-def parse_extensions(pairs: list[tuple[str, str]]) -> list[tuple[str, dict[str, str]]]:
+def parse_extensions(pairs: list[tuple[str, str]]
+                     ) -> list[tuple[str, dict[str, str | float]]]:
     """
     Group --extension FAMILY and --extension-param KEY=VALUE pairs, in command-line order.
 
-    A parameter belongs to the --extension before it. Values stay text here (run_order_drift's
-    `parameter` names what drifts); `model.extensions.family_terms` checks and converts them.
+    A parameter belongs to the --extension before it. Every value is a number but
+    run_order_drift's `parameter`, which names what drifts; `model.extensions.family_terms`
+    checks them.
     """
-    extensions: list[tuple[str, dict[str, str]]] = []
+    extensions: list[tuple[str, dict[str, str | float]]] = []
     for option, value in pairs:
         if option == 'extension':
             extensions.append((value, {}))
@@ -56,7 +58,13 @@ def parse_extensions(pairs: list[tuple[str, str]]) -> list[tuple[str, dict[str, 
             raise ParameterError(f'--extension-param takes KEY=VALUE, got {value!r}')
         if not extensions:
             raise ParameterError(f'--extension-param {value} comes before any --extension NAME')
-        extensions[-1][1][key] = text
+        if key == 'parameter':
+            extensions[-1][1][key] = text
+            continue
+        try:
+            extensions[-1][1][key] = float(text)
+        except ValueError:
+            raise ParameterError(f'--extension-param {value}: {text!r} is not a number') from None
     return extensions
 
 

@@ -250,13 +250,8 @@ def family_terms(extensions: Extensions | None) -> dict[str, dict[str, float]]:
 
 
 def _numbers(name: str, values: Mapping[str, object]) -> dict[str, float]:
-    numbers = {}
-    for key, value in values.items():
-        try:
-            numbers[key] = float(value)  # type: ignore[arg-type]
-        except (TypeError, ValueError):
-            raise ParameterError(f'{name}.{key} = {value!r} is not a number') from None
-    return numbers
+    """Return a term's parameters as floats; a text is refused, not parsed (the CLI parses)."""
+    return {key: number(f'{name}.{key}', value) for key, value in values.items()}
 
 
 def family_form(term: str, values: Mapping[str, float]) -> tuple[str, dict[str, float | str]]:
