@@ -41,6 +41,7 @@ from octoroach_model.jsonio import dumps
 from octoroach_model.settings import check_setting, number, setting, shown
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
+from octoroach_model.studies.plan_model import runs_interval_text
 from octoroach_model.studies.power_curve import fit_power_curve, INTERVAL_METHOD, PowerFit
 from octoroach_model.studies.rows import Status, StudyRow
 from octoroach_model.studies.spec import (
@@ -354,7 +355,7 @@ def _model_result(base: StudySpec, cause: str, size: float, power: float, answer
     else:
         status, needed = PlanStatus.FOUND, int(math.ceil(answer.runs))
         statement = (f'about {needed} runs name {what} with {_power_text(power)} power (95 % '
-                     f'interval {_runs_interval_text(low or math.inf, high or math.inf)}; '
+                     f'interval {runs_interval_text(low or math.inf, high or math.inf)}; '
                      f'{basis})')
     curve = []
     for runs in sorted({check.runs for check in checks}):
@@ -483,7 +484,7 @@ def _result(base: StudySpec, cause: str, size: float, power: float,
         status, needed = PlanStatus.FOUND, int(math.ceil(answer))
         low, high = (max(value, min_runs) for value in fit.interval_95)
         statement = (f'about {needed} runs name {what} with {_power_text(power)} power (95 % '
-                     f'interval {_runs_interval_text(low, high)}, from {len(rows)} diagnosed '
+                     f'interval {runs_interval_text(low, high)}, from {len(rows)} diagnosed '
                      'data sets)')
     interval_low, interval_high = (float(max(v, min_runs)) if math.isfinite(v) else None
                                    for v in fit.interval_95)
@@ -494,15 +495,6 @@ def _result(base: StudySpec, cause: str, size: float, power: float,
                       status, statement, tuple(curve), logistic, pilot, base.robot,
                       replicates, seed, round(elapsed_s, 2),
                       tuple(sorted(rows, key=lambda row: (row.runs, row.replicate))))
-
-
-def _runs_interval_text(low: float, high: float) -> str:
-    """Say an interval of run counts: '150 to 400 runs', '150 runs to more than any tried'."""
-    if math.isfinite(high):
-        return f'{low:.0f} to {high:.0f} runs'
-    if math.isfinite(low):
-        return f'{low:.0f} runs to more than any run count tried'
-    return 'more than any run count tried'
 
 
 def _power_text(power: float) -> str:

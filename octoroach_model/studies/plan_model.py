@@ -204,8 +204,7 @@ def plan_by_model(spec: StudySpec, question: Question, *, min_runs: int, max_run
     calibration = Calibration.for_term(question.term)
     answer = answer_of(curve, calibration, question.power, min_runs, max_runs)
     say(0.3, f'pilots done ({time.monotonic() - started:.1f} s): predicted '
-             f'{_runs_text(answer[0])} runs (95 % {_runs_text(answer[1][0])} to '
-             f'{_runs_text(answer[1][1])}), calibration shift {calibration.shift:+.2f}, '
+             f'{runs_answer_text(*answer)}, calibration shift {calibration.shift:+.2f}, '
              f'slope x{calibration.slope:.2f}')
     deadline = started + budget_s if checks is None else math.inf
     done = _check(spec, question, curve, calibration, answer, min_runs, max_runs, executor,
@@ -308,8 +307,7 @@ def _check(spec: StudySpec, question: Question, curve: PredictedCurve,
             f'check {len(done)}: {runs_done} runs, '
             + ('named' if outcome.named else 'not named' if outcome.status == Status.OK
                else f'failed ({outcome.note})')
-            + f' (predicted power {predicted:.0%}); answer now {_runs_text(answer[0])} '
-              f'runs (95 % {_runs_text(answer[1][0])} to {_runs_text(answer[1][1])})')
+            + f' (predicted power {predicted:.0%}); answer now {runs_answer_text(*answer)}')
 
 
 def _curve_points(curve: PredictedCurve, calibration: Calibration,
@@ -326,8 +324,19 @@ def _curve_points(curve: PredictedCurve, calibration: Calibration,
     return tuple(points)
 
 
-def _runs_text(value: float) -> str:
-    return f'{value:.0f}' if math.isfinite(value) else 'more than any count'
+def runs_interval_text(low: float, high: float) -> str:
+    """Say an interval of run counts: '150 to 400 runs', '150 runs to more than any tried'."""
+    if math.isfinite(high):
+        return f'{low:.0f} to {high:.0f} runs'
+    if math.isfinite(low):
+        return f'{low:.0f} runs to more than any run count tried'
+    return 'more than any run count tried'
+
+
+def runs_answer_text(runs: float, interval: tuple[float, float]) -> str:
+    """Say an answer and its interval: '120 runs (95 % 80 to 400 runs)'."""
+    said = f'{runs:.0f} runs' if math.isfinite(runs) else 'more than any run count tried'
+    return f'{said} (95 % {runs_interval_text(*interval)})'
 
 
 def outcome_rows(checks: Sequence[CheckOutcome]) -> list[dict[str, Any]]:
