@@ -18,6 +18,11 @@ field's annotation says it (int: a whole number, float: a number, str, bool, eac
 where the annotation allows it), so that `DiagnosisSettings(bootstrap=2.5)` or `seed='1'`
 through the Python API is refused in one line, as the programs' options and the nodes'
 parameter types refuse them.
+
+The entry points' other arguments are checked here too, each fact in one place: a number's
+kind (`is_number`, `number`), a flag's (`flag`: true or false, numpy's too, never a text that
+would read as true) and a callback's (`check_callable`: a `progress` given as 5 is refused
+before any work, not when it is first called).
 """
 from __future__ import annotations
 
@@ -29,10 +34,12 @@ import types
 import typing
 from typing import Any
 
+import numpy as np
+
 from octoroach_model.errors import ParameterError
 
-__all__ = ['Setting', 'check_fields', 'check_kinds', 'check_setting', 'check_value', 'number',
-           'setting', 'settings_of', 'shown']
+__all__ = ['Setting', 'check_callable', 'check_fields', 'check_kinds', 'check_setting',
+           'check_value', 'flag', 'is_number', 'number', 'setting', 'settings_of', 'shown']
 
 METADATA_KEY = 'setting'
 
@@ -208,11 +215,40 @@ def field_kinds(record_type: type) -> dict[str, Kind]:
     return found
 
 
+def is_number(value: Any) -> bool:
+    """
+    Tell whether `value` is a real number, Python's or numpy's: a bool, a text, a list is not.
+
+    Quick for a float (numpy's float64 is one) before the slower test against numbers.Real:
+    `ModelParameters` asks it inside the fits' residuals.
+    """
+    return isinstance(value, float) or (isinstance(value, numbers.Real)
+                                        and not isinstance(value, bool))
+
+
 def number(name: str, value: Any) -> float:
     """Return `value` as a float, or raise ParameterError: a text, a bool or a list is not one."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+    if not is_number(value):
         raise ParameterError(f'{name} must be a number, got {shown(value)}')
     return float(value)
+
+
+def flag(name: str, value: Any) -> bool:
+    """Return `value` as a bool, or raise ParameterError: only True or False (numpy's too)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ParameterError(f'{name} must be {KINDS[bool].words}, got {shown(value)}')
+    return bool(value)
+
+
+# how the package calls a progress callback, unless an entry point says otherwise
+PROGRESS_CALL = 'fraction, message'
+
+
+def check_callable(name: str, value: Any, arguments: str = PROGRESS_CALL) -> None:
+    """Raise ParameterError unless `value` is None or callable (as NAME(`arguments`))."""
+    if value is not None and not callable(value):
+        raise ParameterError(f'{name} must be a function, called as {name}({arguments}), or '
+                             f'None, got {shown(value)}')
 
 
 def shown(value: Any) -> str:

@@ -118,6 +118,22 @@ def process_pool(workers: int, *, command: bool = False) -> Iterator[Executor]:
         _workers_ignore_sigint = False
 
 
+def check_executor(executor: Any) -> None:
+    """
+    Refuse in one line what cannot take work: an executor is None or has a callable `submit`.
+
+    concurrent.futures' executors and a Dask client's `get_executor()` have one; their kind is
+    not asked (module docstring), so a caller's own executor is taken too; a class is not one.
+    """
+    if isinstance(executor, type):
+        raise ParameterError('executor must be an executor, not the class '
+                             f'{executor.__name__}: give one, {executor.__name__}(...)')
+    if executor is not None and not callable(getattr(executor, 'submit', None)):
+        raise ParameterError('executor must be None or have a submit method (one of '
+                             'concurrent.futures, or client.get_executor() of a Dask client), '
+                             f'got {shown(executor)}')
+
+
 @contextlib.contextmanager
 def executor_for(executor: Executor | None, workers: int) -> Iterator[Executor]:
     """`executor` itself (left running), else this process (`workers` <= 1) or a pool."""

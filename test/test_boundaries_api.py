@@ -5,10 +5,14 @@ The programs' options and the nodes' parameters are typed and ranged where they 
 `om.simulate`, `om.diagnose`, `om.fit_nominal`, `om.validate` and `om.plan_runs` are called
 with whatever a script holds, so each checks its own arguments and raises a ParameterError
 whose one line says what to give (never a TypeError or AttributeError from deep inside, and
-never an allocation the machine cannot hold: limits.MAX_SIMULATED_SAMPLES).
+never an allocation the machine cannot hold: limits.MAX_SIMULATED_SAMPLES). A callback
+(`progress`), an `executor` and a flag (`plots`, `resume`, ...) are checked as well, before
+any work: `progress=5` is not a TypeError when it is first called, `plots='no'` is not true.
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 import math
 import tracemalloc
 
@@ -18,7 +22,7 @@ import numpy as np
 import pytest
 
 import octoroach_model as om
-from octoroach_model.errors import ParameterError
+from octoroach_model.errors import DataError, ParameterError
 from octoroach_model.limits import MAX_SIMULATED_SAMPLES
 
 
@@ -121,6 +125,110 @@ def test_the_entry_points_that_take_file_names_refuse_anything_else(call, reason
         call()
     assert '\n' not in str(caught.value)
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize('arguments, reason', [
+    ({'progress': 5}, r'progress must be a function, called as progress\(fraction, message\), '
+                      'or None, got 5'),
+    ({'progress': 'say'}, 'progress must be a function, .*, got text'),
+    ({'executor': 'x'}, 'executor must be None or have a submit method .*, got text'),
+    ({'executor': 4}, 'executor must be None or have a submit method .*, got 4'),
+    ({'executor': ThreadPoolExecutor},
+     r'executor must be an executor, not the class ThreadPoolExecutor: give one, '
+     r'ThreadPoolExecutor\(...\)'),
+])
+def test_diagnose_refuses_a_progress_or_executor_it_cannot_call_before_any_work(arguments,
+                                                                                reason):
+    """Three runs are too few (a DataError): the argument is refused before that check."""
+    with pytest.raises(ParameterError, match=reason) as caught:
+        om.diagnose(om.simulate(3, seed=1), **arguments)
+    assert '\n' not in str(caught.value)
+
+
+def test_diagnose_takes_any_executor_with_a_submit_and_a_dask_clients_executor():
+    """The executor is not asked its kind: a thread pool, and a Dask client's, pass the check."""
+    distributed = pytest.importorskip('distributed')
+    runs = om.simulate(3, seed=1)
+    with ThreadPoolExecutor(1) as pool:
+        with pytest.raises(DataError, match='at least 40 runs'):
+            om.diagnose(runs, progress=lambda fraction, message: None, executor=pool)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        with pytest.raises(DataError, match='at least 40 runs'):
+            om.diagnose(runs, executor=client.get_executor())
+
+
+@pytest.mark.parametrize('call, reason', [
+    (lambda out: om.validate(om.simulate(3, seed=1), progress=1.5),
+     'progress must be a function, called as progress.*, got 1.5'),
+    (lambda out: om.plan_runs('persistent_turning', 3.0, workers=0, progress=[]),
+     'progress must be a function, .*, got a list'),
+    (lambda out: om.run_study({}, out, progress='print'),
+     r'progress must be a function, called as progress\(rows done, rows in the study, row '
+     r'or None\), or None, got text'),
+    (lambda out: om.run_study({}, out, plots='no'), 'plots must be true or false, got text'),
+    (lambda out: om.run_study({}, out, resume=1), 'resume must be true or false, got 1'),
+    (lambda out: om.load_measured(out, progress=True), 'progress must be a function'),
+    (lambda out: om.read_runs(out, use_markers='no'),
+     'use_markers must be true or false, got text'),
+    (lambda out: om.save_dataset(out / 'runs.npz', om.simulate(2, seed=1), replace='yes'),
+     'replace must be true or false, got text'),
+])
+def test_the_other_entry_points_refuse_a_callback_or_flag_of_another_kind(call, reason,
+                                                                          tmp_path):
+    """'no' would have read as true (a study's plots drawn, a data set replaced)."""
+    with pytest.raises(ParameterError, match=reason) as caught:
+        call(tmp_path / 'out')
+    assert '\n' not in str(caught.value)
+    assert not any(tmp_path.iterdir())
+
+
+def test_write_report_refuses_plots_that_are_not_true_or_false_and_runs_that_are_not_paths(
+        tmp_path):
+    """Both are refused before the report is read or a file written (`report` is empty)."""
+    from octoroach_model.diagnosis.records import DiagnosisReport
+
+    report = object.__new__(DiagnosisReport)
+    for arguments, reason in (({'plots': 'yes'}, 'plots must be true or false, got text'),
+                              ({'plots': None}, 'plots must be true or false, got None'),
+                              ({'measured': 'runs.npz'}, 'the runs must be Paths')):
+        with pytest.raises(ParameterError, match=reason) as caught:
+            om.write_report(report, tmp_path / 'report', **arguments)
+        assert '\n' not in str(caught.value)
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_numpy_bool_is_a_flag(tmp_path):
+    """A flag a script computed with numpy (np.True_) is true, as Python's is."""
+    runs = om.simulate(2, seed=1)
+    target = om.save_dataset(tmp_path / 'runs.npz', runs, replace=np.False_)
+    with pytest.raises(om.OctoroachError, match='exists'):
+        om.save_dataset(target, runs, replace=np.False_)
+    assert om.save_dataset(target, runs, replace=np.True_) == target
+
+
+@pytest.mark.parametrize('values, reason', [
+    ({'leg_length': '2'}, r'leg_length must be a number \(metres\), got text'),
+    ({'hip_distance': True}, 'hip_distance must be a number .*, got True'),
+    ({'stride_frequency': None}, r'stride_frequency must be a number \(Hz\), got None'),
+    ({'sample_rate': [50.0]}, 'sample_rate must be a number .*, got a list'),
+    ({'touchdown_angles': 5}, r'touchdown_angles must be a tuple of 4 numbers \(rad\), got 5'),
+    ({'touchdown_angles': [0.8, 0.7, 0.7, 0.8]}, 'touchdown_angles must be .*, got a list'),
+    ({'touchdown_angles': (0.8, 0.7, 0.7)}, 'touchdown_angles must be .*, got 3 of them'),
+    ({'liftoff_angles': (-0.7, 'x')}, r'liftoff_angles must be a tuple of 2 numbers \(rad\), '
+                                      'got text .* among them'),
+    ({'leg_length': -0.02}, 'hip_distance and leg_length must be positive metres'),
+])
+def test_model_parameters_refuse_a_field_of_another_kind_in_one_line(values, reason):
+    """Once a TypeError from `'2' > 0` or `len(5)`; numpy's numbers are numbers."""
+    nominal = om.ModelParameters.nominal()
+    with pytest.raises(ParameterError, match=reason) as caught:
+        replace(nominal, **values)
+    assert '\n' not in str(caught.value)
+    taken = replace(nominal, leg_length=np.float32(0.02), sample_rate=np.int64(100),
+                    touchdown_angles=tuple(np.asarray(nominal.touchdown_angles)))
+    assert taken.samples(2) == 101
 
 
 @pytest.mark.parametrize('values, reason', [

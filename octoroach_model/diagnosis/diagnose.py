@@ -64,9 +64,9 @@ from octoroach_model.model import ModelParameters
 from octoroach_model.model.extensions import family_form
 from octoroach_model.paths import check_paths, Paths
 from octoroach_model.redraw_setting import SIMULATION_DRAWS
-from octoroach_model.settings import check_fields, setting
+from octoroach_model.settings import check_callable, check_fields, setting
 from octoroach_model.validation import chernoff_sample_size, ValidationSettings
-from octoroach_model.workers import executor_for, single_threaded
+from octoroach_model.workers import check_executor, executor_for, single_threaded
 
 Progress = Callable[[float, str], None]
 MIN_RUNS = 40
@@ -178,9 +178,12 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
 
     `executor` (concurrent.futures-compatible, e.g. a Dask client's `get_executor()`) runs
     the candidates of each step, the refits and the validations side by side; without one, a
-    local process pool of `settings.workers`.
+    local process pool of `settings.workers`. A `progress` that cannot be called, or an
+    `executor` without a `submit`, is refused before any work.
     """
     check_paths(measured)
+    check_callable('progress', progress)
+    check_executor(executor)
     settings = settings or DiagnosisSettings()
     say = progress or (lambda fraction, message: None)
     started = time.monotonic()

@@ -15,7 +15,7 @@ from octoroach_model.errors import ParameterError
 from octoroach_model.fileio import atomic_directory, user_path, write_text_atomic
 from octoroach_model.jsonio import dumps
 from octoroach_model.paths import check_paths, Paths
-from octoroach_model.settings import shown
+from octoroach_model.settings import flag, shown
 
 
 def write_report(report: DiagnosisReport, out_dir: Path | str, measured: Paths | None = None,
@@ -34,6 +34,7 @@ def write_report(report: DiagnosisReport, out_dir: Path | str, measured: Paths |
     out = user_path(out_dir, 'the report folder')
     if measured is not None:
         check_paths(measured)
+    plots = flag('plots', plots)
     with atomic_directory(out, what='report folder') as folder:
         written: dict[str, Any] = {'report': folder / 'report.json',
                                    'summary': folder / 'summary.md'}

@@ -38,7 +38,7 @@ import numpy as np
 from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
-from octoroach_model.settings import check_setting, number, setting, shown
+from octoroach_model.settings import check_callable, check_setting, number, setting, shown
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.plan_model import runs_interval_text
@@ -241,6 +241,7 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
     after the coarse grid.
     """
     started = time.perf_counter()
+    check_callable('progress', progress)
     say = progress or (lambda fraction, message: None)
     for name, value in (('power', power), ('budget_s', budget_s), ('replicates', replicates),
                         ('max_runs', max_runs), ('seed', seed)):

@@ -25,6 +25,7 @@ from octoroach_model.fileio import (check_writable, folder_lock, LOCK_NAME, user
                                     write_text_atomic)
 from octoroach_model.jsonio import dumps
 from octoroach_model.limits import MAX_STUDY_TASKS
+from octoroach_model.settings import check_callable, flag
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.plots import write_plots
@@ -76,6 +77,8 @@ def run_study(spec: StudySpec | str | Path | Mapping[str, Any], out: str | Path,
     `scheduler`; else a new LocalCluster of `workers` single-threaded processes (default one
     per core); `workers=0` runs every task in this process, one after another.
     """
+    check_callable('progress', progress, 'rows done, rows in the study, row or None')
+    resume, plots = flag('resume', resume), flag('plots', plots)
     spec = as_spec(spec)
     out = user_path(out, 'the study folder')
     check_where(client, scheduler, workers)

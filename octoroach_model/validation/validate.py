@@ -23,7 +23,7 @@ from octoroach_model.jsonio import fields_jsonable
 from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
 from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.paths import check_paths, Paths
-from octoroach_model.settings import check_fields, setting, shown
+from octoroach_model.settings import check_callable, check_fields, setting, shown
 from octoroach_model.validation.multisample import chernoff_sample_size, disjoint_multisamples
 from octoroach_model.validation.region import prediction_region, t_multiplier, violations
 
@@ -243,6 +243,7 @@ def validate(measured: Paths, settings: ValidationSettings | None = None,
     admissible spreads. `model` defaults to the paper's model at Table II.
     """
     check_paths(measured)
+    check_callable('progress', progress)
     settings = settings or ValidationSettings()
     model = model or FourBarModel()
     if not callable(model):

@@ -27,6 +27,7 @@ from octoroach_model.fileio import atomic_file, user_path
 from octoroach_model.jsonio import jsonable
 from octoroach_model.paths import check_paths, Paths
 from octoroach_model.recordings.runs.npz_check import check_arrays
+from octoroach_model.settings import flag
 
 FORMAT_NAME = 'octoroach_model.dataset'
 FORMAT_VERSION = 1
@@ -45,6 +46,7 @@ def save_dataset(path: PathLike, paths: Paths, *, replace: bool = False) -> Path
     """
     target = user_path(path, 'the data set file')
     check_paths(paths)
+    replace = flag('replace', replace)
     info = jsonable(dict(paths.info))
     info.update({
         'format': FORMAT_NAME,

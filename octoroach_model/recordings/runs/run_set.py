@@ -40,6 +40,7 @@ from octoroach_model.recordings.poses.streams import median_of_five, Progress
 from octoroach_model.recordings.runs.dataset import is_dataset_file, load_dataset
 from octoroach_model.recordings.runs.duplicates import repeated_runs_note
 from octoroach_model.recordings.sources import expand_sources, MEASURED_SUFFIXES, Sources
+from octoroach_model.settings import check_callable, flag
 
 DEFAULT_GAP_S = 0.5
 DEFAULT_RATE_HZ = 50.0
@@ -346,6 +347,8 @@ def read_runs(sources: Sources, *, topic: str | None = None, gap_s: float = DEFA
     `progress(fraction, message)` hears how far the reading has got. Raises BagError for an
     unreadable source and DataError when no run is left.
     """
+    check_callable('progress', progress)
+    use_markers = flag('use_markers', use_markers)
     if not (np.isfinite(gap_s) and gap_s > 0):
         raise DataError(f'gap_s must be a positive number of seconds, got {gap_s}')
     notes: list[str] = []
@@ -380,6 +383,8 @@ def load_measured(sources: Sources, *, rate_hz: float = DEFAULT_RATE_HZ,
     reading has got. Notes on everything converted, skipped or repaired are in
     ``.info['notes']``.
     """
+    check_callable('progress', progress)
+    use_markers = flag('use_markers', use_markers)
     found = expand_sources(sources, suffixes=MEASURED_SUFFIXES)
     datasets = [path for path in found if is_dataset_file(path)]
     bags = [path for path in found if not is_dataset_file(path)]
