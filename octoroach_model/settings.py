@@ -26,6 +26,7 @@ before any work, not when it is first called).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, Field, field, fields, MISSING
 import functools
 import math
@@ -38,8 +39,9 @@ import numpy as np
 
 from octoroach_model.errors import ParameterError
 
-__all__ = ['Setting', 'check_callable', 'check_fields', 'check_kinds', 'check_setting',
-           'check_value', 'flag', 'is_number', 'number', 'setting', 'settings_of', 'shown']
+__all__ = ['Progress', 'Setting', 'check_callable', 'check_fields', 'check_kinds',
+           'check_record', 'check_setting', 'check_value', 'flag', 'is_number', 'number',
+           'setting', 'settings_of', 'shown']
 
 METADATA_KEY = 'setting'
 
@@ -240,7 +242,9 @@ def flag(name: str, value: Any) -> bool:
     return bool(value)
 
 
-# how the package calls a progress callback, unless an entry point says otherwise
+# how the package calls a progress callback (a fraction done in [0, 1], a line of text),
+# unless an entry point says otherwise
+Progress = Callable[[float, str], None]
 PROGRESS_CALL = 'fraction, message'
 
 
@@ -249,6 +253,13 @@ def check_callable(name: str, value: Any, arguments: str = PROGRESS_CALL) -> Non
     if value is not None and not callable(value):
         raise ParameterError(f'{name} must be a function, called as {name}({arguments}), or '
                              f'None, got {shown(value)}')
+
+
+def check_record(name: str, value: Any, record_type: type) -> None:
+    """Raise ParameterError unless `value` is None or a `record_type` (a settings record)."""
+    if value is not None and not isinstance(value, record_type):
+        raise ParameterError(f'{name} must be a {record_type.__name__} (or None for the '
+                             f'defaults), got {shown(value)}')
 
 
 def shown(value: Any) -> str:

@@ -14,7 +14,7 @@ call would go unseen.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
 from enum import StrEnum
@@ -33,7 +33,7 @@ from octoroach_model.recordings.options import (
     FORWARD_AXIS, GAP_S, ReadOptions, TOPIC, UP_AXIS)
 from octoroach_model.redraw_setting import SIMULATION_DRAWS
 from octoroach_model.run_settings import ANGLE_DRAWS
-from octoroach_model.settings import check_fields, setting, settings_of
+from octoroach_model.settings import check_fields, Progress, setting, settings_of
 from octoroach_model.validation import ValidationSettings
 from octoroach_model.validation.validate import NOMINAL_MODELS, ValidationResult
 
@@ -44,7 +44,6 @@ if TYPE_CHECKING:
 __all__ = ['Cancelled', 'Job', 'JobAnswer', 'JobKind', 'Progress', 'Workbench',
            'diagnosis_settings', 'run_diagnosis', 'run_validation', 'source_stamps']
 
-Progress = Callable[[float, str], None]
 # Files whose change means the measured runs must be read again: bag data and metadata,
 # multisample data sets, motion-capture files and trajectory tables.
 WATCHED_SUFFIXES = ('.mcap', '.db3', '.yaml', '.npz', '.bag', '.csv', '.c3d', '.tsv', '.txt')

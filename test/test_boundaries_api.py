@@ -280,3 +280,18 @@ def test_simulate_returns_runs_or_refuses_in_one_line_whatever_it_is_given(
         assert '\n' not in str(error) and str(error), repr(error)
         return
     assert runs.poses.shape[0] == n_paths and np.all(np.isfinite(runs.poses[:, 0]))
+
+
+@pytest.mark.parametrize('call, reason', [
+    (lambda runs: om.diagnose(runs, {'seed': 1}),
+     r'settings must be a DiagnosisSettings \(or None for the defaults\), got a dict'),
+    (lambda runs: om.validate(runs, settings=om.DiagnosisSettings()),
+     'settings must be a ValidationSettings'),
+    (lambda runs: om.fit_nominal(runs, settings='fast'),
+     'settings must be a NominalFitSettings'),
+])
+def test_the_entry_points_refuse_settings_of_another_record(call, reason):
+    runs = om.simulate(3, seed=1, cycles=2)
+    with pytest.raises(ParameterError, match=reason) as caught:
+        call(runs)
+    assert '\n' not in str(caught.value)

@@ -20,13 +20,11 @@ from octoroach_model.errors import (
     EXIT_DATA, EXIT_INTERRUPTED, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, OutputError)
 from octoroach_model.fileio import check_writable, is_empty_directory
 from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.settings import check_value, settings_of
+from octoroach_model.settings import check_value, Progress, settings_of
 
 EXIT_ERROR = EXIT_DATA
 __all__ = ['EXIT_DATA', 'EXIT_ERROR', 'EXIT_INTERRUPTED', 'EXIT_OK', 'EXIT_OUTPUT',
            'EXIT_USAGE']
-
-Progress = Callable[[float, str], None]
 
 
 class HelpFormatter(argparse.HelpFormatter):

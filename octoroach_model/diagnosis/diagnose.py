@@ -20,7 +20,7 @@ Method (docs/diagnosis.md has it in full):
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor, Future
 from dataclasses import dataclass, field, replace
 import math
@@ -64,11 +64,11 @@ from octoroach_model.model import ModelParameters
 from octoroach_model.model.extensions import family_form
 from octoroach_model.paths import check_paths, Paths
 from octoroach_model.redraw_setting import SIMULATION_DRAWS
-from octoroach_model.settings import check_callable, check_fields, setting
+from octoroach_model.settings import (
+    check_callable, check_fields, check_record, Progress, setting)
 from octoroach_model.validation import chernoff_sample_size, ValidationSettings
 from octoroach_model.workers import check_executor, executor_for, single_threaded
 
-Progress = Callable[[float, str], None]
 MIN_RUNS = 40
 MIN_SAMPLES_PER_CYCLE = 8
 MAX_SAMPLES_PER_CYCLE = 64
@@ -184,6 +184,7 @@ def diagnose(measured: Paths, settings: DiagnosisSettings | None = None,
     check_paths(measured)
     check_callable('progress', progress)
     check_executor(executor)
+    check_record('settings', settings, DiagnosisSettings)
     settings = settings or DiagnosisSettings()
     say = progress or (lambda fraction, message: None)
     started = time.monotonic()

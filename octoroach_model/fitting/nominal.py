@@ -53,6 +53,7 @@ from octoroach_model.model import check_effects, model_poses, ModelParameters, R
 from octoroach_model.model.kinematics import integrate_stances
 from octoroach_model.model.parameters import ParameterTable, StartPoseTable
 from octoroach_model.paths import check_paths, Paths
+from octoroach_model.settings import check_record
 
 VECTOR_NAMES = ('leg_length', 'touchdown_angle_1', 'touchdown_angle_2', 'touchdown_angle_3',
                 'touchdown_angle_4', 'stride_frequency')
@@ -402,6 +403,7 @@ def fit_nominal(measured: Paths, initial: ModelParameters | None = None,
     `start_pose` (default: the runs' mean start pose) and `target` (from `average_target`)
     skip recomputing what a caller has already.
     """
+    check_record('settings', settings, NominalFitSettings)
     settings = settings or NominalFitSettings()
     check_measured(measured)
     initial = initial_geometry(measured, initial)

@@ -38,7 +38,8 @@ import numpy as np
 from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
-from octoroach_model.settings import check_callable, check_setting, number, setting, shown
+from octoroach_model.settings import (
+    check_callable, check_setting, number, Progress, setting, shown)
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.plan_model import runs_interval_text
@@ -58,7 +59,6 @@ PILOT_RUNS = 200
 BUDGET_S = 15.0             # method 'model': seconds a plan may take, pilots and checks
 MOST_CHECKS = 1000          # method 'model': the most checks --checks may ask
 MAX_ROUNDS = 3
-Progress = Callable[[float, str], None]
 
 
 class PlanMethod(StrEnum):

@@ -49,6 +49,7 @@ from octoroach_model.diagnosis.live import (
     decide, fit_held, Levels, pilot_model, Question)
 from octoroach_model.diagnosis.modelfit import FittedModel
 from octoroach_model.diagnosis.power import Calibration, fixed, PowerModel, shifted
+from octoroach_model.settings import Progress
 from octoroach_model.studies.design import build_tasks, draw_robot, RobotDraw
 from octoroach_model.studies.replicate import simulate_data, task_effects
 from octoroach_model.studies.rows import Status
@@ -57,7 +58,6 @@ from octoroach_model.studies.spec import StudySpec
 PILOTS = 2
 PILOT_RUNS = 500
 CURVE_POINTS = 41
-Progress = Callable[[float, str], None]
 Answer = tuple[float, tuple[float, float]]      # runs, and their 95 % interval
 
 

@@ -10,7 +10,7 @@ numbers and the result is reproducible.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 import math
 from typing import Any, Protocol
@@ -23,11 +23,11 @@ from octoroach_model.jsonio import fields_jsonable
 from octoroach_model.model import check_effects, model_poses, ModelParameters, RandomStreams
 from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.paths import check_paths, Paths
-from octoroach_model.settings import check_callable, check_fields, setting, shown
+from octoroach_model.settings import (
+    check_callable, check_fields, check_record, Progress, setting, shown)
 from octoroach_model.validation.multisample import chernoff_sample_size, disjoint_multisamples
 from octoroach_model.validation.region import prediction_region, t_multiplier, violations
 
-Progress = Callable[[float, str], None]
 NOMINAL_MODELS = ('fit', 'table2')   # the nominal model: eq. 9 fitted to the runs, or Table II
 
 
@@ -244,6 +244,7 @@ def validate(measured: Paths, settings: ValidationSettings | None = None,
     """
     check_paths(measured)
     check_callable('progress', progress)
+    check_record('settings', settings, ValidationSettings)
     settings = settings or ValidationSettings()
     model = model or FourBarModel()
     if not callable(model):
@@ -315,6 +316,7 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
     from octoroach_model.errors import DataError
     from octoroach_model.fitting import fit_nominal, mean_start_pose
 
+    check_record('settings', settings, ValidationSettings)
     settings = settings or ValidationSettings()
     measured, duration_note = common_duration(measured)
     if nominal not in NOMINAL_MODELS:

@@ -26,7 +26,7 @@ so what it decides holds alike for `validate`, `diagnose`, `convert` and the val
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from enum import Enum
 import os
@@ -38,8 +38,8 @@ from octoroach_model.errors import DataError
 from octoroach_model.recordings.conventions.axes import input_axis_of
 from octoroach_model.recordings.conventions.chunks import PoseChunk
 from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.settings import Progress
 
-Progress = Callable[[float, str], None]
 
 CLOCK_WINDOW = 2000  # samples of a stream held while its clock is chosen
 MAX_INTERVALS = 1 << 17  # intervals kept per clock for the notes (1 MiB each)
