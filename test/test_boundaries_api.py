@@ -295,3 +295,20 @@ def test_the_entry_points_refuse_settings_of_another_record(call, reason):
     with pytest.raises(ParameterError, match=reason) as caught:
         call(runs)
     assert '\n' not in str(caught.value)
+
+
+@pytest.mark.parametrize('options, error, reason', [
+    ({'gap_s': '0.5'}, ParameterError, 'gap_s must be a number, got text'),
+    ({'rate_hz': None}, ParameterError, 'rate_hz must be a number, got None'),
+    ({'min_duration_s': [1.0]}, ParameterError, 'min_duration_s must be a number'),
+    ({'rate_hz': 0.0}, om.DataError, 'sample rate must be a positive number of Hz'),
+    ({'min_duration_s': math.inf}, om.DataError, 'min_duration_s must be a non-negative'),
+])
+def test_reading_refuses_a_bad_grid_before_it_reads(options, error, reason, monkeypatch):
+    def no_reading(*args, **kwargs):
+        raise AssertionError('the inputs were read before the options were checked')
+
+    monkeypatch.setattr('octoroach_model.recordings.runs.run_set.expand_sources', no_reading)
+    with pytest.raises(error, match=reason) as caught:
+        om.load_measured(['bags/'], **options)
+    assert '\n' not in str(caught.value)

@@ -40,7 +40,7 @@ from octoroach_model.recordings.poses.streams import median_of_five, Progress
 from octoroach_model.recordings.runs.dataset import is_dataset_file, load_dataset
 from octoroach_model.recordings.runs.duplicates import repeated_runs_note
 from octoroach_model.recordings.sources import expand_sources, MEASURED_SUFFIXES, Sources
-from octoroach_model.settings import check_callable, flag
+from octoroach_model.settings import check_callable, flag, number
 
 DEFAULT_GAP_S = 0.5
 DEFAULT_RATE_HZ = 50.0
@@ -124,8 +124,7 @@ class RunSet:
         `min_duration_s`, shorter runs are dropped (with a note) first. Each coordinate is
         interpolated linearly (heading is unwrapped already), which fills dropped frames.
         """
-        if not (np.isfinite(rate_hz) and rate_hz > 0):
-            raise DataError(f'sample rate must be a positive number of Hz, got {rate_hz}')
+        check_grid(rate_hz, min_duration_s)
         runs, notes = list(self.runs), list(self.notes)
         if not runs:
             raise DataError('no runs to resample')
@@ -335,6 +334,23 @@ class _StreamSplitter:
         self.notes[:0] = summary
 
 
+def checked_gap(gap_s: float) -> float:
+    """Return `gap_s` as a float; ParameterError or DataError unless a positive number."""
+    gap_s = number('gap_s', gap_s)
+    if not (np.isfinite(gap_s) and gap_s > 0):
+        raise DataError(f'gap_s must be a positive number of seconds, got {gap_s}')
+    return gap_s
+
+
+def check_grid(rate_hz: float, min_duration_s: float | None) -> None:
+    """Raise DataError unless the grid's rate is positive and a shortest duration finite."""
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise DataError(f'sample rate must be a positive number of Hz, got {rate_hz}')
+    if min_duration_s is not None and not (np.isfinite(min_duration_s) and min_duration_s >= 0):
+        raise DataError(f'min_duration_s must be a non-negative number of seconds, got '
+                        f'{min_duration_s}')
+
+
 def read_runs(sources: Sources, *, topic: str | None = None, gap_s: float = DEFAULT_GAP_S,
               use_markers: bool = True, options: ReadOptions | None = None,
               progress: Progress | None = None) -> RunSet:
@@ -349,8 +365,7 @@ def read_runs(sources: Sources, *, topic: str | None = None, gap_s: float = DEFA
     """
     check_callable('progress', progress)
     use_markers = flag('use_markers', use_markers)
-    if not (np.isfinite(gap_s) and gap_s > 0):
-        raise DataError(f'gap_s must be a positive number of seconds, got {gap_s}')
+    gap_s = checked_gap(gap_s)
     notes: list[str] = []
     splitters: dict[tuple[str, str], _StreamSplitter] = {}
     for chunk in iter_pose_samples(sources, topic=topic, notes=notes, options=options,
@@ -385,6 +400,9 @@ def load_measured(sources: Sources, *, rate_hz: float = DEFAULT_RATE_HZ,
     """
     check_callable('progress', progress)
     use_markers = flag('use_markers', use_markers)
+    check_grid(number('rate_hz', rate_hz), None if min_duration_s is None
+               else number('min_duration_s', min_duration_s))    # before reading anything
+    checked_gap(gap_s)
     found = expand_sources(sources, suffixes=MEASURED_SUFFIXES)
     datasets = [path for path in found if is_dataset_file(path)]
     bags = [path for path in found if not is_dataset_file(path)]
