@@ -33,6 +33,7 @@ from octoroach_model.diagnosis.causes import BY_NAME, CANDIDATES, FeatureStatist
 from octoroach_model.diagnosis.diagnose import screened_first
 from octoroach_model.diagnosis.features import FEATURES, INDEX, OUTCOMES
 from octoroach_model.diagnosis.stages import STAGES
+from octoroach_model.model.extensions import FAMILY_NAMES
 from octoroach_model.validation import ValidationSettings
 
 REPO = Path(__file__).resolve().parents[1]
@@ -318,6 +319,9 @@ def test_the_report_has_the_documented_fields_a_summary_and_plots(tmp_path, monk
     summary = written['summary'].read_text()
     assert 'initial_pose_error' in summary and 'would go unseen' in summary
     assert '(for a change at half the runs) would go unseen' in summary
+    if not loaded['extensions']:          # the families the summary says were tried: all
+        tried = summary.split('No extension family (', 1)[1].split(')', 1)[0]
+        assert tried.split(', ') == [name.replace('_', ' ') for name in FAMILY_NAMES]
     # no limit carries a caveat now: studies found every computed limit to hold
     assert all(not candidate['detectable_caveat']
                for candidate in loaded['candidates'] + loaded['extension_candidates'])

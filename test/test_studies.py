@@ -25,8 +25,8 @@ from octoroach_model.jsonio import dumps
 from octoroach_model.recordings.runs.run_set import RunSet
 from octoroach_model.studies.damage import cut_runs_short, damage_paths, drop_frames
 from octoroach_model.studies.design import build_tasks, draw_robot, draw_signs
-from octoroach_model.studies.plan import (_coarse_grid, _next_counts, _power_text,
-                                          _runs_interval_text)
+from octoroach_model.studies.plan import _coarse_grid, _next_counts, _power_text
+from octoroach_model.studies.plan_model import runs_answer_text, runs_interval_text
 from octoroach_model.studies.power_curve import fit_power_curve
 from octoroach_model.studies.replicate import read_report, task_settings
 from octoroach_model.studies.rows import Status, StudyRow, TermOutcome
@@ -668,6 +668,10 @@ def test_plans_statement_says_the_power_asked_and_an_open_interval_in_words():
     """99.9999 % is not rounded to 100 %, and an interval open above reads as words."""
     assert [_power_text(p) for p in (0.8, 0.95, 0.999999, 0.5)] == [
         '80%', '95%', '99.9999%', '50%']
-    assert _runs_interval_text(150.2, 399.6) == '150 to 400 runs'
-    assert _runs_interval_text(352, math.inf) == '352 runs to more than any run count tried'
-    assert _runs_interval_text(math.inf, math.inf) == 'more than any run count tried'
+    assert runs_interval_text(150.2, 399.6) == '150 to 400 runs'
+    assert runs_interval_text(352, math.inf) == '352 runs to more than any run count tried'
+    assert runs_interval_text(math.inf, math.inf) == 'more than any run count tried'
+    # plan's progress lines say an answer in the same words
+    assert runs_answer_text(120, (80, 400)) == '120 runs (95 % 80 to 400 runs)'
+    assert runs_answer_text(math.inf, (300, math.inf)) == (
+        'more than any run count tried (95 % 300 runs to more than any run count tried)')

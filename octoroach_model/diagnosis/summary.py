@@ -14,6 +14,7 @@ from scipy import stats
 from octoroach_model.diagnosis.causes import BY_NAME
 from octoroach_model.diagnosis.decide import close_call, CLOSE_CALL_SE, POWER
 from octoroach_model.diagnosis.records import CandidateResult, DiagnosisReport, Rival
+from octoroach_model.model.extensions import FAMILY_NAMES
 
 
 def _percent(share: float) -> str:
@@ -128,9 +129,8 @@ def summary_text(report: DiagnosisReport) -> str:
         lines += _rival_lines(named.cause, _rival_of(report, named.cause))
     lines += ['', '## Beyond the table of causes', '']
     if not report.extensions:
-        lines.append('**None.** No extension family (run-order drift, heading random walk, '
-                     'periodic heading, change point, run mixture) improves the prediction of '
-                     'held-out runs with a size that clears its floor.')
+        lines.append(f'**None.** No extension family ({_family_list()}) improves the '
+                     'prediction of held-out runs with a size that clears its floor.')
     for number, extension in enumerate(report.extensions, 1):
         lines.append(f'{number}. **{extension.family}**: {extension.description}. Adding it '
                      f'improved the held-out log score by {_number(extension.gain)} nats per '
@@ -327,3 +327,8 @@ def _unseen_line(candidate: CandidateResult, paths: int) -> str:
         else ''
     return (f'- {article} {name} ({parameter}) {text} would go unseen in {paths} runs like '
             f'these (80 % power; estimate here {shown}).{caveat}')
+
+
+def _family_list() -> str:
+    """Name the library's families in words: 'run order drift, ..., yaw rate ramp'."""
+    return ', '.join(name.replace('_', ' ') for name in FAMILY_NAMES)
