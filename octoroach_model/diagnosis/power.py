@@ -25,7 +25,7 @@ critical values there (the diagnosis's fixed ones, or the live decision's anytim
 predicts 80 %: for each term at one size, the pilots of `plan` (studies/plan_model.py)
 predicted the runs for 80 % power, and 16 data sets with the term at that size and run count
 were simulated and the term's first step taken on each, as the plan's checks take it
-(`benchmarks/bench_plan.py --calibrate`; README, "How many runs: plan"). The counts are
+(`benchmarks/bench_plan.py --calibrate`; docs/measured.md, "How many runs"). The counts are
 `CALIBRATION_COUNTS`, per term. The measured power is modelled as Phi(Phi^-1(predicted) +
 shift), bent by a slope (below): a shift on the probit scale per group of terms (the six
 causes pooled, each extension family apart; `group_counts`), with a normal prior N(0, 1)
@@ -77,7 +77,7 @@ ZFunction = Callable[[float], float]          # information (runs in a half) -> 
 MOST_RUNS = 1_000_000                         # runs_for gives up beyond this
 # named / checks where the pilots predicted 80 % power, per term at one size (16 data sets
 # each at bench_plan.py's CALIBRATION_SIZES, Table II's robot; `.venv/bin/python
-# benchmarks/bench_plan.py --calibrate` prints these, 3 min; README, "How many runs: plan");
+# benchmarks/bench_plan.py --calibrate` prints these, 3 min; docs/measured.md, "How many runs");
 # measurement_noise and the stride frequency's drift at a size just above their floors,
 # where the runs needed are many. Measured with the diagnosis of commit 3d875ec; per group
 # they were within two data sets of those measured at 7ccf16b-d03aab6 ('causes' 83/96,
