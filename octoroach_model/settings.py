@@ -196,7 +196,7 @@ class Kind:
 KINDS = {int: Kind((numbers.Integral,), 'a whole number'),
          float: Kind((numbers.Real,), 'a number'),
          str: Kind((str,), 'text'),
-         bool: Kind((bool,), 'true or false')}
+         bool: Kind((bool, np.bool_), 'true or false')}    # numpy's bool, as flag takes it
 
 
 @functools.lru_cache(maxsize=None)
@@ -268,8 +268,8 @@ def shown(value: Any) -> str:
 
     A text may come from a file (a params file, a study spec): an error never quotes it.
     """
-    if value is None or isinstance(value, bool):
-        return repr(value)
+    if value is None or isinstance(value, (bool, np.bool_)):
+        return repr(None if value is None else bool(value))
     if isinstance(value, numbers.Integral):     # numpy's as Python's: -1, not np.int64(-1)
         return repr(int(value))
     if isinstance(value, numbers.Real):

@@ -221,6 +221,7 @@ def test_a_descriptor_is_closed_and_says_its_ends_are_excluded():
     (DiagnosisSettings, {'min_gain': math.inf}, 'min_gain must be a finite number, got inf'),
     (DiagnosisSettings, {'decision_alpha': 1.0}, r'decision_alpha must lie in \(0, 1\), got 1.0'),
     (DiagnosisSettings, {'validate_models': 1}, 'validate_models must be true or false, got 1'),
+    (DiagnosisSettings, {'bootstrap': np.True_}, 'bootstrap must be a whole number, got True'),
     (DiagnosisSettings, {'split_seed': -1}, 'split_seed must be non-negative, got -1'),
     (DiagnosisSettings, {'rounds': 0}, 'rounds must be at least 1, got 0'),
     (DiagnosisSettings, {'validation': {'rho': 0.1}},
@@ -241,6 +242,8 @@ def test_every_knob_of_the_diagnosis_is_a_setting_with_its_range():
     names = {item.name for item in dataclasses.fields(DiagnosisSettings)}
     assert set(settings_of(DiagnosisSettings)) == names - {'validation', 'limit_terms'}
     assert DiagnosisSettings(split_seed=None, alpha=1e-3, heading_weight_m=0).split_seed is None
+    # numpy's bool is true or false, as the entry points' flags take it
+    assert not DiagnosisSettings(validate_models=np.False_).validate_models
 
 
 def test_plan_refuses_a_setting_of_the_wrong_kind_before_any_work():
