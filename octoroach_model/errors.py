@@ -49,6 +49,10 @@ class DataError(OctoroachError):
     """The runs are unusable for the request (too few, too short, non-finite)."""
 
 
+class ShapeError(DataError, ValueError):
+    """Arrays of a shape or kind `Paths` cannot hold (a ValueError too, as Paths raised one)."""
+
+
 class ParameterError(OctoroachError):
     """A model or validation parameter is out of its range."""
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from octoroach_model.arrays import BoolArray, FloatArray, IntArray
+from octoroach_model.errors import ShapeError
 
 X, Y, HEADING = 0, 1, 2
 # info entries with one value per run, in the runs' order
@@ -47,14 +48,14 @@ class Paths:
                 try:
                     object.__setattr__(self, name, np.asarray(value, dtype=float))
                 except (TypeError, ValueError):
-                    raise ValueError(f'{name} must be an array of numbers, got a '
+                    raise ShapeError(f'{name} must be an array of numbers, got a '
                                      f'{type(value).__name__}') from None
         if self.t.ndim != 1:
-            raise ValueError(f't must be (T,), got {self.t.shape}')
+            raise ShapeError(f't must be (T,), got {self.t.shape}')
         if self.poses.ndim != 3 or self.poses.shape[2] != 3:
-            raise ValueError(f'poses must be (n, T, 3), got {self.poses.shape}')
+            raise ShapeError(f'poses must be (n, T, 3), got {self.poses.shape}')
         if self.poses.shape[1] != self.t.shape[0]:
-            raise ValueError(f'{self.t.shape[0]} times but {self.poses.shape[1]} samples per run')
+            raise ShapeError(f'{self.t.shape[0]} times but {self.poses.shape[1]} samples per run')
 
     @property
     def n_paths(self) -> int:

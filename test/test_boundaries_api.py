@@ -254,8 +254,9 @@ def test_paths_take_lists_of_numbers_and_say_in_one_line_what_they_need():
                              ([[0.0, 0.02]], np.zeros((1, 2, 3)), r't must be \(T,\)'),
                              ('t', np.zeros((1, 2, 3)), 't must be an array of numbers'),
                              ([0.0], np.zeros((1, 2, 3)), '1 times but 2 samples per run')):
-        with pytest.raises(ValueError, match=reason):
+        with pytest.raises(om.DataError, match=reason) as caught:    # the package's error,
             om.Paths(t, poses)
+        assert isinstance(caught.value, ValueError)       # and a ValueError, as it was
 
 
 ODD = st.one_of(st.none(), st.booleans(), st.text(max_size=4), st.lists(st.integers(), max_size=2),
