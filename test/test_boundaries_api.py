@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
+import importlib
 import math
 import tracemalloc
 
@@ -73,8 +74,21 @@ def test_a_simulation_too_large_for_one_call_is_refused_before_it_allocates():
     finally:
         tracemalloc.stop()
     assert peak < 16 << 20, peak
-    # the largest a real session needs is far inside the limit
-    assert 5000 * om.ModelParameters.nominal().samples(60) < MAX_SIMULATED_SAMPLES
+
+
+def test_the_simulation_limit_takes_a_call_at_it_and_refuses_one_sample_more(monkeypatch):
+    """The bound is inclusive, counted over every run's samples (a small limit stands in)."""
+    samples = om.ModelParameters.nominal().samples(2)
+    module = importlib.import_module('octoroach_model.model.simulate')
+    monkeypatch.setattr(module, 'MAX_SIMULATED_SAMPLES', 3 * samples)
+    assert om.simulate(3, seed=1, cycles=2).poses.shape[:2] == (3, samples)
+    with pytest.raises(ParameterError, match=f'4 runs of {samples} samples are'):
+        om.simulate(4, seed=1, cycles=2)
+    t = np.arange(3 * samples + 1) * 0.02
+    with pytest.raises(ParameterError, match=f'above the {3 * samples} one call simulates'):
+        om.simulate(1, seed=1, t=t)
+    # the largest session a lab records (5000 runs of 60 cycles) is inside the real limit
+    assert 5000 * samples * 30 < MAX_SIMULATED_SAMPLES
 
 
 @pytest.mark.parametrize('call', [
