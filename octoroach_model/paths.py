@@ -48,8 +48,10 @@ class Paths:
                 try:
                     object.__setattr__(self, name, np.asarray(value, dtype=float))
                 except (TypeError, ValueError):
-                    raise ShapeError(f'{name} must be an array of numbers, got a '
-                                     f'{type(value).__name__}') from None
+                    from octoroach_model.settings import shown
+
+                    raise ShapeError(f'{name} must be an array of numbers, got '
+                                     f'{shown(value)}') from None
         if self.t.ndim != 1:
             raise ShapeError(f't must be (T,), got {self.t.shape}')
         if self.poses.ndim != 3 or self.poses.shape[2] != 3:

@@ -237,7 +237,7 @@ def number(name: str, value: Any) -> float:
 
 def flag(name: str, value: Any) -> bool:
     """Return `value` as a bool, or raise ParameterError: only True or False (numpy's too)."""
-    if not isinstance(value, (bool, np.bool_)):
+    if not KINDS[bool].holds(value):
         raise ParameterError(f'{name} must be {KINDS[bool].words}, got {shown(value)}')
     return bool(value)
 

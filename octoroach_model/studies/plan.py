@@ -259,9 +259,6 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
     if method == PlanMethod.MODEL:
         if run_counts is not None:
             raise ParameterError('run counts (--runs) go with --method simulate')
-        if not (math.isfinite(budget_s) and budget_s > 0):
-            raise ParameterError(f'the time budget must be a positive number of seconds, got '
-                                 f'{budget_s:g}')
         if checks is not None:
             check_setting(PlanSettings, 'checks', checks)
             checks = int(checks)
