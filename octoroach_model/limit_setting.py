@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from octoroach_model.errors import ParameterError
 from octoroach_model.model import EFFECT_NAMES
 from octoroach_model.model.extensions import TERM_NAMES
-from octoroach_model.settings import Setting
+from octoroach_model.settings import Setting, unknown_name
 
 # the terms a diagnosis races: the table's causes, then the extension families' terms
 # (diagnosis/causes.py's CANDIDATES, which asserts the two lists)
@@ -26,20 +26,14 @@ LIMITS = Setting('the detection limits of the whole decision to compute: all, no
                  "diagnosis's time and the decision does not depend on them")
 
 
-# a name longer than this is not quoted back in an error (it may be a file's content)
-SHOWN_CHARACTERS = 40
-
-
 def check_term_names(names: Sequence[str], what: str) -> None:
     """Raise ParameterError, in one line, unless `names` are terms (`what` says where)."""
     if isinstance(names, str):
         raise ParameterError(f'{what} must be a list of terms, not one string')
     for name in names:
         if name not in RACED_TERMS:
-            shown = repr(name) if isinstance(name, str) and len(name) <= SHOWN_CHARACTERS \
-                and name.isprintable() else 'an entry'
-            raise ParameterError(f'{what}: {shown} is no term; give all, none or terms among '
-                                 + ', '.join(RACED_TERMS))
+            raise ParameterError(f'{what}: {unknown_name(name, RACED_TERMS)} is no term; give '
+                                 'all, none or terms among ' + ', '.join(RACED_TERMS))
 
 
 def read_limits(text: str) -> tuple[bool, tuple[str, ...]]:

@@ -26,8 +26,9 @@ before any work, not when it is first called).
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, Field, field, fields, MISSING
+import difflib
 import functools
 import math
 import numbers
@@ -278,6 +279,22 @@ def shown(value: Any) -> str:
         return f'text ({len(value)} character{"" if len(value) == 1 else "s"}, not shown)'
     name = type(value).__name__
     return f'{"an" if name[0] in "aeiouAEIOU" else "a"} {name}'
+
+
+# names longer than this are not compared with the known ones (`unknown_name`)
+NAME_COMPARED_CHARACTERS = 100
+
+
+def unknown_name(value: Any, known: Sequence[str]) -> str:
+    """
+    Describe a name that is not among `known` without quoting it: it may come from a file.
+
+    `shown` of it, and the known name it is close to, where one is (a typo's fix, in the
+    package's own words).
+    """
+    close = difflib.get_close_matches(value, list(known), n=1) \
+        if isinstance(value, str) and len(value) <= NAME_COMPARED_CHARACTERS else []
+    return shown(value) + (f' (did you mean {close[0]}?)' if close else '')
 
 
 def check_value(name: str, value: Any, described: Setting) -> None:

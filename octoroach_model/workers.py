@@ -30,6 +30,7 @@ import multiprocessing
 import numbers
 import os
 import signal
+import sys
 import threading
 from typing import Any
 
@@ -194,13 +195,31 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
 
         cluster = private_local_cluster(count)
     except (OSError, RuntimeError, ImportError) as error:
-        raise OctoroachError(f'cannot start a local Dask cluster of {count} workers: '
-                             f'{error}') from None
+        raise OctoroachError(f'cannot start a local Dask cluster of {count} worker'
+                             f'{"s" if count != 1 else ""}: '
+                             f'{error}{main_guard_hint(error)}') from None
     try:
         with Client(cluster, security=cluster.security) as client:
             yield client
     finally:
         cluster.close()
+
+
+def main_guard_hint(error: BaseException) -> str:
+    """
+    Return how a script starts Dask's workers safely, where a worker failed to start in one.
+
+    Dask starts a local cluster's workers by spawning, and a spawned process imports the main
+    script again: a script that calls run_study at its top level starts it once more in each
+    worker, which then fails ("Nanny failed to start", after a traceback of Python's). A
+    program run as a module (`python -m`) or interactively is not imported again.
+    """
+    main = sys.modules.get('__main__')
+    if 'failed to start' not in str(error) or main is None \
+            or getattr(main, '__spec__', None) is not None or not getattr(main, '__file__', None):
+        return ''
+    return ("; Dask's worker processes import the main script again, so a script makes its "
+            "calls under `if __name__ == '__main__':`")
 
 
 def check_where(client: Any | None, scheduler: str | None, workers: int | None) -> None:

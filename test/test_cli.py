@@ -277,7 +277,7 @@ MORE_BAD_INPUT = {
     'out_exists': (['simulate', '--paths', '3', '--out', '{bag}'], 'exists'),
     'missing_required_option': (['simulate', '--paths', '3'], '--out'),
     'limits_of_no_term': (['diagnose', '{bag}', '--out', '{tmp}/out_k', '--limits',
-                           'lateral_slip,wobble'], "'wobble' is no term"),
+                           'lateral_slip,wobble'], 'text (6 characters, not shown) is no term'),
 }
 
 

@@ -105,12 +105,14 @@ def test_limit_multiples_bring_the_null_data_sets_they_are_read_from():
 
 
 @pytest.mark.parametrize('text, reason', [
-    ('causes: [{cause: wobble, sizes: [1]}]', "unknown cause 'wobble'"),
+    ('causes: [{cause: wobble, sizes: [1]}]', 'unknown cause, text (6 characters, not shown)'),
+    ('causes: [{cause: [1], sizes: [1]}]', 'unknown cause, a list'),
     ('causes: [{cause: persistent_turning, sizes: [-2]}]', 'must be positive'),
     ('causes: [{cause: persistent_turning, sizes: [0]}]', 'must be positive'),
     ('robot: {leg_length_cm: {low: 2.6, high: 1.8}}', 'bad range, low 2.6 is above high 1.8'),
     ('robot: {leg_length_cm: {low: 1.8}}', 'a range is'),
-    ('robot: {wheels: 4}', "unknown key 'wheels'"),
+    ('robot: {wheels: 4}', 'unknown key, text (6 characters, not shown); known'),
+    ('robot: {cycle: 4}', 'unknown key, text (5 characters, not shown) (did you mean cycles?)'),
     ('runs: [20]', 'at least 40'),
     ('runs: {low: 10, high: 100}', 'at least 40 runs'),
     ('causes: [{cause: persistent_turning, sizes: [200]}]', 'outside [0, 90]'),
@@ -126,11 +128,11 @@ def test_limit_multiples_bring_the_null_data_sets_they_are_read_from():
     ('robot: {spread_scale: 12}', 'must lie in'),
     ('robot: {touchdown_offset_deg: {low: -50, high: 5}}', 'must lie in'),
     ('damage: {cut_share: 1.5}', 'cut_share'),
-    ('diagnosis: {speed: 3}', "no setting 'speed'"),
+    ('diagnosis: {speed: 3}', 'no setting text (5 characters, not shown); settable'),
     ('diagnosis: {bootstrap: 0}', 'diagnosis.bootstrap must be at least 2, got 0'),
     ('robot: [1, 2]', 'must be a mapping'),
     ('diagnosis: {limit_terms: lateral_slip}', 'must be a list of term names'),
-    ('diagnosis: {limit_terms: [wobble]}', "'wobble' is no term"),
+    ('diagnosis: {limit_terms: [wobble]}', 'text (6 characters, not shown) is no term'),
     ('causes: [{cause: speed_decay, limit_multiples: [1]}]\n'
      'diagnosis: {limit_terms: [lateral_slip]}', 'add speed_decay to diagnosis.limit_terms'),
     ('causes: [{cause: speed_decay, limit_multiples: [1]}]\n'
@@ -141,6 +143,40 @@ def test_a_bad_spec_is_one_line_naming_what_is_wrong(text, reason):
         parse_spec(yaml.safe_load(text))
     message = str(caught.value)
     assert reason in message and '\n' not in message, message
+
+
+# where a spec's text may stand: each place a function of the text, giving a whole spec
+HOSTILE_PLACES = {
+    'top-level key': lambda text: {text: 1},
+    'robot key': lambda text: {'robot': {text: 1}},
+    'diagnosis key': lambda text: {'diagnosis': {text: 1}},
+    'seed': lambda text: {'seed': text},
+    'replicates': lambda text: {'replicates': text},
+    'cause': lambda text: {'causes': [{'cause': text, 'sizes': [1]}]},
+    'extension': lambda text: {'causes': [{'extension': text, 'sizes': [1]}]},
+    'causes entry': lambda text: {'causes': [text]},
+    'sign': lambda text: {'causes': [{'cause': 'lateral_slip', 'sizes': [1], 'sign': text}]},
+    'parameter name': lambda text: {'causes': [{'cause': 'initial_pose_error', 'sizes': [1],
+                                                'parameters': {text: 1}}]},
+    'limit term': lambda text: {'diagnosis': {'limit_terms': [text]}},
+}
+
+
+@seed(SEED)
+@settings(max_examples=80, deadline=None, database=None)
+@given(st.sampled_from(sorted(HOSTILE_PLACES)), st.text(max_size=300))
+def test_a_spec_s_text_is_never_quoted_back_wherever_it_stands(place, tail):
+    """
+    A spec is a file, and an error never quotes a file's content: a refused text is described.
+
+    Wherever it stands, any text (a terminal escape, a line of a private key) that is not a
+    word of the spec's own gives one line that does not contain it; never another exception.
+    """
+    text = 'SECRET' + tail
+    with pytest.raises(ParameterError) as caught:
+        parse_spec(HOSTILE_PLACES[place](text))
+    message = str(caught.value)
+    assert 'SECRET' not in message and '\n' not in message, (place, message)
 
 
 @pytest.mark.parametrize('path', sorted((REPO / 'studies').glob('*.yaml')),
@@ -560,7 +596,7 @@ def test_a_spec_puts_extension_families_beside_the_causes():
         'persistent_turning=3+heading_random_walk=1.5']
     for text, reason in (
             ('{extension: run_order_drift, sizes: [1]}', 'needs parameter'),
-            ('{extension: wobble, sizes: [1]}', "unknown extension 'wobble'"),
+            ('{extension: wobble, sizes: [1]}', 'unknown extension, text'),
             ('{extension: heading_random_walk, parameter: yaw_rate, sizes: [1]}',
              'belongs to run_order_drift'),
             ('{extension: heading_random_walk, sizes: [1], sign: both}', 'has no sign'),

@@ -195,10 +195,38 @@ def test_an_interrupted_study_keeps_its_rows_and_resume_completes_it(tmp_path):
 
 
 BAD_SPECS = {
-    'unknown cause': ({'causes': [{'cause': 'wobble', 'sizes': [1]}]}, "unknown cause 'wobble'"),
+    'unknown cause': ({'causes': [{'cause': 'wobble', 'sizes': [1]}]}, 'unknown cause, text'),
     'negative size': ({'causes': [{'cause': 'speed_decay', 'sizes': [-0.1]}]}, 'positive'),
     'bad range': ({'robot': {'cycles': {'low': 9, 'high': 3}}}, 'bad range'),
 }
+
+
+def test_a_script_that_starts_a_study_at_its_top_level_is_told_to_guard_it(tmp_path):
+    """
+    Dask's local workers are spawned, and each imports the main script again (Python's rule).
+
+    A script that calls run_study outside `if __name__ == '__main__':` starts the cluster once
+    more in every worker, which fails: the error says why and what to write.
+    """
+    spec_file = tmp_path / 'tiny.yaml'
+    spec_file.write_text(yaml.safe_dump(tiny_spec()))
+    script = tmp_path / 'unguarded.py'
+    script.write_text(
+        'import sys\n'
+        'import octoroach_model as om\n'
+        'from octoroach_model.errors import OctoroachError\n'
+        'try:\n'
+        f'    om.run_study({str(spec_file)!r}, {str(tmp_path / "out")!r}, workers=1,\n'
+        '                 plots=False)\n'
+        'except OctoroachError as error:\n'
+        '    sys.exit(f"error: {error}")\n')
+    result = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True,
+                            text=True, timeout=TIMEOUT_S)
+    assert result.returncode != 0, result.stdout
+    last = result.stderr.strip().splitlines()[-1]
+    assert last.startswith('error: cannot start a local Dask cluster of 1 worker:'), last
+    assert "a script makes its calls under `if __name__ == '__main__':`" in last, last
+    assert not (tmp_path / 'out' / 'rows.jsonl').exists()
 
 
 def test_bad_specs_and_an_unreachable_scheduler_stop_before_any_work(tmp_path):

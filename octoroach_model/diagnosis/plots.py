@@ -216,7 +216,8 @@ def _discrepancy_plot(report: DiagnosisReport, measured: Paths, path: Path) -> b
                    label=f'adequacy bound |z| = {bound:.1f}' if sign > 0 else None)
     ax.set_yticks(positions, names)
     ax.invert_yaxis()
-    ax.set_xlabel('z = (data - model) / standard error [-] (clipped at +-50)')
+    ax.set_xlabel('z = (data - model) / standard error [-] (clipped at +-50; 0 where the '
+                  "difference is below the statistic's resolution)")
     ax.set_title('Where the model disagrees with the data,\nbefore and after the extension')
     ax.legend(fontsize=8, loc='lower right')
     fig.tight_layout()

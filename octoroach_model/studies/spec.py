@@ -23,7 +23,7 @@ from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
 from octoroach_model.limit_setting import check_term_names
 from octoroach_model.model.effects import parameter_range
-from octoroach_model.settings import number as real_number
+from octoroach_model.settings import number as real_number, shown, unknown_name
 from octoroach_model.studies.terms import (
     main_parameter, parameters as term_parameters, signed, term_named, term_of, TERMS)
 
@@ -372,8 +372,8 @@ def _arms(value: Any) -> tuple[Arm, ...]:
             arms.append(Arm(ArmKind.NULL, NULL))
             continue
         if isinstance(item, str):
-            raise ParameterError(f'{where}: {item!r}: write none, or a mapping such as '
-                                 f'{{cause: {item}, sizes: [...]}}')
+            raise ParameterError(f'{where}: {unknown_name(item, (NULL,))}: write none, or a '
+                                 f'mapping such as {{cause: persistent_turning, sizes: [...]}}')
         item = _mapping(item, where)
         _known(item, CAUSE_KEYS, where)
         if 'together' in item:
@@ -398,9 +398,11 @@ def _arms(value: Any) -> tuple[Arm, ...]:
 def _single(item: Mapping[str, Any], where: str) -> list[Arm]:
     cause = term_of(item, where)
     main = main_parameter(cause)
-    given = str(item.get('sign', Sign.POSITIVE))
+    raw = item.get('sign', Sign.POSITIVE)
+    given = str(raw)
     if given not in tuple(Sign):
-        raise ParameterError(f'{where}.sign must be one of {", ".join(Sign)}, got {given!r}')
+        raise ParameterError(f'{where}.sign must be one of {", ".join(Sign)}, got '
+                             f'{unknown_name(raw, tuple(Sign))}')
     sign = Sign(given)
     if sign != Sign.POSITIVE and cause not in SIGNED_CAUSES:
         raise ParameterError(f'{where}.sign: {cause} has no sign (only '
@@ -456,7 +458,8 @@ def _parameters(cause: str, value: Any, where: str) -> tuple[tuple[str, float], 
     checked = []
     for key, number in params.items():
         if key not in term_parameters(cause):
-            raise ParameterError(f'{where}: {cause} has no parameter {key!r}; it takes '
+            raise ParameterError(f'{where}: {cause} has no parameter '
+                                 f'{unknown_name(key, term_parameters(cause))}; it takes '
                                  f'{", ".join(term_parameters(cause))}')
         number = _number(number, f'{where}.{key}')
         _check_parameter(cause, key, number, f'{where}.{key}')
@@ -521,8 +524,8 @@ def _diagnosis(values: Mapping[str, Any]) -> tuple[tuple[str, Any], ...]:
             checked.append((key, _limit_terms(value)))
             continue
         if key not in settable:
-            raise ParameterError(f'diagnosis: no setting {key!r}; settable: '
-                                 f'{", ".join(sorted(settable))}')
+            raise ParameterError(f'diagnosis: no setting {unknown_name(key, list(settable))}; '
+                                 f'settable: {", ".join(sorted(settable))}')
         default = settable[key]
         if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)            # YAML's 1 for 1.0: the same spec, the same hash
@@ -587,7 +590,7 @@ def _number(value: Any, where: str) -> float:
 
 def _whole(value: Any, where: str, minimum: int, why: str = '') -> int:
     if isinstance(value, bool) or not isinstance(value, int):
-        raise ParameterError(f'{where} must be a whole number, got {value!r}')
+        raise ParameterError(f'{where} must be a whole number, got {shown(value)}')
     if value < minimum:
         reason = f' ({why})' if why else ''
         raise ParameterError(f'{where} must be at least {minimum}, got {value}{reason}')
@@ -604,6 +607,7 @@ def _mapping(value: Any, where: str) -> Mapping[str, Any]:
 
 
 def _known(values: Mapping[str, Any], keys: Sequence[str], where: str) -> None:
-    unknown = [str(key) for key in values if key not in keys]
+    unknown = [key for key in values if key not in keys]
     if unknown:
-        raise ParameterError(f'{where}: unknown key {unknown[0]!r}; known: {", ".join(keys)}')
+        raise ParameterError(f'{where}: unknown key, {unknown_name(unknown[0], keys)}; known: '
+                             f'{", ".join(keys)}')

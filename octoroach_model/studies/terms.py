@@ -18,6 +18,7 @@ from octoroach_model.errors import ParameterError
 from octoroach_model.model import EFFECT_PARAMETERS
 from octoroach_model.model.extensions import (
     DRIFT, drift_term, DRIFTED, FAMILY_NAMES, TERM_BY_NAME)
+from octoroach_model.settings import unknown_name
 
 TERMS: tuple[str, ...] = tuple(cause.name for cause in CANDIDATES)
 
@@ -54,8 +55,9 @@ def term_of(item: Mapping[str, Any], where: str) -> str:
     """
     if 'extension' in item:
         family = item['extension']
-        if family not in FAMILY_NAMES:
-            raise ParameterError(f'{where}: unknown extension {family!r}; known: '
+        if not isinstance(family, str) or family not in FAMILY_NAMES:
+            raise ParameterError(f'{where}: unknown extension, '
+                                 f'{unknown_name(family, FAMILY_NAMES)}; known: '
                                  f'{", ".join(FAMILY_NAMES)}')
         if family == DRIFT:
             drifted = item.get('parameter')
@@ -71,11 +73,11 @@ def term_of(item: Mapping[str, Any], where: str) -> str:
 
 def term_named(value: Any, where: str) -> str:
     """Return a cause or a term given by its name (e.g. in together:), or say what is known."""
-    if value not in BY_NAME:
+    if not isinstance(value, str) or value not in BY_NAME:
         causes = [term for term in TERMS if not BY_NAME[term].is_extension]
         terms = [term for term in TERMS if BY_NAME[term].is_extension]
-        raise ParameterError(f'{where}: unknown cause {value!r}; known: {", ".join(causes)} '
-                             f'(or an extension term: {", ".join(terms)})')
+        raise ParameterError(f'{where}: unknown cause, {unknown_name(value, TERMS)}; known: '
+                             f'{", ".join(causes)} (or an extension term: {", ".join(terms)})')
     return str(value)
 
 
