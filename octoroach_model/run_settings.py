@@ -26,7 +26,7 @@ from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.model.simulate import DEFAULT_START_POSE
 from octoroach_model.paths import Paths
 from octoroach_model.recordings import marker_topic, pose_topic
-from octoroach_model.settings import check_fields, Setting, setting
+from octoroach_model.settings import check_fields, Setting, setting, shown
 
 __all__ = ['ANGLE_DRAWS', 'EFFECT_PREFIX', 'EXTENSION_PREFIX', 'RunSettings', 'effect_settings',
            'extension_settings', 'marker_topic', 'pose_topic']
@@ -101,13 +101,13 @@ class RunSettings:
         """Make settings from parameter values; ParameterError where they do not fit."""
         for key in ('subject', 'segment'):
             if values[key] and not NAME.match(values[key]):
-                raise ParameterError(f'{key} {values[key]!r} must be a name: a letter, then '
-                                     'letters, digits or _')
+                raise ParameterError(f'{key} must be a name: a letter, then letters, digits '
+                                     f'or _; got {shown(values[key])}')
         if not values['subject']:
             raise ParameterError('subject must not be empty')
         if not FRAME.match(values['world_frame']):
-            raise ParameterError(f'world_frame {values["world_frame"]!r} must be a frame '
-                                 'name of letters, digits, _ and /')
+            raise ParameterError('world_frame must be a frame name of letters, digits, _ and '
+                                 f'/; got {shown(values["world_frame"])}')
         settings = cls(
             robots=int(values['robots']), subject=values['subject'],
             segment=values['segment'], world_frame=values['world_frame'],

@@ -37,7 +37,7 @@ from octoroach_model.errors import DataError, ParameterError
     ({'cycles': math.inf}, 'cycles must be a positive finite number, got inf'),
     ({'t': [[0.0, 0.02]]}, 't must be a 1-D array of finite sample times'),
     ({'effects': ['lateral_slip']}, 'effects must be a mapping'),
-    ({'effects': {'lateral_slip': [1.0]}}, "effect 'lateral_slip': its parameters must be a "
+    ({'effects': {'lateral_slip': [1.0]}}, 'effect lateral_slip: its parameters must be a '
                                            'mapping'),
     ({'effects': {'lateral_slip': {'velocity_cm_s': 'fast'}}},
      'lateral_slip.velocity_cm_s must be a number, got text'),
@@ -101,6 +101,11 @@ def test_the_entry_points_that_take_runs_refuse_anything_else(call):
 def test_validate_refuses_a_model_that_is_not_a_plug_in():
     with pytest.raises(ParameterError, match='model must be a plug-in'):
         om.validate(om.simulate(3, seed=1), model='four_bar')
+    from octoroach_model.validation import validate_measured
+
+    with pytest.raises(ParameterError, match=r"nominal must be 'fit' or 'table2', got text "
+                                             r'\(6 characters, not shown\)$'):
+        validate_measured(om.simulate(3, seed=1), nominal='SECRET')
 
 
 @pytest.mark.parametrize('arguments, reason', [
@@ -109,11 +114,14 @@ def test_validate_refuses_a_model_that_is_not_a_plug_in():
     ({'size': math.nan}, 'size must be a finite number, got nan'),
     ({'workers': 2.5}, 'workers must be a whole number, 0 .* or more, got 2.5'),
     ({'workers': -1}, 'workers must be a whole number, 0 .* or more, got -1'),
+    ({'method': 'simulat'}, r'method must be one of model, simulate, got text \(7 characters, '
+                            r'not shown\) \(did you mean simulate\?\)$'),
 ])
 def test_plan_refuses_a_bad_question_before_any_work(arguments, reason):
     arguments = {'cause': 'persistent_turning', 'size': 3.0, 'workers': 0, **arguments}
-    with pytest.raises(ParameterError, match=reason):
+    with pytest.raises(ParameterError, match=reason) as caught:
         om.plan_runs(arguments.pop('cause'), arguments.pop('size'), **arguments)
+    assert '\n' not in str(caught.value)
 
 
 @pytest.mark.parametrize('call, reason', [
@@ -247,13 +255,19 @@ def test_model_parameters_refuse_a_field_of_another_kind_in_one_line(values, rea
     ({'topic': 5}, 'topic must be text or none, got 5'),
     ({'markers': 'LF,RF,B'}, r'markers must be a list of marker names \(not one text'),
     ({'markers': 3}, 'markers must be a list of marker names'),
+    ({'up_axis': 'SECRET'}, r'up axis must be one of z, y, -y, x, -x, -z, got text \(6 '
+                            r'characters, not shown\)$'),
+    ({'forward_axis': '+y'}, r'forward axis must be one of .*, got text \(2 characters, not '
+                             r'shown\) \(did you mean y\?\)'),
+    ({'forward_axis': 5}, 'forward_axis must be text, got 5'),
 ])
 def test_read_options_refuse_a_value_of_another_kind(values, reason):
     """'no' would have read as true, and 'A,B' as the markers A, ',' and B."""
     from octoroach_model.recordings.options import ReadOptions
 
-    with pytest.raises(ParameterError, match=reason):
+    with pytest.raises(ParameterError, match=reason) as caught:
         ReadOptions(**values)
+    assert 'SECRET' not in str(caught.value) and '\n' not in str(caught.value)
     assert ReadOptions(markers=['LF', 'RF']).markers == ('LF', 'RF')
 
 

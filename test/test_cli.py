@@ -261,7 +261,7 @@ MORE_BAD_INPUT = {
     'only_one_sigma': (['validate', '{bag}', '--sigma1', '0.1'], 'sigma2'),
     'effect_param_unknown_key': (['simulate', '--paths', '3', '--out', '{tmp}/out_e',
                                   '--effect', 'lateral_slip', '--effect-param', 'speed=2'],
-                                 'speed'),
+                                 'has no parameter text (5 characters, not shown)'),
     'effect_param_not_a_number': (['simulate', '--paths', '3', '--out', '{tmp}/out_f',
                                    '--effect', 'lateral_slip', '--effect-param',
                                    'velocity_cm_s=fast'], 'not a number'),

@@ -191,13 +191,17 @@ def test_an_extension_of_size_zero_or_beside_others_leaves_every_draw_unchanged(
 
 
 def test_bad_extensions_are_refused_with_a_reason():
-    with pytest.raises(om.ParameterError, match='unknown extension'):
+    with pytest.raises(om.ParameterError, match=r'unknown extension, text \(6 characters'):
         om.simulate(2, extensions={'wobble': {}})
-    with pytest.raises(om.ParameterError, match='needs parameter'):
+    with pytest.raises(om.ParameterError, match=r'\(did you mean run_mixture\?\); known'):
+        om.simulate(2, extensions={'run_mixtur': {}})
+    with pytest.raises(om.ParameterError, match='needs parameter .*, got None'):
         om.simulate(2, extensions={'run_order_drift': {'change': 0.1}})
+    with pytest.raises(om.ParameterError, match=r'got text .* \(did you mean yaw_rate\?\)'):
+        om.simulate(2, extensions={'run_order_drift': {'parameter': 'yawrate'}})
     with pytest.raises(om.ParameterError, match='outside'):
         om.simulate(2, extensions={'run_mixture': {'fraction': 1.5}})
-    with pytest.raises(om.ParameterError, match='no parameter'):
+    with pytest.raises(om.ParameterError, match=r'no parameter text \(4 characters'):
         om.simulate(2, extensions={'change_point': {'time': 1.0}})
 
 

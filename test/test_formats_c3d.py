@@ -235,7 +235,8 @@ def test_a_layout_on_one_line_is_refused(tmp_path, model_runs):
     line = {'front': (0.1, 0, 0), 'left': (0.0, 0, 0), 'right': (-0.1, 0, 0)}
     with pytest.raises(BagError, match='does not span a plane'):
         read_c3d(path, layout=line)
-    with pytest.raises(BagError, match=r'layout of marker octoroach:left must be \(x, y, z\)'):
+    with pytest.raises(BagError, match=r'layout of marker left must be \(x, y, z\) in metres, '
+                                       'got a tuple'):
         read_c3d(path, layout={'front': (0.1, 0, 0), 'left': (0.0, 1), 'right': (0, 0, 1)})
 
 

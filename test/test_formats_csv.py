@@ -187,14 +187,22 @@ def test_a_subject_with_several_segments_needs_the_segment(tmp_path, model_runs)
 
 @pytest.mark.parametrize('content, reason', [
     ('time,x,y,heading\n0,1,2,3\n', 'line 1: not a Vicon CSV export header'),
-    ('Objects\nfast\n,,octo\nFrame,Sub Frame,RX\n,,deg\n', 'line 2: .*no frame rate'),
+    ('Objects\nfast\n,,octo\nFrame,Sub Frame,RX\n,,deg\n',
+     'line 2: .*no frame rate on the line after the section name'),
+    ('SECRET\nfast\n,,octo\nFrame,Sub Frame,RX\n,,deg\n', 'line 2: .*no frame rate'),
     ('Objects\n100\n,,octo\nTime,RX,RY\n,,deg\n', 'line 4: .*no "Frame" column'),
     ('Objects\n100\n', 'the header is cut short'),
     ('', 'empty file'),
     ('Objects\n0\n,,octo\nFrame,Sub Frame,RX\n,,deg\n', 'frame rate must be a positive'),
     ('Devices\n1000\n,,Plate\nFrame,Sub Frame,Fx\n,,N\n1,0,2\n', 'no pose in this export'),
     ('Objects\n100\n,,octo\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\n,,deg,deg,deg,in,in,in\n',
-     "unknown length unit 'in'"),
+     r'octo: unknown length unit, text \(2 characters, not shown\); expected cm, m, mm'),
+    ('Objects\n100\n,,octo\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\n,,deg,deg,deg,SECRETUNIT,'
+     'SECRETUNIT,SECRETUNIT\n', r'unknown length unit, text \(10 characters, not shown\)'),
+    ('Objects\n100\n,,octo\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\n,,deg,deg,deg,mm,SECRETUNIT,mm\n',
+     'one length unit for TX TY .*, got 2 different units'),
+    ('Objects\n100\n,,octo\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\n,,deg,deg,deg,mm,,mm\n',
+     'one length unit for TX TY .*, got a unit and a column without one'),
     ('Objects\n100\n,,octo\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\n,,deg,deg,rad,mm,mm,mm\n',
      'one angle unit for RX RY RZ'),
 ])
@@ -204,6 +212,7 @@ def test_bad_input_is_one_line_naming_what_is_expected(tmp_path, content, reason
     with pytest.raises(BagError, match=reason) as raised:
         read_csv(path)
     assert '\n' not in str(raised.value)
+    assert 'SECRET' not in str(raised.value)        # what the file says is not quoted
     if 'header' in reason:
         assert 'expected the Objects, Segments or Trajectories section name' in str(
             raised.value)

@@ -155,8 +155,14 @@ def test_a_csv_with_a_header_naming_its_columns_reads_into_the_runs(tmp_path, tr
     ('t,x,y\n0,0,0\n', 'without an orientation: it needs quaternion columns qx qy qz qw or a '
                        'heading column'),
     ('t,x,y,qx,qy\n0,0,0,0,0\n', 'it has only qx, qy'),
-    ('time [h],x,y,yaw\n0,0,0,0\n', "unknown time unit 'h'"),
-    ('t,x [in],y [in],yaw\n0,0,0,0\n', "unknown unit 'in'"),
+    ('time [h],x,y,yaw\n0,0,0,0\n',
+     r'unknown time unit, text \(1 character, not shown\); expected s, sec, ms, us, ns'),
+    ('t,x [in],y [in],yaw\n0,0,0,0\n', r'unknown length unit, text \(2 characters, not shown\)'),
+    ('time [SECRETUNIT],x,y,yaw\n0,0,0,0\n', 'unknown time unit, text'),
+    ('t,x [SECRETUNIT],y,yaw\n0,0,0,0\n', r'unknown length unit, text \(10 characters'),
+    ('t,x,y,yaw [SECRETUNIT]\n0,0,0,0\n', 'unknown angle unit, text .*; expected rad or deg'),
+    ('t,x [mm],y [SECRETUNIT],yaw\n0,0,0,0\n', '2 different length units; expected m, cm or mm'),
+    ('t,x,y,yaw [degs]\n0,0,0,0\n', r'text \(4 characters, not shown\) \(did you mean deg\?\)'),
     ('t,x,y,yaw\nnoon,1,2,3\n', 'without a single readable pose row'),
 ])
 def test_a_table_that_cannot_give_a_pose_is_one_line_naming_what_it_needs(tmp_path, content,
@@ -166,6 +172,7 @@ def test_a_table_that_cannot_give_a_pose_is_one_line_naming_what_it_needs(tmp_pa
     with pytest.raises(BagError, match=reason) as raised:
         read_runs(path)
     assert '\n' not in str(raised.value)
+    assert 'SECRET' not in str(raised.value).upper()     # a unit the file gives is not quoted
 
 
 def test_a_folder_of_tables_is_read_like_a_folder_of_bags(tmp_path, truth):

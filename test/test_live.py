@@ -286,8 +286,11 @@ def test_a_strong_effect_is_named_at_a_look_and_stays_named():
 
 
 def test_a_question_must_name_a_term_and_a_size_that_matters():
-    with pytest.raises(ParameterError, match='unknown term'):
+    with pytest.raises(ParameterError, match=r'unknown term, text \(7 characters, not shown\); '
+                                             'known: initial_pose_error, '):
         Question('battery', 1.0)
+    with pytest.raises(ParameterError, match=r'\(did you mean lateral_slip\?\)'):
+        Question('lateral_slp', 1.0)
     with pytest.raises(ParameterError, match='must be positive'):
         Question('lateral_slip', 0.0)
     with pytest.raises(ParameterError, match='power'):

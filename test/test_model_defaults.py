@@ -182,13 +182,16 @@ def test_a_file_edited_in_place_is_read_again(edited_copy, monkeypatch):
     ({'leg_length': None}, r'octoroach_model\.leg_length is missing'),
     ({'touchdown_angles': [0.7, 0.7, 0.7]}, r'touchdown_angles must be a list of 4 finite'),
     ({'liftoff_angles': -0.7}, r'liftoff_angles must be a list of 2 finite'),
-    ({'stride_frequency': 'fast'}, r'stride_frequency must be a finite number'),
+    ({'stride_frequency': 'SECRET'}, r'stride_frequency must be a finite number, got text '
+                                     r'\(6 characters, not shown\)'),
+    ({'touchdown_angles': [0.7, 'SECRET', 0.7, 0.7]}, r'touchdown_angles must be .*, got a list'),
     ({'sample_rate': True}, r'sample_rate must be a finite number'),
     ({'hip_distance': float('nan')}, r'hip_distance must be a finite number'),
     ({'hip_distance': -0.13}, r'hip_distance and leg_length must be positive'),
     ({'sigma2': 2.0}, r'sigma2 = 2\.0 is outside \[0, 1\.5\) rad'),
 ], ids=['missing key', 'three touchdown angles', 'liftoff not a list', 'text for a number',
-        'boolean for a number', 'not finite', 'negative length', 'sigma out of range'])
+        'text among the angles', 'boolean for a number', 'not finite', 'negative length',
+        'sigma out of range'])
 def test_a_bad_file_raises_a_parameter_error_naming_the_file_and_the_key(
         tmp_path, change, message):
     values = {**shipped_values(), **change}
@@ -197,7 +200,7 @@ def test_a_bad_file_raises_a_parameter_error_naming_the_file_and_the_key(
     with pytest.raises(ParameterError, match=message) as raised:
         load_nominal(path)
     assert str(path) in str(raised.value)
-    assert '\n' not in str(raised.value)
+    assert '\n' not in str(raised.value) and 'SECRET' not in str(raised.value)
 
 
 def test_a_file_without_the_section_or_not_yaml_is_one_reason(tmp_path):

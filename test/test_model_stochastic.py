@@ -137,17 +137,22 @@ def test_simulate_takes_cycles_and_custom_times():
     ({'sigma1': -0.1}, 'sigma'),
     ({'sigma2': -1e-9}, 'sigma'),
     ({'draws': 'foo'}, 'draws'),
-    ({'effects': {'wobble': {}}}, 'unknown effect'),
-    ({'effects': {'measurement_noise': {'std_cm': 1.0}}}, 'no parameter'),
+    ({'effects': {'wobble': {}}}, r'unknown effect, text \(6 characters, not shown\); known'),
+    ({'effects': {'lateral_slp': 5}}, r'unknown effect, .* \(did you mean lateral_slip\?\)'),
+    ({'effects': {'measurement_noise': {'std_cm': 1.0}}},
+     r'no parameter text \(6 characters, not shown\); it takes position_std_cm'),
+    ({'effects': {'lateral_slip': {'velocity_cm': 1.0}}}, r'\(did you mean velocity_cm_s\?\)'),
     ({'effects': {'speed_decay': {'fraction': 2.0}}}, 'outside'),
     ({'effects': {'lateral_slip': {'velocity_cm_s': float('nan')}}}, 'outside'),
     ({'n_paths': 0}, 'n_paths'),
     ({'n_paths': 2.5}, 'n_paths'),
     ({'cycles': 0}, 'cycles'),
 ], ids=['negative sigma1', 'negative sigma2', 'unknown draws', 'unknown effect',
-        'unknown effect parameter', 'effect value out of range', 'effect value not finite',
+        'a typo of an effect', 'unknown effect parameter', 'a typo of a parameter',
+        'effect value out of range', 'effect value not finite',
         'no paths', 'fractional paths', 'no cycles'])
 def test_bad_parameters_raise_parameter_error_with_a_reason(kwargs, message):
     kwargs = {'n_paths': 2, 'seed': 1, **kwargs}
-    with pytest.raises(ParameterError, match=message):
+    with pytest.raises(ParameterError, match=message) as raised:
         om.simulate(kwargs.pop('n_paths'), **kwargs)
+    assert '\n' not in str(raised.value)

@@ -291,6 +291,17 @@ def test_recorder_refuses_to_overwrite_a_bag(tmp_path, capfd):
     assert 'Traceback' not in err and err.count('\n') == 1, err
 
 
+def test_recorder_refuses_a_bad_topic_name_by_its_entry_without_quoting_it(tmp_path, capfd):
+    """The error of rclpy quotes the name over three lines; a parameter may come from anyone."""
+    code = recorder_node.main(['-o', str(tmp_path / 'new'), '--topics', '/vicon/a',
+                               '/SECRET topic'])
+    err = capfd.readouterr().err
+    assert code == 2, err
+    assert err.startswith('error: bad topic name: entry 2 of topics, text (13 characters, not '
+                          'shown), is no ROS topic name'), err
+    assert 'SECRET' not in err and err.count('\n') == 1, err
+
+
 def test_help_of_recorder_and_replay_exits_0(capsys):
     assert recorder_node.main(['--help']) == 0
     assert replay_node.main(['--help']) == 0

@@ -135,13 +135,36 @@ def test_a_sqlite3_bag_without_a_pose_topic_lists_its_topics(tmp_path: Path) -> 
         read_runs(tmp_path / 'old')
 
 
-def test_an_unknown_storage_plugin_is_refused_with_the_reason(tmp_path: Path) -> None:
+@pytest.mark.parametrize('old, new, reason', [
+    ('storage_identifier: mcap', 'storage_identifier: SECRETSTORE',
+     r'odd: storage_identifier, text \(11 characters, not shown\), is not supported, only mcap '
+     'and sqlite3'),
+    ('storage_identifier: mcap', 'storage_identifier: mcapp', r'\(did you mean mcap\?\)'),
+    ('  - odd_0.mcap\n', '  - odd_0.mcap\n  - ../SECRET.mcap\n',
+     'metadata.yaml: entry 2 of 2 of relative_file_paths names a file outside the bag '
+     'directory'),
+], ids=['unknown storage', 'a typo of a storage', 'a file outside the bag'])
+def test_a_metadata_yaml_refused_says_which_entry_without_quoting_it(
+        tmp_path: Path, old: str, new: str, reason: str) -> None:
+    """Any process may write a bag: what its metadata.yaml says is never quoted back."""
     bag = write_paths_bag(tmp_path / 'odd', wavy_paths(1, 1.0))
     text = (bag / 'metadata.yaml').read_text()
-    text = text.replace('storage_identifier: mcap', 'storage_identifier: leveldb')
-    (bag / 'metadata.yaml').write_text(text)
-    with pytest.raises(BagError, match=r"odd: storage 'leveldb' is not supported"):
+    assert old in text
+    (bag / 'metadata.yaml').write_text(text.replace(old, new))
+    with pytest.raises(BagError, match=reason) as raised:
         read_runs(bag)
+    assert 'SECRET' not in str(raised.value) and '\n' not in str(raised.value)
+
+
+def test_a_file_metadata_yaml_lists_but_the_bag_lacks_is_noted_by_its_entry(
+        tmp_path: Path) -> None:
+    bag = write_paths_bag(tmp_path / 'odd', wavy_paths(1, 1.0))
+    text = (bag / 'metadata.yaml').read_text()
+    (bag / 'metadata.yaml').write_text(text.replace('  - odd_0.mcap\n',
+                                                    '  - odd_0.mcap\n  - SECRET_1.mcap\n'))
+    (said,) = [note for note in read_runs(bag).notes if 'missing' in note]
+    assert said.endswith('files listed in metadata.yaml are missing: entry 2 of 2 of '
+                         'relative_file_paths') and 'SECRET' not in said
 
 
 def test_a_bag_whose_samples_are_all_unusable_is_a_data_error(tmp_path: Path) -> None:

@@ -58,6 +58,7 @@ from octoroach_model.errors import DataError, ParameterError
 from octoroach_model.fitting import mean_start_pose
 from octoroach_model.fitting.gait import stride_frequency_estimate
 from octoroach_model.paths import Paths
+from octoroach_model.settings import unknown_name
 
 REFIT_GROWTH = 2.0          # the baseline is fitted again when the calibration half doubles
 INTERVAL_ALPHA = 0.05       # the confidence sequence holds at every look with 95 %
@@ -79,8 +80,9 @@ class Question:
 
     def __post_init__(self) -> None:
         if self.term not in BY_NAME:
-            raise ParameterError(f'unknown term {self.term!r}; known: '
-                                 f'{", ".join(cause.name for cause in CANDIDATES)}')
+            known = [cause.name for cause in CANDIDATES]
+            raise ParameterError(f'unknown term, {unknown_name(self.term, known)}; known: '
+                                 f'{", ".join(known)}')
         if not (math.isfinite(self.size) and self.size > 0):
             raise ParameterError(f'the size that matters must be positive, got {self.size:g}')
         if not 0 < self.power < 1:

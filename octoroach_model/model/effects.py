@@ -24,7 +24,7 @@ from octoroach_model.errors import ParameterError
 from octoroach_model.model.extensions import (
     NormalSource, positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext)
 from octoroach_model.model.trig import cos_sin
-from octoroach_model.settings import number, shown
+from octoroach_model.settings import number, shown, unknown_name
 
 # Canonical order of application; also the order of their random streams.
 EFFECT_PARAMETERS: dict[str, tuple[str, ...]] = {
@@ -73,17 +73,20 @@ def check_effects(effects: Effects | None) -> dict[str, dict[str, float]]:
                              f'{shown(effects)}')
     checked: dict[str, dict[str, float]] = {}
     for name, params in (effects or {}).items():
+        if name not in TERM_BY_NAME and name not in EFFECT_PARAMETERS:   # named before quoted
+            raise ParameterError(f'unknown effect, '
+                                 f'{unknown_name(name, (*EFFECT_NAMES, *TERM_BY_NAME))}; '
+                                 f'known: {", ".join(EFFECT_NAMES)}')
         if not isinstance(params, Mapping):
-            raise ParameterError(f'effect {name!r}: its parameters must be a mapping '
+            raise ParameterError(f'effect {name}: its parameters must be a mapping '
                                  f'{{parameter: value}}, got {shown(params)}')
         if name in TERM_BY_NAME:
             checked[name] = TERM_BY_NAME[name].checked(params)
             continue
-        if name not in EFFECT_PARAMETERS:
-            raise ParameterError(f'unknown effect {name!r}; known: {", ".join(EFFECT_NAMES)}')
         extra = set(params) - set(EFFECT_PARAMETERS[name])
         if extra:
-            raise ParameterError(f'effect {name} has no parameter {sorted(extra)[0]!r}; '
+            raise ParameterError(f'effect {name} has no parameter '
+                                 f'{unknown_name(sorted(extra)[0], EFFECT_PARAMETERS[name])}; '
                                  f'it takes {", ".join(EFFECT_PARAMETERS[name])}')
         values = {}
         for key in EFFECT_PARAMETERS[name]:

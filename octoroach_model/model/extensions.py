@@ -44,7 +44,7 @@ from scipy import special
 
 from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
-from octoroach_model.settings import number
+from octoroach_model.settings import number, unknown_name
 
 DRIFT = 'run_order_drift'
 DRIFTED = ('stride_frequency', 'yaw_rate', 'lateral_velocity')
@@ -105,7 +105,8 @@ class ExtensionTerm:
         """Return all parameters of the term, missing ones at their default, ranges checked."""
         extra = set(values) - set(self.parameters)
         if extra:
-            raise ParameterError(f'{self.name} has no parameter {sorted(extra)[0]!r}; it takes '
+            raise ParameterError(f'{self.name} has no parameter '
+                                 f'{unknown_name(sorted(extra)[0], self.parameters)}; it takes '
                                  f'{", ".join(self.parameters)}')
         checked = {}
         for key, (low, high) in zip(self.parameters, self.ranges):
@@ -232,14 +233,14 @@ def family_terms(extensions: Extensions | None) -> dict[str, dict[str, float]]:
     terms: dict[str, dict[str, float]] = {}
     for family, given in pairs:
         if family not in FAMILY_PARAMETERS:
-            raise ParameterError(f'unknown extension {family!r}; known: '
-                                 f'{", ".join(FAMILY_NAMES)}')
+            raise ParameterError(f'unknown extension, {unknown_name(family, FAMILY_NAMES)}; '
+                                 f'known: {", ".join(FAMILY_NAMES)}')
         values = dict(given)
         if family == DRIFT:
             drifted = values.pop('parameter', None)
             if drifted not in DRIFTED:
                 raise ParameterError(f'{DRIFT} needs parameter = one of {", ".join(DRIFTED)}, '
-                                     f'got {drifted!r}')
+                                     f'got {unknown_name(drifted, DRIFTED)}')
             name = drift_term(str(drifted))
         else:
             name = family

@@ -235,7 +235,7 @@ def _read_nominal(path: str, mtime_ns: int, size: int) -> NominalValues:
                 not all(_is_finite_number(item) for item in items):
             kind = f'a list of {count} finite numbers' if count else 'a finite number'
             raise ParameterError(f'{path}: {CONFIG_SECTION}.{key} must be {kind}, '
-                                 f'got {value!r}')
+                                 f'got {shown(value)}')
         return tuple(float(item) for item in items)
 
     def number(key: str) -> float:

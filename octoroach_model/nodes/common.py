@@ -23,7 +23,7 @@ import threading
 from typing import Any, NoReturn, TYPE_CHECKING
 
 from octoroach_model.errors import exit_code, EXIT_USAGE, OctoroachError, ParameterError
-from octoroach_model.settings import Setting, setting, settings_of
+from octoroach_model.settings import Setting, setting, settings_of, shown, unknown_name
 
 if TYPE_CHECKING:
     from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -130,7 +130,7 @@ class ParamSpec:
     def check(self, value: Any) -> str | None:
         """Why `value` is not allowed, or None when it is."""
         if not _has_kind(value, self.kind):
-            return (f'{self.name} must be a {self.kind}, got {value!r}'
+            return (f'{self.name} must be a {self.kind}, got {shown(value)}'
                     + (' (write doubles with a decimal point, e.g. 50.0)'
                        if self.kind == 'double' else ''))
         if self.kind == 'double' and not math.isfinite(value):
@@ -139,7 +139,8 @@ class ParamSpec:
             unit = f' {self.unit}' if self.unit else ''
             return f'{self.name} = {value}{unit} is outside {self.range_text()}'
         if self.choices and value not in self.choices:
-            return f'{self.name} = {value!r} is not one of {", ".join(self.choices)}'
+            return (f'{self.name} must be one of {", ".join(self.choices)}, got '
+                    f'{unknown_name(value, self.choices)}')
         return None
 
 

@@ -44,7 +44,7 @@ from octoroach_model.nodes.common import (
 from octoroach_model.recordings import (
     DEFAULT_GAP_S, DEFAULT_MARKER_TOPIC, DEFAULT_POSE_TOPIC, DEFAULT_RATE_HZ)
 from octoroach_model.recordings.options import FORWARD_AXIS, GAP_S, UP_AXIS
-from octoroach_model.settings import setting, settings_of
+from octoroach_model.settings import setting, settings_of, shown
 
 SUMMARY = ('ROS node: records VICON pose topics (TransformStamped or PoseStamped) and run '
            'markers to a rosbag2 MCAP bag directory (ROS 2 Jazzy layout), flushed every '
@@ -200,7 +200,8 @@ class Recorder(Node):
         self._specs = with_defaults(recorder_specs(), defaults)
         values = declare_parameters(self, self._specs)
         self.add_on_set_parameters_callback(set_parameters_callback(self, self._specs))
-        self._patterns = [self._resolve(topic) for topic in values['topics']]
+        self._patterns = [self._resolve(topic, number)
+                          for number, topic in enumerate(values['topics'], 1)]
         from octoroach_model.recordings.bagio.recording import Recording, REORDER_WINDOW_S
 
         output = Path(values['output'] or default_output())
@@ -229,13 +230,15 @@ class Recorder(Node):
 
         self.create_service(Trigger, '~/export', self._on_export)
 
-    def _resolve(self, topic: str) -> str:
+    def _resolve(self, topic: str, number: int) -> str:
         if any(ch in topic for ch in '*?['):
             return topic
         try:
             return self.resolve_topic_name(topic)
-        except Exception as error:  # noqa: BLE001 - rclpy raises several name errors
-            raise UsageError(f'bad topic name {topic!r}: {error}') from None
+        except Exception:  # noqa: BLE001 - rclpy raises several name errors (quoting the name)
+            raise UsageError(f'bad topic name: entry {number} of topics, {shown(topic)}, is no '
+                             'ROS topic name (letters, digits, _ and /; no token starts with a '
+                             'digit)') from None
 
     def _wanted(self, topic: str) -> bool:
         return any(fnmatch.fnmatchcase(topic, pattern) for pattern in self._patterns)

@@ -49,7 +49,7 @@ from octoroach_model.nodes.common import (
 from octoroach_model.nodes.messages import (
     diagnosis_fields, diagnosis_status, guidance_array, status_fields, validation_status,
     violation_array)
-from octoroach_model.settings import settings_of
+from octoroach_model.settings import settings_of, shown
 from octoroach_model.validation_jobs import (
     Cancelled, Job, JobAnswer, JobKind, Progress, run_diagnosis, run_validation, Workbench)
 
@@ -133,7 +133,7 @@ def _reject_reason(values: dict[str, ParamValue]) -> str | None:
 
 def _bags_reason(value: Any) -> str | None:
     if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
-        return f'bags must be a string array, e.g. [bags/run1, data.npz], got {value!r}'
+        return f'bags must be a string array, e.g. [bags/run1, data.npz], got {shown(value)}'
     if any(not v.strip() for v in value):
         return 'bags must not contain empty names'
     return None

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from octoroach_model.errors import ParameterError
 from octoroach_model.recordings.conventions.axes import forward_angle_rad, FORWARD_AXES, UP_AXES
-from octoroach_model.settings import check_kinds, Setting, setting
+from octoroach_model.settings import check_kinds, Setting, setting, unknown_name
 
 # Settings of reading that programs and nodes share (`settings`: one source for each)
 TOPIC = Setting('pose topic; empty or not given: the VICON one, or the only pose topic')
@@ -63,10 +63,10 @@ class ReadOptions:
         object.__setattr__(self, 'markers', tuple(self.markers))
         if self.forward_axis not in FORWARD_AXES:
             raise ParameterError(f'forward axis must be one of {", ".join(FORWARD_AXES)}, '
-                                 f'got {self.forward_axis!r}')
+                                 f'got {unknown_name(self.forward_axis, FORWARD_AXES)}')
         if self.up_axis not in UP_AXES:
             raise ParameterError(f'up axis must be one of {", ".join(UP_AXES)}, '
-                                 f'got {self.up_axis!r}')
+                                 f'got {unknown_name(self.up_axis, UP_AXES)}')
 
     @property
     def heading_offset_rad(self) -> float:

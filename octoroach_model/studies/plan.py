@@ -39,7 +39,7 @@ from octoroach_model.diagnosis.diagnose import MIN_RUNS
 from octoroach_model.errors import ParameterError
 from octoroach_model.jsonio import dumps
 from octoroach_model.settings import (
-    check_callable, check_setting, number, Progress, setting, shown)
+    check_callable, check_setting, number, Progress, setting, shown, unknown_name)
 from octoroach_model.studies.design import build_tasks
 from octoroach_model.studies.execute import run_tasks
 from octoroach_model.studies.plan_model import runs_interval_text
@@ -253,7 +253,8 @@ def plan_runs(cause: str, size: float, *, power: float = PLAN.power,
         raise ParameterError(f'size must be a finite number, got {shown(size)}')
     min_runs = max(MIN_RUNS, min_runs or MIN_RUNS)
     if method not in METHODS:
-        raise ParameterError(f'method must be one of {", ".join(METHODS)}, got {method!r}')
+        raise ParameterError(f'method must be one of {", ".join(METHODS)}, got '
+                             f'{unknown_name(method, METHODS)}')
     base = _base_spec(cause, size, robot, parameters, replicates, seed, diagnosis,
                       min_runs, max_runs, power)
     if method == PlanMethod.MODEL:

@@ -24,7 +24,7 @@ from octoroach_model.model import check_effects, model_poses, ModelParameters, R
 from octoroach_model.model.parameters import SIGMA_LIMIT
 from octoroach_model.paths import check_paths, Paths
 from octoroach_model.settings import (
-    check_callable, check_fields, check_record, Progress, setting, shown)
+    check_callable, check_fields, check_record, Progress, setting, shown, unknown_name)
 from octoroach_model.validation.multisample import chernoff_sample_size, disjoint_multisamples
 from octoroach_model.validation.region import prediction_region, t_multiplier, violations
 
@@ -320,7 +320,8 @@ def validate_measured(measured: Paths, settings: ValidationSettings | None = Non
     settings = settings or ValidationSettings()
     measured, duration_note = common_duration(measured)
     if nominal not in NOMINAL_MODELS:
-        raise ParameterError(f"nominal must be 'fit' or 'table2', got {nominal!r}")
+        raise ParameterError(f"nominal must be 'fit' or 'table2', got "
+                             f'{unknown_name(nominal, NOMINAL_MODELS)}')
     if measured.n_paths < settings.runs_needed:
         left_out = f'; {duration_note}' if duration_note else ''
         raise DataError(f'{measured.n_paths} runs are too few: n x k = {settings.n} x '

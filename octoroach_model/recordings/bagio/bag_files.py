@@ -17,6 +17,7 @@ from typing import NamedTuple, Union
 
 from octoroach_model.errors import BagError
 from octoroach_model.safe_yaml import load_yaml_file
+from octoroach_model.settings import unknown_name
 
 PathLike = Union[str, 'os.PathLike[str]']
 
@@ -107,22 +108,30 @@ def _files_in_metadata(path: Path, notes: list[str]
                      'read the .mcap files directly')
         return None
     if identifier not in (Storage.MCAP, Storage.SQLITE3):
-        raise BagError(f'{path}: storage {identifier!r} is not supported, only mcap and '
-                       'sqlite3')
+        raise BagError(f'{path}: storage_identifier, '
+                       f'{unknown_name(identifier, (Storage.MCAP, Storage.SQLITE3))}, is not '
+                       'supported, only mcap and sqlite3')
     storage = Storage(identifier)
-    outside = [name for name in relative if not _inside(path, name)]
+    outside = [number for number, name in enumerate(relative, 1) if not _inside(path, name)]
     if outside:
-        raise BagError(f'{metadata_path}: relative_file_paths names a file outside the bag '
-                       f'directory ({outside[0]!r}); only files inside it are read')
+        raise BagError(f'{metadata_path}: entry {outside[0]} of {len(relative)} of '
+                       'relative_file_paths names a file outside the bag directory; only files '
+                       'inside it are read')
     files = [path / name for name in relative]
     present = [p for p in files if p.is_file()]
-    if len(present) < len(files):
-        missing = ', '.join(p.name for p in files if not p.is_file())
-        notes.append(f'{path}: files listed in metadata.yaml are missing: {missing}')
-    compressed = [p.name for p in present if p.suffix not in ROS2_SUFFIXES]
+    if len(present) < len(files):      # by entry: a name in metadata.yaml is not quoted
+        missing = [number for number, p in enumerate(files, 1) if not p.is_file()]
+        more = f' and {len(missing) - 5} more' if len(missing) > 5 else ''
+        notes.append(f'{path}: files listed in metadata.yaml are missing: '
+                     f'entr{"ies" if len(missing) > 1 else "y"} '
+                     f'{", ".join(map(str, missing[:5]))}{more} of {len(files)} of '
+                     'relative_file_paths')
+    compressed = [number for number, p in enumerate(files, 1)
+                  if p.is_file() and p.suffix not in ROS2_SUFFIXES]
     if compressed:
-        raise BagError(f'{path}: file-compressed bags are not supported ({compressed[0]}); '
-                       'decompress them with `ros2 bag convert` first')
+        raise BagError(f'{path}: file-compressed bags are not supported (entry {compressed[0]} '
+                       f'of {len(files)} of relative_file_paths); decompress them with '
+                       '`ros2 bag convert` first')
     if not present:
         return None if storage is Storage.MCAP else (storage, [], custom)
     return storage, present, custom

@@ -20,10 +20,15 @@ from rosbags.typesys import (
     TypesysError,
 )
 
+from octoroach_model.settings import unknown_name
+
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
 _IDL_SEPARATOR = '=' * 80 + '\n'
+# Definition encodings: of msg texts, of IDL texts
+_MSG_ENCODINGS = ('ros2msg', 'ros1msg', 'msg')
+_IDL_ENCODINGS = ('ros2idl', 'idl')
 
 
 @dataclass(frozen=True)
@@ -54,16 +59,17 @@ def standard_definition(msgtype: str) -> TypeDefinition | None:
 
 def parse_definition(msgtype: str, encoding: str, text: str) -> dict:
     """Parse a definition text (msg or IDL) into rosbags types; TypesysError if unreadable."""
-    if encoding in ('ros2msg', 'ros1msg', 'msg'):
+    if encoding in _MSG_ENCODINGS:
         return get_types_from_msg(text, msgtype)
-    if encoding in ('ros2idl', 'idl'):
+    if encoding in _IDL_ENCODINGS:
         types: dict = {}
         sections = text.split(_IDL_SEPARATOR)[1:] if text.startswith(
             f'{_IDL_SEPARATOR}IDL: ') else [f'IDL: \n{text}']
         for section in sections:
             types.update(get_types_from_idl(section.split('\n', 1)[1]))
         return types
-    raise TypesysError(f'unknown definition encoding {encoding!r}')
+    raise TypesysError('unknown definition encoding, '
+                       f'{unknown_name(encoding, _MSG_ENCODINGS + _IDL_ENCODINGS)}')
 
 
 class BagTypes:

@@ -40,6 +40,7 @@ from octoroach_model.recordings.bagio.pose_blocks import BlockSplitter, PoseBloc
 from octoroach_model.recordings.bagio.pose_messages import PoseLayout
 from octoroach_model.recordings.bagio.qos import load_profiles, QosProfile
 from octoroach_model.recordings.bagio.ros1 import Ros1Bag
+from octoroach_model.settings import unknown_name
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Connection
@@ -159,7 +160,8 @@ def _decompressed(chunk: Chunk) -> Chunk:
         decompressor = lz4.frame.LZ4FrameDecompressor()
         data = decompressor.decompress(bytes(chunk.data), max_length=claimed + 1)
     else:
-        raise ValueError(f'unknown compression {chunk.compression!r}')
+        raise ValueError('unknown compression, '
+                         f'{unknown_name(chunk.compression, ("zstd", "lz4"))}')
     if len(data) != claimed:
         raise ValueError('the chunk does not decompress to the size it claims')
     return dataclasses.replace(chunk, compression='', data=data)

@@ -21,6 +21,7 @@ from typing import Any
 
 from octoroach_model.errors import BagError
 from octoroach_model.limits import MAX_ROS1_CHUNK_BYTES, size_words
+from octoroach_model.settings import unknown_name
 
 
 class Ros1Bag:
@@ -142,7 +143,9 @@ def _decompress(compression: str, data: bytes, claimed: int, path: Path,
 
         out = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=claimed + 1)
     else:
-        raise BagError(f'{path}: chunk compression {compression!r} is not supported')
+        raise BagError(f'{path}: the chunk at byte {position} names an unknown compression, '
+                       f'{unknown_name(compression, ("none", "bz2", "lz4"))}; '
+                       'supported: none, bz2, lz4')
     if len(out) != claimed:
         raise BagError(f'{path}: the chunk at byte {position} does not decompress to the '
                        'size it states')

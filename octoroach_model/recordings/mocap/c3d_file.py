@@ -52,6 +52,7 @@ from octoroach_model.recordings.mocap.shared import (
     unit_scale,
 )
 from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.settings import shown
 
 try:
     import c3d
@@ -118,21 +119,20 @@ def _marker_labels(reader: c3d.Reader, options: ReadOptions) -> tuple[list[str],
     return ['' if label in modelled else label for label in labels], left_out
 
 
-def _layout_rows(where: str, layout: Mapping[str, Sequence[float]],
-                 labels: list[str], chosen: list[int]) -> np.ndarray:
-    """Return the given layout as (M, 3) rows in the order of the chosen markers."""
-    by_name: dict[str, Sequence[float]] = {}
-    for key, coordinates in layout.items():
-        by_name[key.strip()] = coordinates
+def _layout_rows(where: str, layout: Mapping[str, Sequence[float]]) -> np.ndarray:
+    """
+    Return the given layout as (M, 3) rows, in its own order: that of the chosen markers.
+
+    `select_body_markers` finds one marker per name of the layout, in the layout's order. A
+    refused row is named by the layout's name, not by the file's label it found.
+    """
     rows = []
-    for index in chosen:
-        label = labels[index].strip()
-        value = by_name.get(label, by_name.get(split_label(label)[1]))
+    for name, value in layout.items():
         try:
             row = np.asarray(value, dtype=float).reshape(3)
         except (TypeError, ValueError):
-            raise BagError(f'{where}: the layout of marker {label} must be (x, y, z) in '
-                           f'metres, got {value!r}') from None
+            raise BagError(f'{where}: the layout of marker {name.strip()} must be (x, y, z) in '
+                           f'metres, got {shown(value)}') from None
         rows.append(row)
     return np.array(rows)
 
@@ -189,7 +189,7 @@ def iter_c3d_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
         scale = unit_scale(unit, LENGTH_UNITS, 'length', f'{where} POINT:UNITS') if unit \
             else 1e-3
         body = MarkerBody(where, names, options,
-                          _layout_rows(where, layout, labels, chosen) if layout else None)
+                          _layout_rows(where, layout) if layout else None)
         if body.layout_m is None:
             body.set_layout_from_frames(*_first_complete(reader, chosen, scale, where))
         frame_count = last_frame - first_frame + 1

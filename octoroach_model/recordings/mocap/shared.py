@@ -42,6 +42,7 @@ from octoroach_model.recordings.mocap.rigid import (
     MIN_MARKERS,
 )
 from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.settings import unknown_name
 
 # Unit words as motion-capture exports write them, and their value in SI units.
 LENGTH_UNITS = {'mm': 1e-3, 'millimeters': 1e-3, 'millimetres': 1e-3, 'cm': 1e-2, 'm': 1.0,
@@ -98,7 +99,8 @@ def unit_scale(unit: str, table: dict[str, float], what: str, where: str) -> flo
     if word in table:
         return table[word]
     known = ', '.join(sorted({name for name in table if len(name) <= 3}))
-    raise BagError(f'{where}: unknown {what} unit {unit.strip()!r} (expected {known})')
+    raise BagError(f'{where}: unknown {what} unit, {unknown_name(word, sorted(table))}; '
+                   f'expected {known}')
 
 
 def split_label(label: str) -> tuple[str, str]:

@@ -55,6 +55,7 @@ from octoroach_model.recordings.mocap.shared import (
     text_lines,
 )
 from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.settings import unknown_name
 
 __all__ = ['TableReader', 'COLUMN_NAMES', 'TableLayout', 'detect_table', 'iter_table_pose_chunks']
 
@@ -232,15 +233,16 @@ def _check(where: str, layout: TableLayout, options: ReadOptions) -> tuple[float
                        f'theta){"; it has only " + ", ".join(some) if some else ""}')
     if 'y' not in layout.columns:
         raise BagError(f'{where}: {layout.dialect} without a y column')
-    if layout.time_unit not in TIME_UNITS_NS:
-        raise BagError(f'{where}: unknown time unit {layout.time_unit!r} (expected '
-                       f'{", ".join(TIME_UNITS_NS)})')
-    try:
-        length_scale = LENGTH_UNITS[layout.length_unit]
-        angle_scale = ANGLE_UNITS[layout.angle_unit]
-    except KeyError as unit:
-        raise BagError(f'{where}: unknown unit {unit} (lengths in m, cm or mm; angles in rad '
-                       'or deg)') from None
+    for unit, table, what, expected in (
+            (layout.time_unit, TIME_UNITS_NS, 'time', ', '.join(TIME_UNITS_NS)),
+            (layout.length_unit, LENGTH_UNITS, 'length', 'm, cm or mm'),
+            (layout.angle_unit, ANGLE_UNITS, 'angle', 'rad or deg')):
+        if unit not in table:
+            refused = f'{unit.count("|") + 1} different {what} units' if '|' in unit else \
+                f'unknown {what} unit, {unknown_name(unit, list(table))}'
+            raise BagError(f'{where}: {refused}; expected {expected}')
+    length_scale = LENGTH_UNITS[layout.length_unit]
+    angle_scale = ANGLE_UNITS[layout.angle_unit]
     if not has_quaternion and (options.up_axis != 'z' or options.forward_axis in ('z', '-z')):
         raise BagError(f'{where}: a heading column is a yaw about z: its table is z up with '
                        'the body moving in x-y; leave out --up-axis and a vertical '

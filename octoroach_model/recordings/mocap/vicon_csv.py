@@ -188,7 +188,7 @@ def _section(where: str, header: list[tuple[int, str]], delimiter: str) -> CsvSe
         (_, units_line) = header[1:]
     rate_cells = _cells(rate_line, delimiter)
     if not rate_cells or not _is_number(rate_cells[0]):
-        raise refuse(rate_number, rate_line, f'no frame rate after {title!r}')
+        raise refuse(rate_number, rate_line, 'no frame rate on the line after the section name')
     columns = _cells(columns_line, delimiter)
     if not columns or columns[0].lower() != 'frame':
         raise refuse(columns_number, columns_line, 'no "Frame" column')
@@ -318,9 +318,18 @@ def _common_unit(where: str, group: _Group, components: tuple[str, ...], table: 
     if len(units) != 1 or not next(iter(units)):
         listed = ' '.join(components)
         raise BagError(f'{where}: {group.label}: the units line must give one {what} unit '
-                       f'for {listed} (mm or m; deg or rad), got {sorted(units)}')
+                       f'for {listed} (mm or m; deg or rad), got {_units_found(units)}')
     unit = next(iter(units))
     return unit, unit_scale(unit, table, what, f'{where}: {group.label}')
+
+
+def _units_found(units: set[str]) -> str:
+    """Say what a units line gave columns that need one unit, without quoting the file."""
+    named = len(units - {''})
+    if not named:
+        return 'none'
+    return (f'{named} different units' if named > 1 else 'a unit') + (
+        ' and a column without one' if '' in units else '')
 
 
 def _headings(kind: str, values: np.ndarray, angle_scale: float, options: ReadOptions,
@@ -409,7 +418,7 @@ def _marker_chunks(where: str, reader: _RowReader, section: CsvSection,
     units = {group.units.get(axis, '') for group in body_groups for axis in 'XYZ'}
     if len(units) != 1 or not next(iter(units)):
         raise BagError(f'{where}: the units line must give one length unit for the markers '
-                       f'X Y Z (mm or m), got {sorted(units)}')
+                       f'X Y Z (mm or m), got {_units_found(units)}')
     unit = next(iter(units))
     scale = unit_scale(unit, LENGTH_UNITS, 'length', f'{where}: {MARKER_SECTION}')
     need = [group.columns[axis] for group in body_groups for axis in 'XYZ']
