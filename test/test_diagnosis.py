@@ -329,6 +329,9 @@ def test_the_report_has_the_documented_fields_a_summary_and_plots(tmp_path, monk
     for name in ('paths.png', 'violation_grid.png', 'deciding_statistic.png',
                  'discrepancies.png'):
         assert (tmp_path / name).stat().st_size > 10_000, name
+    # where an inadequate model misses is drawn for such a model alone (test_extensions.py)
+    assert (tmp_path / 'misfit.png').exists() == (not loaded['adequate'])
+    assert ('misfit.png' in summary) == (not loaded['adequate'])
     # each stage timed once, in the documented order (docs/report.md names them all)
     stages = list(loaded['stages_s'])
     assert stages == [stage for stage in STAGES if stage in stages], stages

@@ -18,6 +18,7 @@ import subprocess
 import sys
 
 from hidden_effects import FAST, SEED
+from hypothesis import given, seed, settings, strategies as st
 import numpy as np
 import pytest
 
@@ -27,7 +28,7 @@ from octoroach_model.diagnosis.discrepancies import HEADING_RATE_CHANGE
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.misfit import Misfit, where_in_a_run
 from octoroach_model.diagnosis.modelfit import FittedModel
-from octoroach_model.diagnosis.plots import stride_windows
+from octoroach_model.diagnosis.plots import _mean_turn, _turn_spread, stride_windows
 from octoroach_model.diagnosis.summary import summary_text
 from octoroach_model.studies.outside import speed_wobble, yaw_ramp
 
@@ -380,9 +381,11 @@ def test_an_effect_outside_table_and_library_is_reported_as_unexplained(tmp_path
     assert all(entry.log_score <= misfit.median_log_score for entry in misfit.worst_runs)
     assert misfit.parts and abs(misfit.parts[0].z) > 3, message
     worst = misfit.parts[0]
-    written = write_report(report, tmp_path, plots=False)
+    written = write_report(report, tmp_path, measured=measured)
     summary = written['summary'].read_text()
     assert 'not adequate' in summary and report.unexplained[0].statistic in summary, message
+    assert written['misfit_plot'].stat().st_size > 10_000, message     # the pattern, drawn
+    assert 'misfit.png draws the runs over time' in summary, message
     if report.causes or report.extensions:    # what was named is said to stand in, in part
         assert 'may stand in for part of it' in summary.splitlines()[2], message
     assert 'Where to look' in summary and worst.quantity in summary, message
@@ -406,6 +409,37 @@ def test_the_per_stride_panels_span_one_stride_of_the_fitted_clock_either_side_o
     assert len(starts) and t[starts[-1]] + span[-1] <= t[-1]
     plain_starts, plain_ends = stride_windows(replace(model, effects={}), t)
     assert np.allclose(np.interp(plain_ends, np.arange(len(t)), t) - t[plain_starts], stride)
+
+
+@seed(SEED)
+@settings(max_examples=25, deadline=None, database=None)
+@given(st.floats(1.5, 5.0), st.floats(0.0, 10.0), st.floats(-20.0, 20.0), st.floats(0.0, 1.0))
+def test_misfit_png_s_turn_is_the_heading_over_a_whole_stride_without_its_sway(
+        stride_hz, sway_deg, rate_deg_s, offset):
+    """
+    misfit.png's turn curves average a stride: what each run turns, not where its sway stands.
+
+    Runs turning at their own rates with a sway of one cycle per stride (any phase and
+    amplitude): over windows one stride long the mean turn since the first window is the mean
+    rate times the time since that window, and its spread across runs the rates' spread
+    times it.
+    """
+    dt = 0.002
+    t = np.arange(0.0, 4.0, dt)
+    rates = np.radians(rate_deg_s + np.array([-2.0, 0.0, 3.0]))
+    phase = 2 * np.pi * (stride_hz * t + offset)
+    heading = rates[:, None] * t + np.radians(sway_deg) * (np.sin(phase) - np.sin(phase[0]))
+    poses = np.zeros((3, len(t), 3))
+    poses[..., 2] = heading
+    paths = om.Paths(t, poses)
+    stride = 1.0 / (stride_hz * dt)                          # samples, fractional
+    starts = np.arange(0, len(t) - int(stride) - 2, 7)
+    ends = starts + stride
+    since = (starts - starts[0]) * dt
+    expected = np.degrees(rates.mean()) * since
+    assert np.allclose(_mean_turn(paths, starts, ends), expected, atol=0.02)
+    spread = np.degrees(rates.std(ddof=1)) * since
+    assert np.allclose(_turn_spread(paths, starts, ends), spread, atol=0.02)
 
 
 def test_where_to_look_points_at_the_mean_that_every_run_moves_alike():

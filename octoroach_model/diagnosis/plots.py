@@ -26,6 +26,7 @@ from octoroach_model.arrays import FloatArray, IntArray  # noqa: E402
 from octoroach_model.diagnosis.discrepancies import Discrepancy  # noqa: E402
 from octoroach_model.diagnosis.features import (  # noqa: E402
     heading_amplitudes, INDEX, run_features)
+from octoroach_model.diagnosis.summary import MISFIT_PLOT  # noqa: E402
 from octoroach_model.model.effects import shared_clock  # noqa: E402
 from octoroach_model.paths import Paths  # noqa: E402
 from octoroach_model.validation.region import t_multiplier  # noqa: E402
@@ -59,7 +60,8 @@ def write_plots(report: DiagnosisReport, measured: Paths, out: Path
             'violation_plot': (_violation_plot, out / 'violation_grid.png'),
             'statistic_plot': (_statistic_plot, out / 'deciding_statistic.png'),
             'discrepancy_plot': (_discrepancy_plot, out / 'discrepancies.png'),
-            'extension_plot': (_extension_plot, out / 'extensions.png')}
+            'extension_plot': (_extension_plot, out / 'extensions.png'),
+            'misfit_plot': (_misfit_plot, out / MISFIT_PLOT)}
     written, errors = {}, {}
     for name, (draw, path) in jobs.items():
         try:
@@ -387,35 +389,103 @@ def _span_s(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
     return span
 
 
+def _mean_speed(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
+    """Return the mean over runs of the speed over each stride window, cm/s."""
+    covered = np.linalg.norm(_at(paths.positions, ends) - paths.positions[:, starts], axis=-1)
+    with np.errstate(invalid='ignore'):
+        speed_cm_s: FloatArray = np.nanmean(covered, axis=0) / _span_s(paths, starts,
+                                                                       ends) * 100
+    return speed_cm_s
+
+
+def _mean_rate(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
+    """Return the mean over runs of the heading rate over each stride window, deg/s."""
+    heading = paths.poses[:, :, 2]
+    turned = (_at(heading, ends, angle=True) - heading[:, starts] + math.pi) % (
+        2 * math.pi) - math.pi
+    with np.errstate(invalid='ignore'):
+        rate_deg_s: FloatArray = np.nanmean(turned, axis=0) / _span_s(paths, starts,
+                                                                      ends) * DEG
+    return rate_deg_s
+
+
+def _turned(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
+    """
+    Return each run's mean heading over each window less that over the first, deg.
+
+    An average over a whole stride leaves out the sway within it, which a heading read at
+    one instant would carry (the start's too: where in its sway a run starts): (runs,
+    windows), NaN past a run's end.
+    """
+    heading = np.unwrap(paths.poses[:, :, 2], axis=1)
+    heading -= heading[:, :1]                                # numbers of order one to sum
+    total = np.zeros((heading.shape[0], heading.shape[1] + 1))
+    np.cumsum(heading, axis=1, out=total[:, 1:])            # total[:, k]: samples before k
+    with np.errstate(invalid='ignore'):
+        mean = (_at(total, ends) - total[:, starts]) / (ends - starts)
+    turned_deg: FloatArray = (mean - mean[:, :1]) * DEG
+    return turned_deg
+
+
+def _mean_turn(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
+    """Return the mean over runs of the heading change since the first stride, deg."""
+    with np.errstate(invalid='ignore'):
+        mean_deg: FloatArray = np.nanmean(_turned(paths, starts, ends), axis=0)
+    return mean_deg
+
+
+def _turn_spread(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
+    """Return the spread across runs of the heading change since the first stride, deg."""
+    with np.errstate(invalid='ignore'):
+        spread_deg: FloatArray = np.nanstd(_turned(paths, starts, ends), axis=0, ddof=1)
+    return spread_deg
+
+
+SPEED_LABEL = 'mean speed over a stride [cm/s]'
+RATE_LABEL = 'mean heading rate over a stride [deg/s] (left positive)'
+
+
 def _speed_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                  extension: NamedExtension) -> None:
-    def speed(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
-        covered = np.linalg.norm(_at(paths.positions, ends) - paths.positions[:, starts],
-                                 axis=-1)
-        with np.errstate(invalid='ignore'):
-            speed_cm_s: FloatArray = np.nanmean(covered, axis=0) / _span_s(paths, starts,
-                                                                           ends) * 100
-        return speed_cm_s
-
-    _over_the_run(ax, report, measured, speed, 'extended model')
+    _over_the_run(ax, report, measured, _mean_speed, 'extended model')
     ax.axvline(float(extension.parameters['time_s']), color='tab:red', ls=':',
                label='fitted change')
-    ax.set_ylabel('mean speed over a stride [cm/s]')
+    ax.set_ylabel(SPEED_LABEL)
 
 
 def _turn_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                 extension: NamedExtension) -> None:
-    def rate(paths: Paths, starts: IntArray, ends: FloatArray) -> FloatArray:
-        heading = paths.poses[:, :, 2]
-        turned = (_at(heading, ends, angle=True) - heading[:, starts] + math.pi) % (
-            2 * math.pi) - math.pi
-        with np.errstate(invalid='ignore'):
-            rate_deg_s: FloatArray = np.nanmean(turned, axis=0) / _span_s(paths, starts,
-                                                                          ends) * DEG
-        return rate_deg_s
+    _over_the_run(ax, report, measured, _mean_rate, 'extended model (yaw rate ramp)')
+    ax.set_ylabel(RATE_LABEL)
 
-    _over_the_run(ax, report, measured, rate, 'extended model (yaw rate ramp)')
-    ax.set_ylabel('mean heading rate over a stride [deg/s] (left positive)')
+
+def _misfit_plot(report: DiagnosisReport, measured: Paths, path: Path) -> bool:
+    """
+    Where an extended model that is not adequate misses, over the run: data beside both models.
+
+    An effect that no cause or family describes shows here before it has a name: a speed
+    that swings within the runs, a turn that grows or reverses, runs that wander apart faster
+    than the model's spread lets them (what summary.md's "Where to look" reads in numbers).
+    """
+    if report.adequate or report.misfit is None:
+        return False
+    panels = (('the speed', _mean_speed, SPEED_LABEL),
+              ('the turn', _mean_turn, 'mean heading change since the first stride [deg]\n'
+               "(each a stride's mean; left positive)"),
+              ('how far runs turn apart', _turn_spread,
+               'spread across runs of the heading change\nsince the first stride [deg] '
+               "(each a stride's mean)"))
+    fig, axes = plt.subplots(1, len(panels), figsize=(6.5 * len(panels), 4.8))
+    for ax, (title, per_stride, label) in zip(axes, panels):
+        _over_the_run(ax, report, measured, per_stride, 'extended model')
+        ax.set_title(title, fontsize=10)
+        ax.set_ylabel(label)
+        ax.legend(fontsize=8)
+    fig.suptitle('Where the extended model still misses, over the run (it is not adequate): '
+                 'a pattern in the data that neither model draws')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return True
 
 
 def _groups_panel(ax: Axes, report: DiagnosisReport, measured: Paths,

@@ -39,13 +39,15 @@ def write_report(report: DiagnosisReport, out_dir: Path | str, measured: Paths |
         written: dict[str, Any] = {'report': folder / 'report.json',
                                    'summary': folder / 'summary.md'}
         write_text_atomic(written['report'], dumps(report, indent=2) + '\n')
-        summary = summary_text(report)
+        drawn: dict[str, Path] = {}
+        errors: dict[str, str] = {}
         if plots and measured is not None:
             from octoroach_model.diagnosis.plots import write_plots
             drawn, errors = write_plots(report, measured, folder)
             written.update(drawn)
-            if errors:
-                summary += '\n## Plots not drawn\n\n' + ''.join(
-                    f'- {name}: {reason}\n' for name, reason in errors.items())
+        summary = summary_text(report, [path.name for path in drawn.values()])
+        if errors:
+            summary += '\n## Plots not drawn\n\n' + ''.join(
+                f'- {name}: {reason}\n' for name, reason in errors.items())
         write_text_atomic(written['summary'], summary)
     return {name: out / Path(path).relative_to(folder) for name, path in written.items()}

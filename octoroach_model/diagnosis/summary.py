@@ -7,6 +7,7 @@ seen; every number is one the report (records.py) holds.
 """
 from __future__ import annotations
 
+from collections.abc import Collection
 import math
 
 from scipy import stats
@@ -85,13 +86,17 @@ def _and(names: list[str]) -> str:
     return names[0] if len(names) == 1 else ', '.join(names[:-1]) + ' and ' + names[-1]
 
 
-def summary_text(report: DiagnosisReport) -> str:
+# the plot of where an extended model that is not adequate misses, over the run (plots.py)
+MISFIT_PLOT = 'misfit.png'
+
+
+def summary_text(report: DiagnosisReport, plots: Collection[str] = ()) -> str:
     """
     Write summary.md in words.
 
     summary.md: a one-line conclusion, what the model gets wrong, the causes and extensions
     with sizes, what each adds, what is still unexplained, and how small an effect could have
-    been seen.
+    been seen. `plots`: the names of the plot files written beside it, which it points to.
     """
     lines = ['# What the simulation gets wrong', '', conclusion(report), '']
     runs = report.runs
@@ -163,6 +168,10 @@ def summary_text(report: DiagnosisReport) -> str:
                          f'model {_number(row.model, 4)}{_unit(row.unit)} (z = {row.z:+.1f})')
         if report.misfit is not None:
             lines += ['', 'Where to look:'] + report.misfit.words()
+            if MISFIT_PLOT in plots:
+                lines.append(f'- {MISFIT_PLOT} draws the runs over time, stride by stride: '
+                             'the mean speed, the mean heading change since the first stride '
+                             'and its spread across runs, the data beside both models.')
     for name, model in (('baseline', report.baseline), ('extended', report.extended)):
         checked = model.validation
         if checked is not None:
