@@ -5,14 +5,17 @@ The open world's question, measured as the instrument's error rates are: data se
 effect made outside the model (studies/outside.py), on robots drawn as
 studies/open_world.yaml draws them (replicate r's robot and data seed), 500 runs each, and
 each is diagnosed as a study diagnoses an effect's data set (`DiagnosisSettings` with the
-data seed, no detection limits). Two effects, each the same in every run (so no term of run
-to run spread or drift can be it):
+data seed, no detection limits). Two effects the same in every run (so no term of run to run
+spread or drift can be it), and one that moves over the session:
 
 - speed_wobble: the gait clock speeds up and slows down, tau(t) = t + A P / (2 pi)
   (1 - cos(2 pi t / P)), the stride speed swinging by +-A (0.2-0.5) with a period P of a
   third to two thirds of a run (a motor controller hunting, a cyclic load);
 - yaw_ramp: a turn that grows within each run, the yaw rate rising linearly from 0 to R
-  (3-8 deg/s, either sign) at the run's end (a motor that heats as it runs).
+  (3-8 deg/s, either sign) at the run's end (a motor that heats as it runs);
+- leg_wear: a leg that wears over the session, one touchdown angle drifting by D (5-10 deg,
+  either sign) from the first run to the last (studies/outside.py, `leg_wear`): the gait's
+  shape, not the same in every run, which the library's drifts describe in its effects only.
 
 The yaw ramp has since joined the library as the family yaw_rate_ramp (its data are still
 made here, outside the model: studies/outside.py): naming that family on its data is the
@@ -28,7 +31,8 @@ to its second) is printed over them. Rows go to --out (one JSON line per data se
 finishes); a stopped run resumes where it stopped.
 
 Run: .venv/bin/python benchmarks/bench_out_of_library.py [--replicates 6] [--workers 2]
-     [--effects none speed_wobble yaw_ramp] [--out out/studies/out_of_library_scored/rows.jsonl]
+     [--effects none speed_wobble yaw_ramp leg_wear]
+     [--out out/studies/out_of_library_scored/rows.jsonl]
      [--report-only]
 (docs/measured.md's rows: out/studies/out_of_library_scored, with the ramp's signature
 scored; those of out/studies/out_of_library_ramp are from before that, with the family
@@ -48,10 +52,10 @@ import time
 from octoroach_model.diagnosis.discrepancies import HEADING_RATE_CHANGE
 
 REPO = Path(__file__).resolve().parents[1]
-EFFECTS = ('none', 'speed_wobble', 'yaw_ramp')
+EFFECTS = ('none', 'speed_wobble', 'yaw_ramp', 'leg_wear')
 RUNS = 500
 PURPOSE = 0x0DD          # the effect's own draws, apart from the study's robot and data streams
-SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1}
+SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1, 'leg_wear': 2}
 # effects a family of the library now describes, and its main parameter
 OWN_FAMILY = {'yaw_ramp': ('yaw_rate_ramp', 'final_yaw_rate_deg_s')}
 
@@ -67,6 +71,8 @@ def effect_values(effect: str, replicate: int, duration_s: float) -> dict[str, f
         return {'amplitude': float(0.2 + 0.3 * u[0]),
                 'period_s': float(duration_s / (1.5 + 1.5 * u[1]))}
     sign = 1.0 if u[2] < 0.5 else -1.0
+    if effect == 'leg_wear':
+        return {'drift_deg': float(sign * (5.0 + 5.0 * u[0]))}
     return {'final_yaw_rate_deg_s': float(sign * (3.0 + 5.0 * u[0]))}
 
 
@@ -74,7 +80,7 @@ def data_set(effect: str, replicate: int):
     """Return the replicate's robot, the effect's values and the runs that carry it."""
     import octoroach_model as om
     from octoroach_model.studies.design import draw_robot
-    from octoroach_model.studies.outside import speed_wobble, yaw_ramp
+    from octoroach_model.studies.outside import leg_wear, speed_wobble, yaw_ramp
     from octoroach_model.studies.spec import load_spec
 
     draw = draw_robot(load_spec(REPO / 'studies' / 'open_world.yaml'), replicate)
@@ -87,6 +93,8 @@ def data_set(effect: str, replicate: int):
         paths = speed_wobble(paths.t, RUNS, values['amplitude'], values['period_s'], **common)
     elif effect == 'yaw_ramp':
         paths = yaw_ramp(paths, values['final_yaw_rate_deg_s'])
+    elif effect == 'leg_wear':
+        paths = leg_wear(RUNS, values['drift_deg'], cycles=draw.cycles, **common)
     return draw, values, paths
 
 
@@ -199,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--replicates', type=int, default=6, help='robots (default 6)')
     parser.add_argument('--effects', nargs='+', choices=EFFECTS, default=list(EFFECTS),
-                        help='which data sets to diagnose (default: all three)')
+                        help='which data sets to diagnose (default: all four)')
     parser.add_argument('--workers', type=int, default=2,
                         help='local processes (default 2; 1 or 0: all in this process)')
     parser.add_argument('--out', type=Path, default=REPO / 'out' / 'studies'

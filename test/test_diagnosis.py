@@ -366,6 +366,56 @@ def test_the_summary_says_when_the_held_out_runs_are_too_few_for_a_spread_at_any
     assert line(enough) is None and line(250) is None and line(enough - 1) is not None
 
 
+def test_a_statistic_still_off_names_the_term_that_reads_it_and_why_it_was_not_named():
+    """
+    summary.md links a statistic left off to the unnamed term sized from it (Statistic.read_by).
+
+    An estimate past its limit beside a failed held-out test is a term that describes the runs
+    only in part (a leg that wears, docs/measured.md); one within its limit is one the runs
+    show too little of; a named term, or a statistic no term reads, gets no line.
+    """
+    from types import SimpleNamespace
+
+    from octoroach_model.diagnosis.discrepancies import STATISTICS
+    from octoroach_model.diagnosis.summary import _reader_lines
+
+    readers = {statistic.name: [cause.name for cause in statistic.read_by()]
+               for statistic in STATISTICS if statistic.read_by()}
+    assert readers['heading rate change from the first run to the last'] == [
+        'run_order_drift:yaw_rate']
+    for statistic in STATISTICS:                  # one term each, which reads that feature
+        for cause in statistic.read_by():
+            assert any(read is not None and read.feature == statistic.feature
+                       for read in (cause.statistic, cause.signature)), statistic.name
+    trend = [statistic.name for statistic in STATISTICS if statistic.read_by()
+             and statistic.read_by()[0].order_dependent]
+    assert len(trend) == 3                          # every run-order drift has its statistic
+
+    def drift(change: float, t: float | None, limit: float = 1.97) -> SimpleNamespace:
+        return SimpleNamespace(cause='run_order_drift:yaw_rate', step=1, clears_floor=True,
+                               parameters={'parameter': 'yaw_rate', 'change': change},
+                               detectable={'change': limit}, held_out_t=t)
+
+    def lines(candidate: SimpleNamespace, named: tuple[str, ...] = (),
+              statistic: str = 'heading rate change from the first run to the last'
+              ) -> list[str]:
+        report = SimpleNamespace(
+            unexplained=[SimpleNamespace(statistic=statistic)], candidates=[],
+            extension_candidates=[candidate], named_terms=dict.fromkeys(named),
+            critical_t=lambda candidate: 3.22)
+        return _reader_lines(report)
+
+    said = lines(drift(4.41, 2.56))
+    assert len(said) == 1 and 'run order drift (yaw rate) reads' in said[0], said
+    assert 'past the 1.97 deg/s' in said[0] and '(t = 2.56 for 3.22)' in said[0], said
+    assert 'describes only in part' in said[0], said
+    within = lines(drift(1.2, 1.1))
+    assert 'within the 1.97 deg/s' in within[0] and 'only in part' not in within[0], within
+    assert 'did not clear the floor' in lines(drift(0.1, None))[0]
+    assert lines(drift(4.41, 2.56), named=('run_order_drift:yaw_rate',)) == []
+    assert lines(drift(4.41, 2.56), statistic='progress spread at the end') == []
+
+
 def test_a_declared_limit_caveat_reaches_the_candidate_and_its_line_in_the_summary(monkeypatch):
     # where studies find a term's limit not to hold, its declaration says so (Cause.limit_caveat)
     # and the report carries it beside the limit, in report.json and in summary.md

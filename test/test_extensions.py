@@ -30,7 +30,7 @@ from octoroach_model.diagnosis.misfit import Misfit, where_in_a_run
 from octoroach_model.diagnosis.modelfit import FittedModel
 from octoroach_model.diagnosis.plots import _mean_turn, _turn_spread, stride_windows
 from octoroach_model.diagnosis.summary import summary_text
-from octoroach_model.studies.outside import speed_wobble, yaw_ramp
+from octoroach_model.studies.outside import leg_wear, speed_wobble, WORN_ANGLE, yaw_ramp
 
 N = 400
 DETERMINISTIC = {'sigma1': 0.0, 'sigma2': 0.0}
@@ -440,6 +440,25 @@ def test_misfit_png_s_turn_is_the_heading_over_a_whole_stride_without_its_sway(
     assert np.allclose(_mean_turn(paths, starts, ends), expected, atol=0.02)
     spread = np.degrees(rates.std(ddof=1)) * since
     assert np.allclose(_turn_spread(paths, starts, ends), spread, atol=0.02)
+
+
+def test_a_worn_leg_strides_run_by_run_with_its_touchdown_angle_moved_by_the_run_s_place():
+    """
+    studies/outside.leg_wear: run i at place q_i is the robot with phi3 + drift q_i.
+
+    Each run is the model's own run of that geometry on the run's stream, so the first is the
+    robot as it was and the last is the robot worn by the whole drift.
+    """
+    robot = om.ModelParameters.nominal()
+    drift = 7.5
+    worn = leg_wear(9, drift, parameters=robot, seed=SEED, cycles=3, sigma1=0.1, sigma2=0.1)
+    for run, place in ((0, 0.0), (4, 0.5), (8, 1.0)):
+        angles = list(robot.touchdown_angles)
+        angles[WORN_ANGLE] += math.radians(drift) * place
+        stream = int(np.random.SeedSequence([SEED, run]).generate_state(1)[0])
+        alone = om.simulate(1, seed=stream, cycles=3, sigma1=0.1, sigma2=0.1, parameters=replace(
+            robot, touchdown_angles=tuple(angles)).with_paper_liftoff())
+        assert np.array_equal(worn.poses[run], alone.poses[0]), (run, replay('leg wear'))
 
 
 def test_where_to_look_points_at_the_mean_that_every_run_moves_alike():

@@ -27,7 +27,8 @@ import numpy as np
 from scipy import stats
 
 from octoroach_model.arrays import FloatArray
-from octoroach_model.diagnosis.causes import STRIDE_FREQUENCY_FLOOR
+from octoroach_model.diagnosis.causes import (
+    CANDIDATES, Cause, Reading, STRIDE_FREQUENCY_FLOOR)
 from octoroach_model.diagnosis.features import INDEX, noise_variance_m2
 
 DEG = 180.0 / math.pi
@@ -65,6 +66,16 @@ class Statistic:
     material: float = 0.1
     feature: str = ''
     relative_floor: float = 0.0
+    reading: Reading | None = None     # how it reads `feature`, where a term reads it alike
+
+    def read_by(self) -> tuple[Cause, ...]:
+        """Return the candidates sized or started from this statistic's feature, read alike."""
+        if self.reading is None:
+            return ()
+        return tuple(cause for cause in CANDIDATES
+                     if any(read is not None and read.feature == self.feature
+                            and read.reading == self.reading
+                            for read in (cause.statistic, cause.signature)))
 
 
 def _std(column: str, scale: float = 1.0) -> Callable[[FloatArray], float]:
@@ -136,23 +147,23 @@ def _growth_exponent(f: FloatArray) -> float:
 HEADING_RATE_CHANGE = 'heading rate change, 2nd half - 1st half'
 STATISTICS: tuple[Statistic, ...] = (
     Statistic('start heading spread', 'deg', _std('start_heading', DEG), 0.01, SPREAD,
-              feature='start_heading'),
+              feature='start_heading', reading=Reading.VARIANCE),
     Statistic('start position spread', 'cm', _start_position_spread_cm, 0.001, SPREAD),
     Statistic('position noise (median 4th difference)', 'cm', _noise_cm, 0.001, SPREAD),
     Statistic('heading to travel angle', 'deg', _mean('slip_angle', DEG), 0.01, MEAN,
-              feature='slip_angle'),
+              feature='slip_angle', reading=Reading.MEAN),
     # material from the size floor of gait_frequency_variation on (0.5 %)
     Statistic('mean stride frequency', 'Hz', _mean('stride_frequency'), 1e-4, MEAN,
               feature='stride_frequency', relative_floor=STRIDE_FREQUENCY_FLOOR),
     Statistic('stride frequency spread across runs', 'Hz', _std('stride_frequency'), 1e-4,
               SPREAD),
     Statistic('log speed ratio, 2nd half / 1st half', '', _mean('progress_ratio'), 1e-4, MEAN,
-              feature='progress_ratio'),
+              feature='progress_ratio', reading=Reading.MEAN),
     Statistic('heading rate spread across runs', 'deg/s', _std('heading_rate', DEG), 0.01,
               SPREAD),
     Statistic('per-cycle heading change spread within runs', 'deg',
               lambda f: float(np.sqrt(f[:, INDEX['increment_var']].mean()) * DEG), 0.01,
-              SPREAD, feature='increment_var'),
+              SPREAD, feature='increment_var', reading=Reading.MEAN),
     Statistic('lag-1 autocorrelation of heading changes', '', _mean('increment_autocorr'),
               1e-3, ABSOLUTE),
     Statistic('mean progress at the end', 'cm', _mean('end_progress', 100), 0.01, MEAN,
@@ -170,11 +181,14 @@ STATISTICS: tuple[Statistic, ...] = (
               1e-4, MEAN, feature='lateral_sway_2'),
     # what the extension families move (docs/extensions.md)
     Statistic('stride frequency change from the first run to the last', 'Hz',
-              _trend('stride_frequency'), 1e-4, MEAN, feature='stride_frequency'),
+              _trend('stride_frequency'), 1e-4, MEAN, feature='stride_frequency',
+              reading=Reading.TREND),
     Statistic('heading rate change from the first run to the last', 'deg/s',
-              _trend('heading_rate', DEG), 0.01, MEAN, feature='heading_rate'),
+              _trend('heading_rate', DEG), 0.01, MEAN, feature='heading_rate',
+              reading=Reading.TREND),
     Statistic('heading to travel angle change from the first run to the last', 'deg',
-              _trend('slip_angle', DEG), 0.01, MEAN, feature='slip_angle'),
+              _trend('slip_angle', DEG), 0.01, MEAN, feature='slip_angle',
+              reading=Reading.TREND),
     Statistic('log speed ratio, 2nd quarter / 1st quarter', '', _mean('progress_early'), 1e-4,
               MEAN, feature='progress_early'),
     Statistic('log speed ratio, 4th quarter / 3rd quarter', '', _mean('progress_late'), 1e-4,
@@ -187,7 +201,8 @@ STATISTICS: tuple[Statistic, ...] = (
               ABSOLUTE, material=0.5),
     # a turn that grows within each run (features.py, note (5)), yaw_rate_ramp's size or less
     Statistic(HEADING_RATE_CHANGE, 'deg/s',
-              _mean('heading_rate_change', DEG), 0.01, MEAN, feature='heading_rate_change'),
+              _mean('heading_rate_change', DEG), 0.01, MEAN, feature='heading_rate_change',
+              reading=Reading.MEAN),
 )
 
 

@@ -7,10 +7,12 @@ possible stand-ins. A yaw ramp was such an effect until the family yaw_rate_ramp
 it; made here, by turning the runs after they are simulated, it checks the family on data the
 family's own code did not make. Both are the same in every run, for the suite's tests
 (test_extensions.py) and for benchmarks/bench_out_of_library.py, which measures what the
-reports say over robots.
+reports say over robots. A leg that wears over the session is not: it changes the stride's
+shape from run to run, which the library's drifts describe in its effects only.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 from typing import Any
 
@@ -18,6 +20,8 @@ import numpy as np
 
 from octoroach_model.arrays import FloatArray
 from octoroach_model.model.effects import perturb_heading
+from octoroach_model.model.extensions import positions_in_order
+from octoroach_model.model.parameters import ModelParameters
 from octoroach_model.model.simulate import simulate
 from octoroach_model.paths import Paths
 
@@ -36,6 +40,33 @@ def speed_wobble(t: FloatArray, n_runs: int, amplitude: float, period_s: float,
     return Paths(t, simulate(n_runs, t=tau, **simulate_args).poses)
 
 
+# the touchdown angle a worn leg moves (phi3): on Table II's robot 6 deg more turns a 5 s
+# run by 10 deg less, where phi1 and phi2 move it by about 1 deg
+WORN_ANGLE = 2
+
+
+def leg_wear(n_runs: int, drift_deg: float, *, parameters: ModelParameters, seed: int,
+             **simulate_args: Any) -> Paths:
+    """
+    Return runs of a robot with a leg that wears over the session: a touchdown angle drifts.
+
+    Run i of n, at its place q_i = i / (n - 1) in the session, strides with the touchdown
+    angle phi3 + drift q_i (WORN_ANGLE; the liftoff angles follow by the paper's eqs. 7-8),
+    on a stream of its own (`SeedSequence([seed, i])`): the gait's asymmetry moves from run
+    to run. The library's drifts move a stride frequency, a yaw rate or a sideways velocity,
+    not the shape of a stride, so they can describe its effects but not it.
+    """
+    runs = []
+    for place, run in zip(positions_in_order(n_runs), range(n_runs)):
+        phi = list(parameters.touchdown_angles)
+        phi[WORN_ANGLE] += math.radians(drift_deg) * place
+        worn = replace(parameters, touchdown_angles=(phi[0], phi[1], phi[2], phi[3]))
+        stream = int(np.random.SeedSequence([seed, run]).generate_state(1)[0])
+        runs.append(simulate(1, seed=stream, parameters=worn.with_paper_liftoff(),
+                             **simulate_args))
+    return Paths(runs[0].t, np.concatenate([paths.poses for paths in runs]))
+
+
 def yaw_ramp(paths: Paths, final_yaw_rate_deg_s: float) -> Paths:
     """
     Return `paths` turned by a yaw rate rising from 0 to `final_yaw_rate_deg_s` (a motor heating).
@@ -48,4 +79,4 @@ def yaw_ramp(paths: Paths, final_yaw_rate_deg_s: float) -> Paths:
     return Paths(paths.t, perturb_heading(paths.poses, np.ascontiguousarray(heading)))
 
 
-__all__ = ['speed_wobble', 'yaw_ramp']
+__all__ = ['leg_wear', 'speed_wobble', 'yaw_ramp']
