@@ -26,12 +26,13 @@ before any work, not when it is first called).
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, Field, field, fields, MISSING
 import difflib
 import functools
 import math
 import numbers
+import re
 import types
 import typing
 from typing import Any
@@ -279,6 +280,35 @@ def shown(value: Any) -> str:
         return f'text ({len(value)} character{"" if len(value) == 1 else "s"}, not shown)'
     name = type(value).__name__
     return f'{"an" if name[0] in "aeiouAEIOU" else "a"} {name}'
+
+
+# a name read from a file that an error may list: what a user types back (--subject, --topic)
+LISTED_NAME = re.compile(r'[A-Za-z0-9_.:/@+\-]([A-Za-z0-9_.:/@+\- ]{0,98}[A-Za-z0-9_.:/@+\-])?')
+
+
+def looks_like_name(value: Any) -> bool:
+    """Tell whether `value` is a name an error may list: letters, digits, _ . : / @ + - ."""
+    return isinstance(value, str) and LISTED_NAME.fullmatch(value) is not None
+
+
+def listed_names(names: Iterable[Any], limit: int = 12) -> str:
+    """
+    List names read from a file among which a user chooses, as an error may: up to `limit`.
+
+    A subject's, a marker's or a topic's name is what the user types back, so it is listed;
+    a text that does not look like a name (a control character, a long text, a line of
+    something else) is counted, never shown.
+    """
+    names = list(names)
+    shown_names = [name for name in names if looks_like_name(name)]
+    hidden = len(names) - len(shown_names)
+    listed = ', '.join(shown_names[:limit])
+    more = len(shown_names) - limit if len(shown_names) > limit else 0
+    tail = [f'{more} more'] if more else []
+    tail += [f'{hidden} name{"s" if hidden > 1 else ""} not shown'] if hidden else []
+    if not tail:
+        return listed
+    return (f'{listed} and ' if listed else '') + ' and '.join(tail)
 
 
 # names longer than this are not compared with the known ones (`unknown_name`)

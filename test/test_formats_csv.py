@@ -218,6 +218,23 @@ def test_bad_input_is_one_line_naming_what_is_expected(tmp_path, content, reason
             raised.value)
 
 
+def test_names_in_the_file_are_listed_only_where_they_look_like_names(tmp_path, model_runs):
+    """
+    An error lists the subjects a user may choose (--subject), but no text that is not a name.
+
+    A label with a control character or a shell's punctuation is counted, never shown.
+    """
+    poses = model_runs.poses[0]
+    path = write_vicon_csv(tmp_path / 'two.csv', np.arange(1, 252), {'hz': 50},
+                           {'octo': object_of(poses), 'SECRET;rm *\x1b[2J': object_of(poses)})
+    with pytest.raises(BagError) as raised:
+        read_csv(path, ReadOptions(subject='nosuch'))
+    message = str(raised.value)
+    assert message.endswith("no object or subject 'nosuch'; it has octo and 1 name not shown"), \
+        message
+    assert 'SECRET' not in message and '\x1b' not in message
+
+
 def test_unreadable_rows_are_skipped_and_counted(tmp_path, model_runs):
     poses = model_runs.poses[0]
     path = write_vicon_csv(tmp_path / 'garbled.csv', np.arange(1, 252), {'hz': 50},

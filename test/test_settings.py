@@ -288,3 +288,30 @@ def test_any_value_of_any_setting_is_taken_or_refused_in_one_line(data):
         assert '\n' not in str(error) and str(error).startswith(name), str(error)
         return
     assert getattr(made, name) == value, (name, value)     # NaN among them: never taken
+
+
+def test_names_from_a_file_are_listed_where_they_look_like_names_and_counted_otherwise():
+    from octoroach_model.settings import listed_names, looks_like_name
+
+    assert listed_names(['octo:LFHD', '/vicon/octo/octo', 'My Robot']) == \
+        'octo:LFHD, /vicon/octo/octo, My Robot'
+    assert listed_names(['ok', '\x1b[31m', 'x' * 101, ' lead', 'semi;colon']) == \
+        'ok and 4 names not shown'
+    assert listed_names(['\n']) == '1 name not shown' and listed_names([]) == ''
+    assert listed_names(['a'] * 14 + ['\t'], limit=12) == \
+        'a, a, a, a, a, a, a, a, a, a, a, a and 2 more and 1 name not shown'
+    assert looks_like_name('x' * 100) and not looks_like_name('x' * 101)
+    assert not looks_like_name(5) and not looks_like_name('')
+
+
+def test_a_bag_s_topics_are_listed_in_an_error_where_they_look_like_names_at_most_twelve():
+    from collections import namedtuple
+
+    from octoroach_model.recordings.bagio.reader import describe_topics
+
+    info = namedtuple('info', 'msgtype')
+    assert describe_topics({'/a': info('x/msg/Y'), '/b\x1b[2J': info('x/msg/Y')}) == \
+        'it has /a [x/msg/Y] and 1 topic not shown'
+    many = describe_topics({f'/t{i:02d}': info('x/msg/Y') for i in range(15)})
+    assert many.endswith('/t11 [x/msg/Y] and 3 more') and '/t12' not in many, many
+    assert describe_topics({}) == 'it has no topics'

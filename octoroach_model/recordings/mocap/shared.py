@@ -42,7 +42,7 @@ from octoroach_model.recordings.mocap.rigid import (
     MIN_MARKERS,
 )
 from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.settings import unknown_name
+from octoroach_model.settings import listed_names, unknown_name
 
 # Unit words as motion-capture exports write them, and their value in SI units.
 LENGTH_UNITS = {'mm': 1e-3, 'millimeters': 1e-3, 'millimetres': 1e-3, 'cm': 1e-2, 'm': 1.0,
@@ -162,9 +162,7 @@ def last_chunk(source: str, topic: str, sequence: int, *,
 
 
 def _listed(names: Iterable[str], limit: int = 12) -> str:
-    names = list(names)
-    more = f' and {len(names) - limit} more' if len(names) > limit else ''
-    return ', '.join(names[:limit]) + more
+    return listed_names(names, limit)       # names from the file: those that look like names
 
 
 def choose_subject(where: str, subjects: Sequence[str], wanted: str | None,

@@ -55,7 +55,7 @@ from octoroach_model.recordings.mocap.shared import (
     text_lines,
 )
 from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.settings import unknown_name
+from octoroach_model.settings import listed_names, unknown_name
 
 __all__ = ['TableReader', 'COLUMN_NAMES', 'TableLayout', 'detect_table', 'iter_table_pose_chunks']
 
@@ -230,7 +230,7 @@ def _check(where: str, layout: TableLayout, options: ReadOptions) -> tuple[float
         some = [layout.names[role] for role in QUATERNION if role in layout.columns]
         raise BagError(f'{where}: {layout.dialect} without an orientation: it needs '
                        'quaternion columns qx qy qz qw or a heading column (yaw, heading, '
-                       f'theta){"; it has only " + ", ".join(some) if some else ""}')
+                       f'theta){"; it has only " + listed_names(some) if some else ""}')
     if 'y' not in layout.columns:
         raise BagError(f'{where}: {layout.dialect} without a y column')
     for unit, table, what, expected in (

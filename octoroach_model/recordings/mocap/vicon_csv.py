@@ -66,6 +66,7 @@ from octoroach_model.recordings.mocap.shared import (
     unit_scale,
 )
 from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.settings import listed_names
 
 __all__ = ['ViconCsvReader', 'CsvSection', 'iter_csv_pose_chunks', 'read_csv_sections']
 
@@ -269,7 +270,7 @@ def iter_csv_pose_chunks(path: Path, options: ReadOptions, notes: list[str],
         raise BagError(f'{where}: --markers names markers, but the export has no '
                        f'{MARKER_SECTION} section; leave --markers out to read its objects')
     else:
-        titles = ', '.join(dict.fromkeys(section.title for section in sections))
+        titles = listed_names(dict.fromkeys(section.title for section in sections))
         raise BagError(f'{where}: no pose in this export: no Objects or Segments section with '
                        f'RX RY RZ TX TY TZ columns, and no Trajectories section (it has '
                        f'{titles})')
@@ -282,12 +283,12 @@ def _choose_pose_group(where: str, pose_groups: list[tuple[CsvSection, _Group]],
     if wanted is not None:
         matching = [(s, g) for s, g in pose_groups if wanted in (g.label, g.subject)]
         if not matching:
-            found = ', '.join(dict.fromkeys(g.label for _, g in pose_groups))
+            found = listed_names(dict.fromkeys(g.label for _, g in pose_groups))
             raise BagError(f'{where}: no object or subject {wanted!r}; it has {found}')
     else:
         subjects = list(dict.fromkeys(g.subject for _, g in pose_groups))
         if len(subjects) > 1:
-            raise BagError(f'{where}: several subjects ({", ".join(subjects)}); pass '
+            raise BagError(f'{where}: several subjects ({listed_names(subjects)}); pass '
                            '--subject NAME')
         matching = pose_groups
     if len(matching) > 1:

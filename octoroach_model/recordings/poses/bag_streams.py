@@ -68,6 +68,7 @@ from octoroach_model.recordings.conventions.topics import (
     TRANSFORM_STAMPED,
 )
 from octoroach_model.recordings.options import ReadOptions
+from octoroach_model.settings import listed_names, looks_like_name
 
 __all__ = ['BagPoseReader', 'PoseStream', 'choose_streams', 'iter_bag_pose_chunks']
 
@@ -250,10 +251,10 @@ def choose_streams(reader: BagReader, topics: dict[str, TopicInfo],
         if transforms:
             return _Plan(lists=[_choose_in_list(reader, transforms, lists, options)])
         if lists:
-            raise BagError(f'{name}: only static transforms ({", ".join(sorted(lists))}); '
+            raise BagError(f'{name}: only static transforms ({listed_names(sorted(lists))}); '
                            'nothing moves')
         undecodable = sorted(reader.types.unreadable)
-        why = f'; undecodable types: {", ".join(undecodable)}' if undecodable else ''
+        why = f'; undecodable types: {listed_names(undecodable)}' if undecodable else ''
         raise BagError(f'{name}: no pose topic ({TRANSFORM_STAMPED} or {POSE_STAMPED}, '
                        f'Odometry, TFMessage, an array of named bodies); '
                        f'{describe_topics(topics)}{why}')
@@ -277,13 +278,20 @@ def choose_streams(reader: BagReader, topics: dict[str, TopicInfo],
 
 
 def _listed(streams: list[PoseStream]) -> str:
-    said = ', '.join(stream.describe() for stream in streams[:_LISTED])
-    return said + (f' and {len(streams) - _LISTED} more' if len(streams) > _LISTED else '')
+    """Describe streams for an error: those whose names look like names (settings.listed_names)."""
+    named = [stream for stream in streams
+             if looks_like_name(stream.label) and looks_like_name(stream.msgtype)]
+    said = ', '.join(stream.describe() for stream in named[:_LISTED])
+    more = f' and {len(named) - _LISTED} more' if len(named) > _LISTED else ''
+    hidden = len(streams) - len(named)
+    if hidden:
+        more += f' and {hidden} stream{"s" if hidden > 1 else ""} not shown'
+    return said + more
 
 
 def _no_subject(name: str, subject: str, candidates: list[PoseStream]) -> None:
     """Refuse a subject that names none of several streams (with one, it names run markers)."""
-    listed = ', '.join(sorted({stream.subject or '' for stream in candidates} - {''}))
+    listed = listed_names(sorted({stream.subject or '' for stream in candidates} - {''}))
     raise BagError(f'{name}: no stream of subject {subject!r} among {_listed(candidates)} '
                    f'(subjects: {listed or "none"})')
 
@@ -371,7 +379,7 @@ def _choose_in_list(reader: BagReader, dynamic: dict[str, ListLayout],
         if transforms else {}
     seen, static = _scan(reader, dynamic, statics)
     layout = next(iter(dynamic.values()))
-    on = ', '.join(sorted(dynamic))
+    on = listed_names(sorted(dynamic))
     wanted = options.frame if transforms else options.subject
     wanted = wanted.lstrip('/') if wanted else None
     by_name = {element: topic for topic, element in seen}
@@ -381,7 +389,7 @@ def _choose_in_list(reader: BagReader, dynamic: dict[str, ListLayout],
             return _ListChoice(topic, dynamic[topic], wanted, wanted, seen[(topic, wanted)].parent)
         chain = _static_chain(wanted, static, by_name) if transforms else None
         if chain is None:
-            listed = ', '.join(sorted(by_name)) or 'none'
+            listed = listed_names(sorted(by_name)) or 'none'
             raise BagError(f'{name}: no {layout.what} {wanted} on {on} '
                            f'({layout.what}s: {listed})')
         listed_name, frame_pose = chain
@@ -394,9 +402,13 @@ def _choose_in_list(reader: BagReader, dynamic: dict[str, ListLayout],
         raise BagError(f'{name}: no {"transform" if transforms else "body"} on {on}')
     if len(candidates) > 1:
         what = 'moving frames' if transforms else 'moving bodies'
+        named = [(topic, element) for topic, element in candidates if looks_like_name(element)]
         rates = ', '.join(f'{element} at {_rate_words(seen[(topic, element)].rate_hz)}'
-                          for topic, element in candidates[:_LISTED])
-        more = f' and {len(candidates) - _LISTED} more' if len(candidates) > _LISTED else ''
+                          for topic, element in named[:_LISTED])
+        more = f' and {len(named) - _LISTED} more' if len(named) > _LISTED else ''
+        hidden = len(candidates) - len(named)
+        if hidden:          # a name in the file that does not look like one is not shown
+            more += f' and {hidden} not shown'
         raise BagError(f'{name}: several {what} on {on} [{layout.msgtype}] ({rates}{more}); '
                        f'choose one with {layout.option}')
     topic, element = candidates[0]
