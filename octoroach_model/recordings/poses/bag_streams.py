@@ -281,12 +281,13 @@ def _listed(streams: list[PoseStream]) -> str:
     """Describe streams for an error: those whose names look like names (settings.listed_names)."""
     named = [stream for stream in streams
              if looks_like_name(stream.label) and looks_like_name(stream.msgtype)]
-    said = ', '.join(stream.describe() for stream in named[:_LISTED])
-    more = f' and {len(named) - _LISTED} more' if len(named) > _LISTED else ''
+    parts = [', '.join(stream.describe() for stream in named[:_LISTED])]
+    if len(named) > _LISTED:
+        parts.append(f'{len(named) - _LISTED} more')
     hidden = len(streams) - len(named)
     if hidden:
-        more += f' and {hidden} stream{"s" if hidden > 1 else ""} not shown'
-    return said + more
+        parts.append(f'{hidden} stream{"s" if hidden > 1 else ""} not shown')
+    return ' and '.join(part for part in parts if part)
 
 
 def _no_subject(name: str, subject: str, candidates: list[PoseStream]) -> None:
@@ -408,7 +409,7 @@ def _choose_in_list(reader: BagReader, dynamic: dict[str, ListLayout],
         more = f' and {len(named) - _LISTED} more' if len(named) > _LISTED else ''
         hidden = len(candidates) - len(named)
         if hidden:          # a name in the file that does not look like one is not shown
-            more += f' and {hidden} not shown'
+            more += f'{" and " if rates else ""}{hidden} not shown'
         raise BagError(f'{name}: several {what} on {on} [{layout.msgtype}] ({rates}{more}); '
                        f'choose one with {layout.option}')
     topic, element = candidates[0]
