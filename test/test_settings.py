@@ -14,7 +14,7 @@ import math
 import re
 
 from hidden_effects import SEED
-from hypothesis import given, seed, settings as hypothesis_settings, strategies as st
+from hypothesis import example, given, seed, settings as hypothesis_settings, strategies as st
 import numpy as np
 import pytest
 
@@ -315,3 +315,31 @@ def test_a_bag_s_topics_are_listed_in_an_error_where_they_look_like_names_at_mos
     many = describe_topics({f'/t{i:02d}': info('x/msg/Y') for i in range(15)})
     assert many.endswith('/t11 [x/msg/Y] and 3 more') and '/t12' not in many, many
     assert describe_topics({}) == 'it has no topics'
+
+
+@seed(SEED)
+@hypothesis_settings(max_examples=150, deadline=None, database=None)
+@given(st.lists(st.text(max_size=120) | st.sampled_from(['octo', 'a and b', ' x', 'x' * 101]),
+                max_size=20), st.integers(1, 15))
+@example(['octo', '\x1b[2J', 'a and b'], 1)
+def test_a_listed_name_is_one_that_looks_like_a_name_and_every_other_is_counted(names, limit):
+    """
+    listed_names shows the names that look like names, in order, and only words of its own.
+
+    Whatever the texts (escapes, long lines, a name with 'and' in it), the message is the
+    first `limit` such names, then how many more, then how many were not shown.
+    """
+    import re
+
+    from octoroach_model.settings import listed_names, looks_like_name
+
+    said = listed_names(names, limit)
+    good = [name for name in names if looks_like_name(name)]
+    hidden = len(names) - len(good)
+    head = ', '.join(good[:limit])
+    assert said.startswith(head), (names, said)
+    rest = said[len(head):]
+    more = f' and {len(good) - limit} more' if len(good) > limit else ''
+    counted = f' and {hidden} name{"s" if hidden > 1 else ""} not shown' if hidden else ''
+    assert rest == (more + counted if head else (more + counted)[len(' and '):]), (names, said)
+    assert re.fullmatch(r'[A-Za-z0-9_.:/@+\- ,]*', said), said
