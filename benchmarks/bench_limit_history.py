@@ -78,6 +78,13 @@ def main(argv: list[str] | None = None) -> int:
     arguments = parser.parse_args(argv)
     if arguments.replicates < 1:
         parser.error('--replicates must be at least 1')
+    spec = Path(arguments.spec)
+    if spec.is_absolute() or '..' in spec.parts:      # read inside each commit's copy only
+        parser.error('--spec is a path inside the repository, such as studies/open_world.yaml')
+    from octoroach_model.limit_setting import RACED_TERMS
+
+    if arguments.term not in RACED_TERMS:
+        parser.error(f'--term must be one of {", ".join(RACED_TERMS)}')
     commits = [commit_of(revision) for revision in arguments.commits]
     print(f'{arguments.term} limits on the nulls of {arguments.spec}, replicates 0-'
           f'{arguments.replicates - 1}\n')

@@ -27,8 +27,10 @@ than the baseline (held-out energy score, cm per run), and the median share of t
 gap the extended model closed. The same robots' null data sets (effect `none`) are diagnosed
 beside them: there "not adequate" is a false alarm and a named term a false positive, and the
 z of the statistic added for the yaw ramp (the heading rate's change from a run's first half
-to its second) is printed over them. Rows go to --out (one JSON line per data set, as it
-finishes); a stopped run resumes where it stopped.
+to its second) is printed over them. For each leg_wear data set, the drifts of the yaw rate
+and of the sideways velocity as the race weighed them (estimate, reported limit, held-out
+t): what summary.md's 'Terms that read these statistics' says. Rows go to --out (one JSON
+line per data set, as it finishes); a stopped run resumes where it stopped.
 
 Run: .venv/bin/python benchmarks/bench_out_of_library.py [--replicates 6] [--workers 2]
      [--effects none speed_wobble yaw_ramp leg_wear]
@@ -119,8 +121,35 @@ def diagnose_one(effect: str, replicate: int) -> dict:
         'extensions': {e.family: e.parameters for e in report.extensions},
         'unexplained': [row.statistic for row in report.unexplained],
         'gap_closed': report.gain.relative, 'ramp_z': ramp_z[0] if ramp_z else None,
+        'drifts': drift_records(report),
         'energy_baseline_cm': energy['baseline'], 'energy_extended_cm': energy['extended'],
         'elapsed_s': round(time.perf_counter() - started, 1)}
+
+
+def drift_records(report) -> dict[str, dict]:
+    """Each run-order drift's estimate, reported limit and held-out t (what summary.md reads)."""
+    return {candidate.cause: {'estimate': candidate.parameters.get('change'),
+                              'limit': candidate.detectable.get('change'),
+                              't': candidate.held_out_t, 'named': candidate.named_here}
+            for candidate in report.extension_candidates
+            if candidate.cause.startswith('run_order_drift:')}
+
+
+def drift_lines(rows: list[dict]) -> list[str]:
+    """Per leg_wear row: the drifts of the yaw rate and the sideways velocity, as weighed."""
+    lines = []
+    for row in sorted((row for row in rows if row['effect'] == 'leg_wear' and 'drifts' in row),
+                      key=lambda row: row['replicate']):
+        said = []
+        for term in ('run_order_drift:yaw_rate', 'run_order_drift:lateral_velocity'):
+            drift = row['drifts'].get(term)
+            if drift and drift['estimate'] is not None and drift['limit'] is not None:
+                t = 'not scored' if drift['t'] is None else f't {drift["t"]:.2f}'
+                said.append(f'{term.split(":")[1]} {drift["estimate"]:+.3g} (limit '
+                            f'{drift["limit"]:.3g}, {t})')
+        lines.append(f'leg_wear r{row["replicate"]} ({row["values"]["drift_deg"]:+.1f} deg, '
+                     f'adequate {row["adequate"]}): ' + '; '.join(said))
+    return lines
 
 
 def read_rows(path: Path) -> list[dict]:
@@ -199,6 +228,7 @@ def table(rows: list[dict]) -> str:
                          f'{max(errors):+.0%}; positions closer by {min(closer):+.2f} to '
                          f'{max(closer):+.2f} cm per run (negative: further), adequate '
                          f'{sum(row["adequate"] for row in found)} of {len(found)}')
+    lines += drift_lines(rows)
     return '\n'.join(lines)
 
 

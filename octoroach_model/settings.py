@@ -35,7 +35,7 @@ import numbers
 import re
 import types
 import typing
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -291,24 +291,33 @@ def looks_like_name(value: Any) -> bool:
     return isinstance(value, str) and LISTED_NAME.fullmatch(value) is not None
 
 
-def listed_names(names: Iterable[Any], limit: int = 12) -> str:
-    """
-    List names read from a file among which a user chooses, as an error may: up to `limit`.
+Listed = TypeVar('Listed')
 
-    A subject's, a marker's or a topic's name is what the user types back, so it is listed;
-    a text that does not look like a name (a control character, a long text, a line of
-    something else) is counted, never shown.
+
+def listed_items(items: Iterable[Listed], describe: Callable[[Listed], str],
+                 names: Callable[[Listed], Iterable[Any]], limit: int = 12,
+                 noun: str = 'name') -> str:
     """
-    names = list(names)
-    shown_names = [name for name in names if looks_like_name(name)]
-    hidden = len(names) - len(shown_names)
-    listed = ', '.join(shown_names[:limit])
-    more = len(shown_names) - limit if len(shown_names) > limit else 0
-    tail = [f'{more} more'] if more else []
-    tail += [f'{hidden} name{"s" if hidden > 1 else ""} not shown'] if hidden else []
-    if not tail:
-        return listed
-    return (f'{listed} and ' if listed else '') + ' and '.join(tail)
+    List things read from a file among which a user chooses, as an error may: up to `limit`.
+
+    A subject's, a marker's or a topic's name is what the user types back, so an item is
+    described where all its `names` look like names; any other (a control character, a long
+    text, a line of something else in a name) is counted as a `noun` not shown, never shown.
+    """
+    items = list(items)
+    named = [item for item in items if all(looks_like_name(name) for name in names(item))]
+    parts = [', '.join(describe(item) for item in named[:limit])]
+    if len(named) > limit:
+        parts.append(f'{len(named) - limit} more')
+    hidden = len(items) - len(named)
+    if hidden:
+        parts.append(f'{hidden} {noun}{"s" if hidden > 1 else ""} not shown')
+    return ' and '.join(part for part in parts if part)
+
+
+def listed_names(names: Iterable[Any], limit: int = 12) -> str:
+    """List names read from a file, those that look like names (`listed_items`)."""
+    return listed_items(names, str, lambda name: (name,), limit)
 
 
 # names longer than this are not compared with the known ones (`unknown_name`)

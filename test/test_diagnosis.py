@@ -390,6 +390,19 @@ def test_a_statistic_still_off_names_the_term_that_reads_it_and_why_it_was_not_n
     trend = [statistic.name for statistic in STATISTICS if statistic.read_by()
              and statistic.read_by()[0].order_dependent]
     assert len(trend) == 3                          # every run-order drift has its statistic
+    # a statistic's declared reading is the one its function makes: on any features its
+    # value, or its square (a spread, an rms), is a fixed multiple of the term's reading
+    from octoroach_model.diagnosis.causes import FeatureStatistic
+    from octoroach_model.diagnosis.features import INDEX
+
+    rng = np.random.default_rng(SEED)
+    draws = [np.exp(rng.normal(size=(40, len(INDEX)))) for _ in range(3)]
+    for statistic in STATISTICS:
+        if statistic.reading is None:
+            continue
+        read = FeatureStatistic(statistic.feature, statistic.reading)
+        ratios = [[statistic.function(f) ** power / read(f) for f in draws] for power in (1, 2)]
+        assert any(np.allclose(row, row[0], rtol=1e-9) for row in ratios), statistic.name
 
     def drift(change: float, t: float | None, limit: float = 1.97) -> SimpleNamespace:
         return SimpleNamespace(cause='run_order_drift:yaw_rate', step=1, clears_floor=True,

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 import math
 from pathlib import Path
-from typing import Any, TYPE_CHECKING
+from typing import Any, NamedTuple, TYPE_CHECKING
 
 import matplotlib
 
@@ -361,25 +361,44 @@ def _at(values: FloatArray, positions: FloatArray, angle: bool = False) -> Float
     return interpolated
 
 
-def _over_the_run(ax: Axes, report: DiagnosisReport, measured: Paths,
-                  per_stride: Callable[[Paths, IntArray, FloatArray], FloatArray],
-                  extended: str) -> None:
-    """
-    Plot `per_stride` (runs, window starts, window ends) against time: data and both models.
+class StrideCurve(NamedTuple):
+    """Runs to draw stride by stride: their windows, the windows' middle times, the style."""
 
-    Each model's runs are measured over its own strides (`stride_windows`), the data over the
-    extended model's (the strides it reads in the data).
+    paths: Paths
+    starts: IntArray
+    ends: FloatArray
+    middle_s: FloatArray
+    style: dict[str, Any]
+
+
+def stride_curves(report: DiagnosisReport, measured: Paths, extended: str
+                  ) -> tuple[StrideCurve, ...]:
     """
-    curves: tuple[tuple[Paths, FittedModel, dict[str, Any]], ...] = (
-        (measured, report.extended_model, {'color': 'k', 'lw': 1.5, 'label': 'measured runs'}),
-        (_simulate(report.baseline_model, measured, MODEL_RUNS), report.baseline_model,
-         {'color': 'tab:blue', 'lw': 2, 'label': 'baseline (paper model)'}),
-        (_simulate(report.extended_model, measured, MODEL_RUNS), report.extended_model,
-         {'color': 'tab:orange', 'ls': '--', 'lw': 2, 'label': extended}))
-    for paths, model, style in curves:
+    Return the data and both models' runs, each with the stride windows it is read over.
+
+    Each model's runs are read over its own strides (`stride_windows`), the data over the
+    extended model's (the strides it reads in the data); a figure of several panels draws
+    them all from one simulation of each model.
+    """
+    curves = []
+    for paths, model, style in (
+            (measured, report.extended_model,
+             {'color': 'k', 'lw': 1.5, 'label': 'measured runs'}),
+            (_simulate(report.baseline_model, measured, MODEL_RUNS), report.baseline_model,
+             {'color': 'tab:blue', 'lw': 2, 'label': 'baseline (paper model)'}),
+            (_simulate(report.extended_model, measured, MODEL_RUNS), report.extended_model,
+             {'color': 'tab:orange', 'ls': '--', 'lw': 2, 'label': extended})):
         starts, ends = stride_windows(model, measured.t)
         middle = measured.t[starts] + 0.5 * _span_s(measured, starts, ends)
-        ax.plot(middle, per_stride(paths, starts, ends), **style)
+        curves.append(StrideCurve(paths, starts, ends, middle, style))
+    return tuple(curves)
+
+
+def _over_the_run(ax: Axes, curves: tuple[StrideCurve, ...],
+                  per_stride: Callable[[Paths, IntArray, FloatArray], FloatArray]) -> None:
+    """Plot `per_stride` (runs, window starts, window ends) of each curve against time."""
+    for curve in curves:
+        ax.plot(curve.middle_s, per_stride(curve.paths, curve.starts, curve.ends), **curve.style)
     ax.set_xlabel('time in the run [s] (the middle of a stride)')
 
 
@@ -447,7 +466,7 @@ RATE_LABEL = 'mean heading rate over a stride [deg/s] (left positive)'
 
 def _speed_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                  extension: NamedExtension) -> None:
-    _over_the_run(ax, report, measured, _mean_speed, 'extended model')
+    _over_the_run(ax, stride_curves(report, measured, 'extended model'), _mean_speed)
     ax.axvline(float(extension.parameters['time_s']), color='tab:red', ls=':',
                label='fitted change')
     ax.set_ylabel(SPEED_LABEL)
@@ -455,7 +474,8 @@ def _speed_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
 
 def _turn_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                 extension: NamedExtension) -> None:
-    _over_the_run(ax, report, measured, _mean_rate, 'extended model (yaw rate ramp)')
+    _over_the_run(ax, stride_curves(report, measured, 'extended model (yaw rate ramp)'),
+                  _mean_rate)
     ax.set_ylabel(RATE_LABEL)
 
 
@@ -475,9 +495,10 @@ def _misfit_plot(report: DiagnosisReport, measured: Paths, path: Path) -> bool:
               ('how far runs turn apart', _turn_spread,
                'spread across runs of the heading change\nsince the first stride [deg] '
                "(each a stride's mean)"))
+    curves = stride_curves(report, measured, 'extended model')      # one simulation each
     fig, axes = plt.subplots(1, len(panels), figsize=(6.5 * len(panels), 4.8))
     for ax, (title, per_stride, label) in zip(axes, panels):
-        _over_the_run(ax, report, measured, per_stride, 'extended model')
+        _over_the_run(ax, curves, per_stride)
         ax.set_title(title, fontsize=10)
         ax.set_ylabel(label)
         ax.legend(fontsize=8)

@@ -40,7 +40,7 @@ from octoroach_model.recordings.bagio.pose_blocks import BlockSplitter, PoseBloc
 from octoroach_model.recordings.bagio.pose_messages import PoseLayout
 from octoroach_model.recordings.bagio.qos import load_profiles, QosProfile
 from octoroach_model.recordings.bagio.ros1 import Ros1Bag
-from octoroach_model.settings import looks_like_name, unknown_name
+from octoroach_model.settings import listed_items, unknown_name
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Connection
@@ -652,12 +652,6 @@ def describe_topics(topics: dict[str, TopicInfo]) -> str:
     """Say 'it has /a [type], /b [type]' for error messages."""
     if not topics:
         return 'it has no topics'
-    named = [(name, info.msgtype) for name, info in sorted(topics.items())
-             if looks_like_name(name) and looks_like_name(info.msgtype)]
-    listed = [', '.join(f'{name} [{msgtype}]' for name, msgtype in named[:LISTED_TOPICS])]
-    if len(named) > LISTED_TOPICS:
-        listed.append(f'{len(named) - LISTED_TOPICS} more')
-    hidden = len(topics) - len(named)
-    if hidden:           # names from the file that do not look like names are not shown
-        listed.append(f'{hidden} topic{"s" if hidden > 1 else ""} not shown')
-    return 'it has ' + ' and '.join(part for part in listed if part)
+    return 'it has ' + listed_items(          # names from the file: those that look like names
+        sorted(topics.items()), lambda topic: f'{topic[0]} [{topic[1].msgtype}]',
+        lambda topic: (topic[0], topic[1].msgtype), LISTED_TOPICS, 'topic')

@@ -68,7 +68,7 @@ from octoroach_model.recordings.conventions.topics import (
     TRANSFORM_STAMPED,
 )
 from octoroach_model.recordings.options import ReadOptions
-from octoroach_model.settings import listed_names, looks_like_name
+from octoroach_model.settings import listed_items, listed_names
 
 __all__ = ['BagPoseReader', 'PoseStream', 'choose_streams', 'iter_bag_pose_chunks']
 
@@ -278,16 +278,9 @@ def choose_streams(reader: BagReader, topics: dict[str, TopicInfo],
 
 
 def _listed(streams: list[PoseStream]) -> str:
-    """Describe streams for an error: those whose names look like names (settings.listed_names)."""
-    named = [stream for stream in streams
-             if looks_like_name(stream.label) and looks_like_name(stream.msgtype)]
-    parts = [', '.join(stream.describe() for stream in named[:_LISTED])]
-    if len(named) > _LISTED:
-        parts.append(f'{len(named) - _LISTED} more')
-    hidden = len(streams) - len(named)
-    if hidden:
-        parts.append(f'{hidden} stream{"s" if hidden > 1 else ""} not shown')
-    return ' and '.join(part for part in parts if part)
+    """Describe streams for an error: those whose names look like names (`listed_items`)."""
+    return listed_items(streams, PoseStream.describe,
+                        lambda stream: (stream.label, stream.msgtype), _LISTED, 'stream')
 
 
 def _no_subject(name: str, subject: str, candidates: list[PoseStream]) -> None:
@@ -403,14 +396,10 @@ def _choose_in_list(reader: BagReader, dynamic: dict[str, ListLayout],
         raise BagError(f'{name}: no {"transform" if transforms else "body"} on {on}')
     if len(candidates) > 1:
         what = 'moving frames' if transforms else 'moving bodies'
-        named = [(topic, element) for topic, element in candidates if looks_like_name(element)]
-        rates = ', '.join(f'{element} at {_rate_words(seen[(topic, element)].rate_hz)}'
-                          for topic, element in named[:_LISTED])
-        more = f' and {len(named) - _LISTED} more' if len(named) > _LISTED else ''
-        hidden = len(candidates) - len(named)
-        if hidden:          # a name in the file that does not look like one is not shown
-            more += f'{" and " if rates else ""}{hidden} not shown'
-        raise BagError(f'{name}: several {what} on {on} [{layout.msgtype}] ({rates}{more}); '
+        rates = listed_items(candidates, lambda candidate: f'{candidate[1]} at '
+                             f'{_rate_words(seen[candidate].rate_hz)}',
+                             lambda candidate: (candidate[1],), _LISTED)
+        raise BagError(f'{name}: several {what} on {on} [{layout.msgtype}] ({rates}); '
                        f'choose one with {layout.option}')
     topic, element = candidates[0]
     return _ListChoice(topic, dynamic[topic], element, element, seen[(topic, element)].parent)
