@@ -13,13 +13,15 @@ spread or drift can be it), and one that moves over the session:
   third to two thirds of a run (a motor controller hunting, a cyclic load);
 - yaw_ramp: a turn that grows within each run, the yaw rate rising linearly from 0 to R
   (3-8 deg/s, either sign) at the run's end (a motor that heats as it runs);
-- leg_wear: a leg that wears over the session, one touchdown angle drifting by D (5-10 deg,
-  either sign) from the first run to the last (studies/outside.py, `leg_wear`): the gait's
-  shape, not the same in every run, which the library's drifts describe in its effects only.
+- leg_wear: a leg that wears over the session, the touchdown angle phi3 drifting by D (5-10
+  deg, either sign) from the first run to the last (studies/outside.py, `leg_wear`): the
+  gait's shape, not the same in every run;
+- right_leg_wear: the same drift of phi1, the right pair's rear leg, which no term moves.
 
-The yaw ramp has since joined the library as the family yaw_rate_ramp (its data are still
-made here, outside the model: studies/outside.py): naming that family on its data is the
-right answer (`OWN_FAMILY`), and the table says how often, and how close its size came.
+The yaw ramp has since joined the library as the family yaw_rate_ramp, and phi3's wear as
+run_order_drift:touchdown_angle (their data are still made here, outside the model:
+studies/outside.py): naming that term on its data is the right answer (`OWN_FAMILY`), and
+the table says how often, and how close its size came.
 Every other term named in such a data set stands in for an effect it is not. Printed per effect:
 data sets reported not adequate (what the report should say), those named nothing, those with
 a stand-in named (and which terms), those whose named terms left the positions further off
@@ -27,13 +29,13 @@ than the baseline (held-out energy score, cm per run), and the median share of t
 gap the extended model closed. The same robots' null data sets (effect `none`) are diagnosed
 beside them: there "not adequate" is a false alarm and a named term a false positive, and the
 z of the statistic added for the yaw ramp (the heading rate's change from a run's first half
-to its second) is printed over them. For each leg_wear data set, the drifts of the yaw rate
-and of the sideways velocity as the race weighed them (estimate, reported limit, held-out
+to its second) is printed over them. For each wear's data set, the drifts of phi3, the yaw rate
+and the sideways velocity as the race weighed them (estimate, reported limit, held-out
 t): what summary.md's 'Terms that read these statistics' says. Rows go to --out (one JSON
 line per data set, as it finishes); a stopped run resumes where it stopped.
 
 Run: .venv/bin/python benchmarks/bench_out_of_library.py [--replicates 6] [--workers 2]
-     [--effects none speed_wobble yaw_ramp leg_wear]
+     [--effects none speed_wobble yaw_ramp leg_wear right_leg_wear]
      [--out out/studies/out_of_library_scored/rows.jsonl]
      [--report-only]
 (docs/measured.md's rows: out/studies/out_of_library_scored, with the ramp's signature
@@ -54,12 +56,15 @@ import time
 from octoroach_model.diagnosis.discrepancies import HEADING_RATE_CHANGE
 
 REPO = Path(__file__).resolve().parents[1]
-EFFECTS = ('none', 'speed_wobble', 'yaw_ramp', 'leg_wear')
+EFFECTS = ('none', 'speed_wobble', 'yaw_ramp', 'leg_wear', 'right_leg_wear')
 RUNS = 500
 PURPOSE = 0x0DD          # the effect's own draws, apart from the study's robot and data streams
-SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1, 'leg_wear': 2}
-# effects a family of the library now describes, and its main parameter
-OWN_FAMILY = {'yaw_ramp': ('yaw_rate_ramp', 'final_yaw_rate_deg_s')}
+SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1, 'leg_wear': 2, 'right_leg_wear': 3}
+WEARS = {'leg_wear': 2, 'right_leg_wear': 0}      # the touchdown angle each wear moves
+# effects a term of the library now describes: the term, its main parameter, the effect's
+# value that parameter estimates
+OWN_FAMILY = {'yaw_ramp': ('yaw_rate_ramp', 'final_yaw_rate_deg_s', 'final_yaw_rate_deg_s'),
+              'leg_wear': ('run_order_drift:touchdown_angle', 'change', 'drift_deg')}
 
 
 def effect_values(effect: str, replicate: int, duration_s: float) -> dict[str, float]:
@@ -73,7 +78,7 @@ def effect_values(effect: str, replicate: int, duration_s: float) -> dict[str, f
         return {'amplitude': float(0.2 + 0.3 * u[0]),
                 'period_s': float(duration_s / (1.5 + 1.5 * u[1]))}
     sign = 1.0 if u[2] < 0.5 else -1.0
-    if effect == 'leg_wear':
+    if effect in WEARS:
         return {'drift_deg': float(sign * (5.0 + 5.0 * u[0]))}
     return {'final_yaw_rate_deg_s': float(sign * (3.0 + 5.0 * u[0]))}
 
@@ -95,8 +100,9 @@ def data_set(effect: str, replicate: int):
         paths = speed_wobble(paths.t, RUNS, values['amplitude'], values['period_s'], **common)
     elif effect == 'yaw_ramp':
         paths = yaw_ramp(paths, values['final_yaw_rate_deg_s'])
-    elif effect == 'leg_wear':
-        paths = leg_wear(RUNS, values['drift_deg'], cycles=draw.cycles, **common)
+    elif effect in WEARS:
+        paths = leg_wear(RUNS, values['drift_deg'], cycles=draw.cycles, angle=WEARS[effect],
+                         **common)
     return draw, values, paths
 
 
@@ -118,7 +124,7 @@ def diagnose_one(effect: str, replicate: int) -> dict:
                   'stride_frequency_hz': draw.stride_frequency_hz, 'cycles': draw.cycles,
                   'sample_rate_hz': draw.sample_rate_hz, 'spread_scale': draw.spread_scale},
         'adequate': report.adequate, 'named': sorted(report.named_terms),
-        'extensions': {e.family: e.parameters for e in report.extensions},
+        'extensions': {e.term: e.parameters for e in report.extensions},
         'unexplained': [row.statistic for row in report.unexplained],
         'gap_closed': report.gain.relative, 'ramp_z': ramp_z[0] if ramp_z else None,
         'drifts': drift_records(report),
@@ -136,19 +142,21 @@ def drift_records(report) -> dict[str, dict]:
 
 
 def drift_lines(rows: list[dict]) -> list[str]:
-    """Per leg_wear row: the drifts of the yaw rate and the sideways velocity, as weighed."""
+    """Per wear row: the drifts of phi3, the yaw rate and the sideways velocity, as weighed."""
     lines = []
-    for row in sorted((row for row in rows if row['effect'] == 'leg_wear' and 'drifts' in row),
-                      key=lambda row: row['replicate']):
+    for row in sorted((row for row in rows if row['effect'] in WEARS and 'drifts' in row),
+                      key=lambda row: (row['effect'], row['replicate'])):
         said = []
-        for term in ('run_order_drift:yaw_rate', 'run_order_drift:lateral_velocity'):
+        for term in ('run_order_drift:touchdown_angle', 'run_order_drift:yaw_rate',
+                     'run_order_drift:lateral_velocity'):
             drift = row['drifts'].get(term)
-            if drift and drift['estimate'] is not None and drift['limit'] is not None:
+            if drift and drift['estimate'] is not None:
+                limit = '' if drift['limit'] is None else f'limit {drift["limit"]:.3g}, '
                 t = 'not scored' if drift['t'] is None else f't {drift["t"]:.2f}'
-                said.append(f'{term.split(":")[1]} {drift["estimate"]:+.3g} (limit '
-                            f'{drift["limit"]:.3g}, {t})')
-        lines.append(f'leg_wear r{row["replicate"]} ({row["values"]["drift_deg"]:+.1f} deg, '
-                     f'adequate {row["adequate"]}): ' + '; '.join(said))
+                named = ', named' if drift['named'] else ''
+                said.append(f'{term.split(":")[1]} {drift["estimate"]:+.3g} ({limit}{t}{named})')
+        lines.append(f'{row["effect"]} r{row["replicate"]} ({row["values"]["drift_deg"]:+.1f} '
+                     f'deg, adequate {row["adequate"]}): ' + '; '.join(said))
     return lines
 
 
@@ -183,14 +191,14 @@ def table(rows: list[dict]) -> str:
             low, high = wilson(count, n).interval
             return f'{count}/{n} ({low:.0%}-{high:.0%})'
 
-        own, parameter = OWN_FAMILY.get(effect, ('', ''))
+        own, parameter, truth = OWN_FAMILY.get(effect, ('', '', ''))
         stand_ins = [[term for term in row['named'] if term != own] for row in mine]
         named = Counter(term for terms in stand_ins for term in terms)
         terms = ', '.join(f'{term} {count}' for term, count in named.most_common()) or '-'
         worse = sum(row['energy_extended_cm'] > row['energy_baseline_cm']
                     for row in mine if row['named'])
         found = [row for row in mine if own and own in row.get('extensions', {})]
-        errors = [row['extensions'][own][parameter] / row['values'][parameter] - 1
+        errors = [row['extensions'][own][parameter] / row['values'][truth] - 1
                   for row in found]
         size_error = f' ({statistics.median(errors):+.0%})' if errors else ''
         own_cell = share(len(found)) + size_error if own else '-'
@@ -217,11 +225,11 @@ def table(rows: list[dict]) -> str:
         lines.append(f'yaw_ramp: the statistic unexplained in {len(shown)} of {len(ramps)}'
                      + (f' (|z| {min(shown):.1f}-{max(shown):.1f})' if shown else '')
                      + f'; not adequate on the other statistics: {without} of {len(ramps)}')
-    for effect, (own, parameter) in OWN_FAMILY.items():
+    for effect, (own, parameter, truth) in OWN_FAMILY.items():
         found = [row for row in rows if row['effect'] == effect
                  and own in row.get('extensions', {})]
         if found:
-            errors = [row['extensions'][own][parameter] / row['values'][parameter] - 1
+            errors = [row['extensions'][own][parameter] / row['values'][truth] - 1
                       for row in found]
             closer = [row['energy_baseline_cm'] - row['energy_extended_cm'] for row in found]
             lines.append(f'{effect} named as {own}: size error {min(errors):+.0%} to '

@@ -341,6 +341,17 @@ def test_the_report_has_the_documented_fields_a_summary_and_plots(tmp_path, monk
     assert all(f'`{stage}`' in documented for stage in STAGES)
 
 
+def test_a_gap_closed_past_its_whole_is_said_as_all_of_it_and_more():
+    """A model that scores held-out runs above the calibration runs themselves: 'all and more'."""
+    from octoroach_model.diagnosis.summary import _gap_closed, BASELINE_GAP
+
+    assert _gap_closed(0.42, BASELINE_GAP) == "42 % of the baseline's gap"
+    assert _gap_closed(1.0, BASELINE_GAP) == "100 % of the baseline's gap"
+    said = _gap_closed(4.99, BASELINE_GAP)
+    assert said.startswith("all of the baseline's gap and more (499 %") and 'calibration' in said
+    assert _gap_closed(float('nan'), 'it') == 'an unmeasured share of it'
+
+
 def test_the_summary_says_when_the_held_out_runs_are_too_few_for_a_spread_at_any_size():
     """A spread's held-out t tends to sqrt(n / 2) as it grows (docs/diagnosis.md, section 12)."""
     from types import SimpleNamespace

@@ -62,6 +62,13 @@ def describe(term: str, values: Mapping[str, float], interval: Mapping[str, Sequ
                 f'({_range(interval["change"])}) from the first run to the last, in '
                 'recording order (right positive): a leg that wears, or a floor that '
                 'changes over the session')
+    if term == 'run_order_drift:touchdown_angle':
+        way = 'wider' if change > 0 else 'narrower'
+        return ("a leg that wears: the touchdown angle of the left pair's rear leg (phi3) "
+                f'moved by {number(change)} deg ({_range(interval["change"])}) from the first '
+                f'run to the last, in recording order, its stance {way}, the liftoff angle '
+                "following by the paper's eqs. (7)-(8): look at the legs' wear, or a foot "
+                'that loosens over the session')
     if term == 'heading_random_walk':
         return (f'the heading wanders stance by stance: each stance turns it by a random '
                 f'{number(values["step_std_deg"])} deg ({_range(interval["step_std_deg"])}, '

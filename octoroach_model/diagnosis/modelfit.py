@@ -1319,7 +1319,9 @@ def fit_trend(simulator: Simulator, model: FittedModel, cause: Cause,
     data's (bootstrap over runs), the simulated intercept's and the slope's. A model without
     any term that depends on the run order has T(0) = 0 exactly (its runs are exchangeable):
     then the intercept is taken as 0, not simulated (a simulated slope of 300 runs is off by
-    0.4 deg/s per session for a yaw rate, noise the estimate need not carry).
+    0.4 deg/s per session for a yaw rate, noise the estimate need not carry). A curved trend
+    (`Cause.secant_steps`) takes secant steps towards the data's value from the line's two
+    points and reads the size off the last two (`_secant`).
     """
     line = _LineStart.of(simulator, model, cause, settings, 29, n_boot)
     statistic, data, rng = line.statistic, simulator.data, line.rng
@@ -1330,19 +1332,61 @@ def fit_trend(simulator: Simulator, model: FittedModel, cause: Cause,
     intercept = 0.0 if exchangeable else statistic(zero)
     intercept_se = 0.0 if exchangeable else bootstrap_se(statistic, zero, rng, n_boot)
     slope = (statistic(reference) - statistic(zero)) / cause.reference
+    base_size, base_value, base = 0.0, intercept, zero
+    if cause.secant_steps and abs(slope) > 0:
+        base_size, base_value, base, reference, slope = _secant(
+            simulator, model, cause, statistic, settings, without, data_value,
+            [(0.0, intercept, zero), (cause.reference, statistic(reference), reference)])
+        if base_size != 0.0:    # a simulated point's own noise, as an intercept's
+            intercept_se = bootstrap_se(statistic, base, rng, n_boot)
     if not abs(slope) > 0:
         return SizeEstimate(cause.name, 0.0, math.inf, intercept=intercept,
                             data_statistic=data_value, data_se=data_se)
     changes = []
     for _ in range(n_boot):
         picks = rng.integers(0, zero.shape[0], zero.shape[0])
-        changes.append(statistic(reference[picks]) - statistic(zero[picks]))
-    slope_relative_se = float(np.std(changes, ddof=1)) / abs(slope * cause.reference)
-    size = (data_value - intercept) / slope
-    se = math.hypot(data_se / abs(slope), intercept_se / abs(slope), slope_relative_se * size)
+        changes.append(statistic(reference[picks]) - statistic(base[picks]))
+    step = statistic(reference) - statistic(base)
+    slope_relative_se = float(np.std(changes, ddof=1)) / max(abs(step), 1e-300)
+    size = base_size + (data_value - base_value) / slope
+    se = math.hypot(data_se / abs(slope), intercept_se / abs(slope),
+                    slope_relative_se * (size - base_size))
     return SizeEstimate(cause.name, float(size), float(se), intercept=intercept, slope=slope,
                         data_statistic=data_value, data_se=data_se, intercept_se=intercept_se,
                         slope_relative_se=slope_relative_se)
+
+
+def _secant(simulator: Simulator, model: FittedModel, cause: Cause,
+            statistic: Callable[[FloatArray], float], settings: FitSettings,
+            without: Mapping[str, Mapping[str, float]], target: float,
+            points: list[tuple[float, float, FloatArray]]
+            ) -> tuple[float, float, FloatArray, FloatArray, float]:
+    """
+    Return where a curved trend meets `target`: two sizes about it, and the slope between them.
+
+    Returned: the lower size, its statistic, both sizes' runs and the slope.
+
+    Secant steps from (size, statistic, runs) `points`, each size within the cause's bounds
+    (common random numbers: every size simulates the same draws). The slope is the last
+    two points', the local one the estimate and its error are read with.
+    """
+    low, high = cause.bounds
+    for _ in range(cause.secant_steps):
+        (size_0, value_0, _), (size_1, value_1, _) = points[-2], points[-1]
+        if value_1 == value_0:
+            break
+        size = float(np.clip(size_1 + (target - value_1) * (size_1 - size_0)
+                             / (value_1 - value_0), low, high))
+        if abs(size - size_1) < 1e-3 * max(abs(size_1), 1.0):
+            break
+        runs = simulator.features(model, settings.moment_runs, MOMENTS, {
+            **without, cause.name: at_size(cause, size, None, simulator.data)})
+        points.append((size, statistic(runs), runs))
+    (size_0, value_0, runs_0), (size_1, value_1, runs_1) = sorted(points[-2:],
+                                                                  key=lambda p: p[0])
+    if size_1 == size_0:
+        return size_0, value_0, runs_0, runs_1, 0.0
+    return size_0, value_0, runs_0, runs_1, (value_1 - value_0) / (size_1 - size_0)
 
 
 MIXTURE_STARTS = (0.1, 0.3, 0.5)

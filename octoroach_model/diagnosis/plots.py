@@ -23,6 +23,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from octoroach_model.arrays import FloatArray, IntArray  # noqa: E402
+from octoroach_model.diagnosis.causes import BY_NAME  # noqa: E402
 from octoroach_model.diagnosis.discrepancies import Discrepancy  # noqa: E402
 from octoroach_model.diagnosis.features import (  # noqa: E402
     heading_amplitudes, INDEX, run_features)
@@ -233,7 +234,12 @@ DRIFT_AXES = {
     'run_order_drift:yaw_rate': ('heading_rate', DEG, 'heading rate over the run [deg/s]'),
     'run_order_drift:lateral_velocity': ('slip_angle', DEG,
                                          'direction of travel - heading [deg]'),
+    'run_order_drift:touchdown_angle': ('end_progress', 100.0,
+                                        "progress along the start heading at the run's end "
+                                        '[cm]'),
 }
+# places along the recording a curved drift's model mean is drawn at (means of runs about each)
+CURVE_BINS = 10
 MODEL_RUNS = 600
 
 
@@ -278,6 +284,15 @@ def _drift_panel(ax: Axes, report: DiagnosisReport, measured: Paths,
                                         'extended model')):
         runs, where = _at_places(model, measured, MODEL_RUNS)
         values = _features_of(report, runs, where)[:, column] * scale
+        if BY_NAME[extension.term].secant_steps:     # a curve: the mean of runs about each place
+            bins = np.minimum((where * CURVE_BINS).astype(int), CURVE_BINS - 1)
+            counts = np.bincount(bins, minlength=CURVE_BINS)
+            means = np.bincount(bins, values, minlength=CURVE_BINS) / np.maximum(counts, 1)
+            centres = (np.arange(CURVE_BINS) + 0.5) / CURVE_BINS
+            ax.plot(centres[counts > 0] * max(measured.n_paths - 1, 1), means[counts > 0],
+                    color=colour, ls=style, lw=2, marker='o', ms=3,
+                    label=f'{name}: mean of runs about each place')
+            continue
         slope, intercept = np.polyfit(where, values, 1)
         ax.plot(grid * max(measured.n_paths - 1, 1), intercept + slope * grid, color=colour,
                 ls=style, lw=2, label=f'{name}: mean at each place')

@@ -81,7 +81,9 @@ MOST_RUNS = 1_000_000                         # runs_for gives up beyond this
 # measurement_noise and the stride frequency's drift at a size just above their floors,
 # where the runs needed are many. Measured with the diagnosis of commit 3d875ec; per group
 # they were within two data sets of those measured at 7ccf16b-d03aab6 ('causes' 83/96,
-# 'run_order_drift' 34/48, periodic_heading 14/16, the others the same)
+# 'run_order_drift' 34/48, periodic_heading 14/16, the others the same); the touchdown
+# angle's drift with its own commit's (2026-12-01, `--calibrate --terms
+# run_order_drift:touchdown_angle`: 137 runs predicted for 9 deg)
 CALIBRATION_COUNTS: dict[str, tuple[int, int]] = {
     'initial_pose_error': (16, 16),
     'measurement_noise': (16, 16),
@@ -92,6 +94,7 @@ CALIBRATION_COUNTS: dict[str, tuple[int, int]] = {
     'run_order_drift:stride_frequency': (12, 16),
     'run_order_drift:yaw_rate': (10, 16),
     'run_order_drift:lateral_velocity': (10, 16),
+    'run_order_drift:touchdown_angle': (14, 16),
     'heading_random_walk': (15, 16),
     'periodic_heading': (13, 16),
     'change_point': (16, 16),

@@ -23,6 +23,25 @@ def _percent(share: float) -> str:
     return f'{100 * share:.0f} %' if math.isfinite(share) else 'n/a'
 
 
+BASELINE_GAP = "the baseline's gap"
+
+
+def _gap_closed(share: float, gap: str) -> str:
+    """
+    Say how much of `gap` a model closes: a share past 100 % as 'all of it and more'.
+
+    The ideal is the calibration runs themselves taken as the model (ScoreSummary); a model
+    that scores the held-out runs better than they do closes more than the whole gap, which
+    a bare '499 %' left a reader to puzzle out.
+    """
+    if not math.isfinite(share):
+        return f'an unmeasured share of {gap}'
+    if share > 1:
+        return (f'all of {gap} and more ({_percent(share)}: it scores the held-out runs better '
+                'than the calibration runs themselves, taken as the model, do)')
+    return f'{_percent(share)} of {gap}'
+
+
 def _unit(unit: str) -> str:
     return f' {unit}' if unit else ''
 
@@ -67,8 +86,9 @@ def conclusion(report: DiagnosisReport) -> str:
     else:
         closer = report.gain.energy_score_cm['baseline'] - report.gain.energy_score_cm['extended']
         head = (f"The paper's model misses {_and(added)}: the model extended with "
-                f'{"it" if len(added) == 1 else "them"} closes {_percent(report.gain.relative)} '
-                "of the baseline's gap to the data on held-out runs, positions "
+                f'{"it" if len(added) == 1 else "them"} closes '
+                f'{_gap_closed(report.gain.relative, BASELINE_GAP + " to the data")} on '
+                'held-out runs, positions '
                 f'{_number(abs(closer), 2)} cm per run {"closer" if closer >= 0 else "further"}')
     tail = ('; it explains every statistic' if report.adequate else
             f'; it still misses {len(report.unexplained)} statistic'
@@ -131,8 +151,9 @@ def summary_text(report: DiagnosisReport, plots: Collection[str] = ()) -> str:
         lines.append(f'{number}. **{named.cause}** ({values}; 95 % interval of {parameter}: '
                      f'{_number(low)} to {_number(high)}). Adding it improved the held-out '
                      f'log score by {_number(named.gain)} nats per run (p = '
-                     f'{named.p_value:.2g}), {_percent(named.relative)} of what the model '
-                     f'lacked then; positions {_closer(named.gain_cm)} per run.')
+                     f'{named.p_value:.2g}), '
+                     f'{_gap_closed(named.relative, "what the model lacked then")}; positions '
+                     f'{_closer(named.gain_cm)} per run.')
         lines += _rival_lines(named.cause, _rival_of(report, named.cause))
     lines += ['', '## Beyond the table of causes', '']
     if not report.extensions:
@@ -141,8 +162,9 @@ def summary_text(report: DiagnosisReport, plots: Collection[str] = ()) -> str:
     for number, extension in enumerate(report.extensions, 1):
         lines.append(f'{number}. **{extension.family}**: {extension.description}. Adding it '
                      f'improved the held-out log score by {_number(extension.gain)} nats per '
-                     f'run (p = {extension.p_value:.2g}), {_percent(extension.relative)} of '
-                     f'what the model lacked then; positions {_closer(extension.gain_cm)} '
+                     f'run (p = {extension.p_value:.2g}), '
+                     f'{_gap_closed(extension.relative, "what the model lacked then")}; '
+                     f'positions {_closer(extension.gain_cm)} '
                      'per run.')
         lines += _rival_lines(extension.family, extension.rival)
     gain = report.gain
@@ -150,7 +172,7 @@ def summary_text(report: DiagnosisReport, plots: Collection[str] = ()) -> str:
     lines += ['', f'Held-out log score per run: baseline {_number(gain.baseline)}, extended '
                   f'{_number(gain.extended)}, the data themselves {_number(gain.ideal)} nats '
                   f'(higher is better): the extended model closes '
-                  f"{_percent(gain.relative)} of the baseline's gap. Positions: "
+                  f'{_gap_closed(gain.relative, BASELINE_GAP)}. Positions: '
                   f"{_number(gain.energy_score_cm['baseline'])} -> "
                   f"{_number(gain.energy_score_cm['extended'])} cm (energy score, lower is "
                   f'better): {_closer(closer)} per run.']

@@ -9,7 +9,10 @@ p'(t) = p(0) + integral_0^t R(a(s)) p_dot(s) ds.
 
 - run_order_drift (parameter, change): a parameter moves linearly with the run's place:
   stride_frequency (relative): run i is p((1 + change q_i) t); yaw_rate (deg/s):
-  a(t) = change q_i t; lateral_velocity (cm/s): as lateral_slip at change q_i.
+  a(t) = change q_i t; lateral_velocity (cm/s): as lateral_slip at change q_i;
+  touchdown_angle (deg, a leg that wears): run i strides with phi3 + change (q_i - 1/2),
+  its pair's liftoff angle following by eqs. (7)-(8) (centred, so that the geometry fitted to
+  the mean path is the session's middle run's).
 - heading_random_walk (step_std_deg): at each stance after the first the heading takes an
   independent N(0, s^2) step that stays.
 - periodic_heading (amplitude_deg, frequency_hz): a(t) = A (sin(2 pi f t + phi) - sin(phi)),
@@ -21,16 +24,17 @@ p'(t) = p(0) + integral_0^t R(a(s)) p_dot(s) ds.
 - yaw_rate_ramp (final_yaw_rate_deg_s): every run turns at a yaw rate that rises linearly
   from 0 at t = 0 to w at t = T (the runs' full duration): a(t) = w t^2 / (2 T).
 
-In an effects mapping a family is a *term*: `run_order_drift` is three terms, one per parameter
+In an effects mapping a family is a *term*: `run_order_drift` is four terms, one per parameter
 it moves (`run_order_drift:stride_frequency`, ...), each with the single parameter `change`,
 so that two drifts can sit in one model; every other family is one term of its own name.
 `family_terms` converts the family form ({family: {parameter: value}}, the form of the CLI
 and of the report) into terms. Each term draws from its own random stream (RandomStreams), so
 adding one leaves every other draw unchanged.
 
-Adding a family: one `ExtensionTerm` entry below with its function (one of four stages: the
-shared gait clock, each run's clock stretch, a heading perturbation, or a sideways drift), and
-its declaration in `diagnosis/causes.py`.
+Adding a family: one `ExtensionTerm` entry below with its function (one of five stages: the
+shared gait clock, each run's clock stretch, each run's touchdown angle, a heading
+perturbation, or a sideways drift), and its declaration in `diagnosis/causes.py`. A new term
+goes last: a term's random stream is its place in the list.
 """
 from __future__ import annotations
 
@@ -47,8 +51,11 @@ from octoroach_model.errors import ParameterError
 from octoroach_model.settings import number, unknown_name
 
 DRIFT = 'run_order_drift'
-DRIFTED = ('stride_frequency', 'yaw_rate', 'lateral_velocity')
-DRIFT_UNITS = {'stride_frequency': '', 'yaw_rate': 'deg/s', 'lateral_velocity': 'cm/s'}
+DRIFTED = ('stride_frequency', 'yaw_rate', 'lateral_velocity', 'touchdown_angle')
+DRIFT_UNITS = {'stride_frequency': '', 'yaw_rate': 'deg/s', 'lateral_velocity': 'cm/s',
+               'touchdown_angle': 'deg'}
+# the touchdown angle a drift of `touchdown_angle` moves: phi3, the left pair's rear leg
+WORN_ANGLE = 2
 
 
 def drift_term(parameter: str) -> str:
@@ -88,7 +95,8 @@ class ExtensionTerm:
 
     `stage`: 'clock' returns the shared gait clock (T,) changed from `context.clock_of` (the
     clock of the terms before it, a function of time); 'stretch' multiplies each run's gait
-    clock by a factor (n,); 'heading' returns a heading perturbation a(t) (n, T); 'drift'
+    clock by a factor (n,); 'angles' returns each run's change of the touchdown angle
+    WORN_ANGLE [rad] (n,); 'heading' returns a heading perturbation a(t) (n, T); 'drift'
     returns each run's sideways velocity [m/s] (n,).
     """
 
@@ -137,6 +145,12 @@ def _drift_yaw(values: Mapping[str, float], context: TermContext) -> FloatArray:
 def _drift_slip(values: Mapping[str, float], context: TermContext) -> FloatArray:
     velocity: FloatArray = values['change'] / 100.0 * context.positions
     return velocity
+
+
+def _drift_touchdown(values: Mapping[str, float], context: TermContext) -> FloatArray:
+    # centred on the session's middle run, whose geometry a fit of the mean path finds
+    offset: FloatArray = math.radians(values['change']) * (context.positions - 0.5)
+    return offset
 
 
 def _random_walk(values: Mapping[str, float], context: TermContext) -> FloatArray:
@@ -210,6 +224,9 @@ TERMS: tuple[ExtensionTerm, ...] = (
                   ((0.0, 1.0), (-90.0, 90.0)), 'heading', _mixture),
     ExtensionTerm('yaw_rate_ramp', 'yaw_rate_ramp', ('final_yaw_rate_deg_s',), ('deg/s',),
                   ((-90.0, 90.0),), 'heading', _ramp),
+    # last, so that the streams of the terms before keep their places (it draws nothing)
+    ExtensionTerm(drift_term('touchdown_angle'), DRIFT, ('change',), ('deg',),
+                  ((-60.0, 60.0),), 'angles', _drift_touchdown),
 )
 TERM_BY_NAME = {term.name: term for term in TERMS}
 TERM_NAMES = tuple(TERM_BY_NAME)

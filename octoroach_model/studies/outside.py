@@ -8,7 +8,9 @@ it; made here, by turning the runs after they are simulated, it checks the famil
 family's own code did not make. Both are the same in every run, for the suite's tests
 (test_extensions.py) and for benchmarks/bench_out_of_library.py, which measures what the
 reports say over robots. A leg that wears over the session is not: it changes the stride's
-shape from run to run, which the library's drifts describe in its effects only.
+shape from run to run, which the family run_order_drift:touchdown_angle now describes for
+phi3; made here run by run, it checks that family as the ramp checks its own, and a wear of
+another leg (phi1) checks what the diagnosis says of a wear the family does not move.
 """
 from __future__ import annotations
 
@@ -40,26 +42,27 @@ def speed_wobble(t: FloatArray, n_runs: int, amplitude: float, period_s: float,
     return Paths(t, simulate(n_runs, t=tau, **simulate_args).poses)
 
 
-# the touchdown angle a worn leg moves (phi3): on Table II's robot 6 deg more turns a 5 s
-# run by 10 deg less, where phi1 and phi2 move it by about 1 deg
+# the touchdown angle a worn leg moves by default (phi3): on Table II's robot 6 deg more
+# turns a 5 s run by 10 deg less, where phi1 and phi2 move it by about 1 deg
 WORN_ANGLE = 2
 
 
 def leg_wear(n_runs: int, drift_deg: float, *, parameters: ModelParameters, seed: int,
-             **simulate_args: Any) -> Paths:
+             angle: int = WORN_ANGLE, **simulate_args: Any) -> Paths:
     """
     Return runs of a robot with a leg that wears over the session: a touchdown angle drifts.
 
     Run i of n, at its place q_i = i / (n - 1) in the session, strides with the touchdown
-    angle phi3 + drift q_i (WORN_ANGLE; the liftoff angles follow by the paper's eqs. 7-8),
-    on a stream of its own (`SeedSequence([seed, i])`): the gait's asymmetry moves from run
-    to run. The library's drifts move a stride frequency, a yaw rate or a sideways velocity,
-    not the shape of a stride, so they can describe its effects but not it.
+    angle phi_k + drift q_i (k = `angle`, 0-based; WORN_ANGLE, phi3, by default; the liftoff
+    angles follow by the paper's eqs. 7-8), on a stream of its own (`SeedSequence([seed,
+    i])`): the gait's shape moves from run to run. Made run by run with the model's own runs
+    of each geometry, not by the family run_order_drift:touchdown_angle's code (which moves
+    phi3 about the session's middle run and draws all runs at once).
     """
     runs = []
     for place, run in zip(positions_in_order(n_runs), range(n_runs)):
         phi = list(parameters.touchdown_angles)
-        phi[WORN_ANGLE] += math.radians(drift_deg) * place
+        phi[angle] += math.radians(drift_deg) * place
         worn = replace(parameters, touchdown_angles=(phi[0], phi[1], phi[2], phi[3]))
         stream = int(np.random.SeedSequence([seed, run]).generate_state(1)[0])
         runs.append(simulate(1, seed=stream, parameters=worn.with_paper_liftoff(),
