@@ -45,7 +45,7 @@ REPO = Path(__file__).resolve().parents[1]
 SPECS = REPO / 'studies'
 OUT = REPO / 'out' / 'studies'
 README_STUDIES = ('false_positives', 'power', 'limits', 'two_causes', 'wide_robots', 'open_world',
-                  'adequacy', 'ramp_limits', 'touchdown_limits')
+                  'adequacy', 'ramp_limits', 'touchdown_limits', 'drift_confusion')
 CLUSTER_CORES = 64
 
 
