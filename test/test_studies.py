@@ -658,8 +658,12 @@ def test_the_adapter_reads_extensions_and_the_confusion_table_counts_them():
             a_row(true_causes=[], named=['run_mixture'])]
     table = confusion(rows)
     assert table.named == {'change_point': {'change_point': 1, 'speed_decay': 1},
-                           'run_order_drift': {'nothing': 1}, 'none': {'run_mixture': 1}}
-    assert table.data_sets == {'change_point': 2, 'run_order_drift': 1, 'none': 1}
+                           'run_order_drift:yaw_rate': {'nothing': 1},
+                           'none': {'run_mixture': 1}}
+    assert table.data_sets == {'change_point': 2, 'run_order_drift:yaw_rate': 1, 'none': 1}
+    drifts = confusion([a_row(true_causes=['run_order_drift:yaw_rate'],
+                              named=['run_order_drift:touchdown_angle'])])
+    assert drifts.named == {'run_order_drift:yaw_rate': {'run_order_drift:touchdown_angle': 1}}
 
 
 def test_a_term_the_runs_cannot_tell_from_the_named_one_is_counted_apart():

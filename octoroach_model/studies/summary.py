@@ -250,12 +250,12 @@ NOTHING = 'nothing'
 
 def confusion(ok: Sequence[StudyRow]) -> Confusion:
     """
-    Return, for each cause or family put alone into data, how often each one was named.
+    Return, for each cause or extension term put alone into data, how often each was named.
 
-    Rows: the true cause or extension family (run_order_drift's terms together), data sets
-    with exactly one; columns: each cause or family named (and 'nothing' where none was),
-    as counts; a data set that names two counts in both columns. The nulls are the row
-    'none'.
+    Rows: the true cause or term (each run_order_drift term apart: a drift named for another
+    drift is a confusion too), data sets with exactly one; columns: each cause or term named
+    (and 'nothing' where none was), as counts; a data set that names two counts in both
+    columns. The nulls are the row 'none'.
     """
     table: dict[str, dict[str, int]] = {}
     undecided: dict[str, dict[str, int]] = {}
@@ -264,16 +264,16 @@ def confusion(ok: Sequence[StudyRow]) -> Confusion:
         truth = row.true_causes
         if len(truth) > 1:
             continue
-        true_label = BY_NAME[truth[0]].label if truth else 'none'
-        named = {BY_NAME[term].label for term in row.outcome.named if term in BY_NAME}
-        counts = table.setdefault(true_label, {})
-        totals[true_label] = totals.get(true_label, 0) + 1
-        for label in named or {NOTHING}:
-            counts[label] = counts.get(label, 0) + 1
+        true_term = truth[0] if truth else 'none'
+        named = {term for term in row.outcome.named if term in BY_NAME}
+        counts = table.setdefault(true_term, {})
+        totals[true_term] = totals.get(true_term, 0) + 1
+        for term in named or {NOTHING}:
+            counts[term] = counts.get(term, 0) + 1
         for term in row.outcome.undecided:
             if term in BY_NAME:
-                beside = undecided.setdefault(true_label, {})
-                beside[BY_NAME[term].label] = beside.get(BY_NAME[term].label, 0) + 1
+                beside = undecided.setdefault(true_term, {})
+                beside[term] = beside.get(term, 0) + 1
     return Confusion(data_sets=totals, named=table, undecided=undecided)
 
 

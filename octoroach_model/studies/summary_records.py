@@ -151,11 +151,11 @@ class DetectionLimit:
 
 @dataclass(frozen=True, kw_only=True)
 class Confusion:
-    """Per true cause or family (or none): how many named each one, and reported undecided."""
+    """Per true cause or term (or none): how many named each one, and reported undecided."""
 
-    definition: str = ('data sets with one true cause or extension family (or none): how '
-                       'many named each cause or family; `undecided`: how many reported '
-                       'each beside the named one as what the runs cannot tell it from')
+    definition: str = ('data sets with one true cause or extension term (or none): how many '
+                       'named each cause or term; `undecided`: how many reported each beside '
+                       'the named one as what the runs cannot tell it from')
     data_sets: Mapping[str, int]
     named: Mapping[str, Mapping[str, int]]
     undecided: Mapping[str, Mapping[str, int]]
