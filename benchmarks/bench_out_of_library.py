@@ -20,7 +20,7 @@ spread or drift can be it), and one that moves over the session:
 
 The yaw ramp has since joined the library as the family yaw_rate_ramp, and phi3's wear as
 run_order_drift:touchdown_angle (their data are still made here, outside the model:
-studies/outside.py): naming that term on its data is the right answer (`OWN_FAMILY`), and
+studies/outside.py): naming that term on its data is the right answer (`OWN_TERM`), and
 the table says how often, and how close its size came.
 Every other term named in such a data set stands in for an effect it is not. Printed per effect:
 data sets reported not adequate (what the report should say), those named nothing, those with
@@ -63,8 +63,8 @@ SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1, 'leg_wear': 2, 'right_leg_wear'
 WEARS = {'leg_wear': 2, 'right_leg_wear': 0}      # the touchdown angle each wear moves
 # effects a term of the library now describes: the term, its main parameter, the effect's
 # value that parameter estimates
-OWN_FAMILY = {'yaw_ramp': ('yaw_rate_ramp', 'final_yaw_rate_deg_s', 'final_yaw_rate_deg_s'),
-              'leg_wear': ('run_order_drift:touchdown_angle', 'change', 'drift_deg')}
+OWN_TERM = {'yaw_ramp': ('yaw_rate_ramp', 'final_yaw_rate_deg_s', 'final_yaw_rate_deg_s'),
+            'leg_wear': ('run_order_drift:touchdown_angle', 'change', 'drift_deg')}
 
 
 def effect_values(effect: str, replicate: int, duration_s: float) -> dict[str, float]:
@@ -191,7 +191,7 @@ def table(rows: list[dict]) -> str:
             low, high = wilson(count, n).interval
             return f'{count}/{n} ({low:.0%}-{high:.0%})'
 
-        own, parameter, truth = OWN_FAMILY.get(effect, ('', '', ''))
+        own, parameter, truth = OWN_TERM.get(effect, ('', '', ''))
         stand_ins = [[term for term in row['named'] if term != own] for row in mine]
         named = Counter(term for terms in stand_ins for term in terms)
         terms = ', '.join(f'{term} {count}' for term, count in named.most_common()) or '-'
@@ -225,7 +225,7 @@ def table(rows: list[dict]) -> str:
         lines.append(f'yaw_ramp: the statistic unexplained in {len(shown)} of {len(ramps)}'
                      + (f' (|z| {min(shown):.1f}-{max(shown):.1f})' if shown else '')
                      + f'; not adequate on the other statistics: {without} of {len(ramps)}')
-    for effect, (own, parameter, truth) in OWN_FAMILY.items():
+    for effect, (own, parameter, truth) in OWN_TERM.items():
         found = [row for row in rows if row['effect'] == effect
                  and own in row.get('extensions', {})]
         if found:

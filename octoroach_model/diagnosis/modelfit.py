@@ -1331,62 +1331,71 @@ def fit_trend(simulator: Simulator, model: FittedModel, cause: Cause,
     exchangeable = not replace(model, effects=without).order_dependent
     intercept = 0.0 if exchangeable else statistic(zero)
     intercept_se = 0.0 if exchangeable else bootstrap_se(statistic, zero, rng, n_boot)
-    slope = (statistic(reference) - statistic(zero)) / cause.reference
-    base_size, base_value, base = 0.0, intercept, zero
+    lower = TrendPoint(0.0, intercept, zero)
+    upper = TrendPoint(cause.reference, statistic(reference), reference)
+    slope = (upper.value - statistic(zero)) / cause.reference
     if cause.secant_steps and abs(slope) > 0:
-        base_size, base_value, base, reference, slope = _secant(
-            simulator, model, cause, statistic, settings, without, data_value,
-            [(0.0, intercept, zero), (cause.reference, statistic(reference), reference)])
-        if base_size != 0.0:    # a simulated point's own noise, as an intercept's
-            intercept_se = bootstrap_se(statistic, base, rng, n_boot)
+        lower, upper = _secant(simulator, model, cause, statistic, settings, without,
+                               data_value, [lower, upper])
+        slope = lower.slope_to(upper)
+        if lower.size != 0.0:    # a simulated point's own noise, as an intercept's
+            intercept_se = bootstrap_se(statistic, lower.runs, rng, n_boot)
     if not abs(slope) > 0:
         return SizeEstimate(cause.name, 0.0, math.inf, intercept=intercept,
                             data_statistic=data_value, data_se=data_se)
     changes = []
     for _ in range(n_boot):
         picks = rng.integers(0, zero.shape[0], zero.shape[0])
-        changes.append(statistic(reference[picks]) - statistic(base[picks]))
-    step = statistic(reference) - statistic(base)
+        changes.append(statistic(upper.runs[picks]) - statistic(lower.runs[picks]))
+    step = upper.value - statistic(lower.runs)
     slope_relative_se = float(np.std(changes, ddof=1)) / max(abs(step), 1e-300)
-    size = base_size + (data_value - base_value) / slope
+    size = lower.size + (data_value - lower.value) / slope
     se = math.hypot(data_se / abs(slope), intercept_se / abs(slope),
-                    slope_relative_se * (size - base_size))
+                    slope_relative_se * (size - lower.size))
     return SizeEstimate(cause.name, float(size), float(se), intercept=intercept, slope=slope,
                         data_statistic=data_value, data_se=data_se, intercept_se=intercept_se,
                         slope_relative_se=slope_relative_se)
 
 
+class TrendPoint(NamedTuple):
+    """A trend term at one size: the size, the statistic of its simulated runs, the runs."""
+
+    size: float
+    value: float
+    runs: FloatArray
+
+    def slope_to(self, other: TrendPoint) -> float:
+        """Return the statistic's change per unit of size from here to `other` (0 if alike)."""
+        if other.size == self.size:
+            return 0.0
+        return (other.value - self.value) / (other.size - self.size)
+
+
 def _secant(simulator: Simulator, model: FittedModel, cause: Cause,
             statistic: Callable[[FloatArray], float], settings: FitSettings,
             without: Mapping[str, Mapping[str, float]], target: float,
-            points: list[tuple[float, float, FloatArray]]
-            ) -> tuple[float, float, FloatArray, FloatArray, float]:
+            points: list[TrendPoint]) -> tuple[TrendPoint, TrendPoint]:
     """
-    Return where a curved trend meets `target`: two sizes about it, and the slope between them.
+    Return the two points, lower size first, about where a curved trend meets `target`.
 
-    Returned: the lower size, its statistic, both sizes' runs and the slope.
-
-    Secant steps from (size, statistic, runs) `points`, each size within the cause's bounds
-    (common random numbers: every size simulates the same draws). The slope is the last
-    two points', the local one the estimate and its error are read with.
+    Secant steps from the last two `points`, each size within the cause's bounds (common
+    random numbers: every size simulates the same draws); the estimate and its error are read
+    off the slope between the two returned.
     """
     low, high = cause.bounds
     for _ in range(cause.secant_steps):
-        (size_0, value_0, _), (size_1, value_1, _) = points[-2], points[-1]
-        if value_1 == value_0:
+        before, last = points[-2], points[-1]
+        if last.value == before.value:
             break
-        size = float(np.clip(size_1 + (target - value_1) * (size_1 - size_0)
-                             / (value_1 - value_0), low, high))
-        if abs(size - size_1) < 1e-3 * max(abs(size_1), 1.0):
+        size = float(np.clip(last.size + (target - last.value) * (last.size - before.size)
+                             / (last.value - before.value), low, high))
+        if abs(size - last.size) < 1e-3 * max(abs(last.size), 1.0):
             break
         runs = simulator.features(model, settings.moment_runs, MOMENTS, {
             **without, cause.name: at_size(cause, size, None, simulator.data)})
-        points.append((size, statistic(runs), runs))
-    (size_0, value_0, runs_0), (size_1, value_1, runs_1) = sorted(points[-2:],
-                                                                  key=lambda p: p[0])
-    if size_1 == size_0:
-        return size_0, value_0, runs_0, runs_1, 0.0
-    return size_0, value_0, runs_0, runs_1, (value_1 - value_0) / (size_1 - size_0)
+        points.append(TrendPoint(size, statistic(runs), runs))
+    lower, upper = sorted(points[-2:], key=lambda point: point.size)
+    return lower, upper
 
 
 MIXTURE_STARTS = (0.1, 0.3, 0.5)

@@ -1,7 +1,8 @@
 """
 The model extensions of the table of causes (docs/causes.md), exactly as defined there.
 
-The terms of the extension families (extensions.py) are applied here too, each at its stage,
+The terms of the extension families (extensions.py) are applied here too, each at its stage
+(the touchdown angles' before the kinematics: `worn_angles`),
 so that one effects mapping {term: {parameter: value}} describes any model a diagnosis fits.
 
 Two kinds: time warps act on the gait phase before the kinematics are evaluated
@@ -22,7 +23,7 @@ import numpy as np
 from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
 from octoroach_model.model.extensions import (
-    NormalSource, positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext)
+    NormalSource, positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext, WORN_ANGLE)
 from octoroach_model.model.trig import cos_sin
 from octoroach_model.settings import number, shown, unknown_name
 
@@ -167,6 +168,29 @@ def shared_clock(effects: Effects, t: FloatArray,
         shared = TERM_BY_NAME[name].function(values, replace(
             context, source=rngs[name] if rngs is not None else None, clock_of=decayed))
     return shared
+
+
+def worn_angles(nominal_angles: FloatArray, effects: Effects, t: FloatArray,
+                positions: FloatArray) -> FloatArray:
+    """
+    Return the nominal angles eta (6,), or each run's (n, 1, 6) where a touchdown angle drifts.
+
+    The 'angles' stage of the extension terms, applied before the random angles are drawn
+    about eta. A drifted touchdown angle moves its pair's liftoff angle as the paper's eqs.
+    (7)-(8) move it (liftoff = -the pair's least touchdown angle), from the robot's own
+    liftoff angle: a fitted geometry's is eqs. (7)-(8)'s (`ModelParameters.
+    with_paper_liftoff`), a table's may not be. `positions`: each run's place, 0..1.
+    """
+    context = _context(t, len(positions), positions, float(t[-1]))
+    offsets = [TERM_BY_NAME[name].function(values, context)
+               for name, values in _terms(effects, 'angles')]
+    if not offsets:
+        return nominal_angles
+    touchdown = np.broadcast_to(nominal_angles[:4], (len(positions), 4)).copy()
+    touchdown[:, WORN_ANGLE] += np.sum(offsets, axis=0)
+    liftoff = nominal_angles[4:] + np.minimum(nominal_angles[0:4:2], nominal_angles[1:4:2]) \
+        - np.minimum(touchdown[:, 0::2], touchdown[:, 1::2])
+    return np.concatenate([touchdown, liftoff], axis=1)[:, None, :]
 
 
 def _terms(effects: Effects, stage: str) -> list[tuple[str, Mapping[str, float]]]:

@@ -19,10 +19,10 @@ from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
 from octoroach_model.limits import MAX_SIMULATED_SAMPLES
 from octoroach_model.model.effects import (
-    apply_pose_effects, check_effects, Effects, MODEL_TERMS, TIME_WARPS, warped_time)
+    apply_pose_effects, check_effects, Effects, MODEL_TERMS, TIME_WARPS, warped_time,
+    worn_angles)
 from octoroach_model.model.extensions import (
-    Extensions, family_form, family_terms, NormalSource, positions_in_order, TERM_BY_NAME,
-    TermContext, WORN_ANGLE)
+    Extensions, family_form, family_terms, NormalSource, positions_in_order)
 from octoroach_model.model.kinematics import integrate_stances, stance_angles
 from octoroach_model.model.parameters import ModelParameters, nominal_sigmas, SIGMA_LIMIT
 from octoroach_model.paths import Paths
@@ -228,29 +228,6 @@ def simulate(n_paths: int, *, seed: int | None = None, sigma1: float | None = No
     return Paths(t, poses, info)
 
 
-def worn_angles(parameters: ModelParameters, effects: Effects, t: FloatArray, n_runs: int,
-                positions: FloatArray) -> FloatArray:
-    """
-    Return the nominal angles eta (6,), or each run's (n, 1, 6) where a touchdown angle drifts.
-
-    A drifted touchdown angle moves its pair's liftoff angle as the paper's eqs. (7)-(8) move
-    it (liftoff = -the pair's least touchdown angle), from the robot's own liftoff angle: a
-    fitted geometry's is eqs. (7)-(8)'s (`ModelParameters.with_paper_liftoff`), a table's may
-    not be.
-    """
-    context = TermContext(t, positions, float(t[-1]), None)
-    offsets = [TERM_BY_NAME[name].function(values, context) for name, values in effects.items()
-               if name in TERM_BY_NAME and TERM_BY_NAME[name].stage == 'angles']
-    if not offsets:
-        return parameters.nominal_angles
-    nominal = parameters.nominal_angles
-    touchdown = np.broadcast_to(nominal[:4], (n_runs, 4)).copy()
-    touchdown[:, WORN_ANGLE] += np.sum(offsets, axis=0)
-    liftoff = nominal[4:] + np.minimum(nominal[0:4:2], nominal[1:4:2]) \
-        - np.minimum(touchdown[:, 0::2], touchdown[:, 1::2])
-    return np.concatenate([touchdown, liftoff], axis=1)[:, None, :]
-
-
 def model_poses(parameters: ModelParameters, streams: RandomStreams, n_runs: int,
                 t: FloatArray, sigma1: float, sigma2: float, draws: str = 'stance',
                 effects: Effects | None = None, cycles: float | None = None,
@@ -304,8 +281,8 @@ def model_poses(parameters: ModelParameters, streams: RandomStreams, n_runs: int
         normals = np.concatenate([normals, extra], axis=1)
     if draws == 'run':
         normals = np.broadcast_to(normals[:, :1], normals.shape)
-    angles = stance_angles(worn_angles(parameters, effects, t, n_runs, positions), normals,
-                           sigma1, sigma2)
+    angles = stance_angles(worn_angles(parameters.nominal_angles, effects, t, positions),
+                           normals, sigma1, sigma2)
     poses = integrate_stances(angles, phase, start_pose, parameters.leg_length,
                               parameters.hip_distance)
     if any(name not in TIME_WARPS for name in effects):
