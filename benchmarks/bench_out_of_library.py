@@ -16,12 +16,13 @@ spread or drift can be it), and one that moves over the session:
 - leg_wear: a leg that wears over the session, the touchdown angle phi3 drifting by D (5-10
   deg, either sign) from the first run to the last (studies/outside.py, `leg_wear`): the
   gait's shape, not the same in every run;
-- right_leg_wear: the same drift of phi1, the right pair's rear leg, which no term moves.
+- right_leg_wear, right_front_leg_wear, front_leg_wear: the same drift of phi1, phi2 and
+  phi4 (the right pair's rear and front legs, the left pair's front leg).
 
-The yaw ramp has since joined the library as the family yaw_rate_ramp, and phi3's wear as
-run_order_drift:touchdown_angle (their data are still made here, outside the model:
-studies/outside.py): naming that term on its data is the right answer (`OWN_TERM`), and
-the table says how often, and how close its size came.
+The yaw ramp has since joined the library as the family yaw_rate_ramp, and each leg's wear
+as run_order_drift:touchdown_angle_1 .. _4 (their data are still made here, outside the
+model: studies/outside.py): naming that term on its data is the right answer (`OWN_TERM`),
+and the table says how often, and how close its size came.
 Every other term named in such a data set stands in for an effect it is not. Printed per effect:
 data sets reported not adequate (what the report should say), those named nothing, those with
 a stand-in named (and which terms), those whose named terms left the positions further off
@@ -29,13 +30,14 @@ than the baseline (held-out energy score, cm per run), and the median share of t
 gap the extended model closed. The same robots' null data sets (effect `none`) are diagnosed
 beside them: there "not adequate" is a false alarm and a named term a false positive, and the
 z of the statistic added for the yaw ramp (the heading rate's change from a run's first half
-to its second) is printed over them. For each wear's data set, the drifts of phi3, the yaw rate
-and the sideways velocity as the race weighed them (estimate, reported limit, held-out
+to its second) is printed over them. For each wear's data set, the drifts of the four legs,
+the yaw rate and the sideways velocity as the race weighed them (estimate, reported limit, held-out
 t): what summary.md's 'Terms that read these statistics' says. Rows go to --out (one JSON
 line per data set, as it finishes); a stopped run resumes where it stopped.
 
 Run: .venv/bin/python benchmarks/bench_out_of_library.py [--replicates 6] [--workers 2]
-     [--effects none speed_wobble yaw_ramp leg_wear right_leg_wear]
+     [--effects none speed_wobble yaw_ramp leg_wear right_leg_wear right_front_leg_wear
+      front_leg_wear]
      [--out out/studies/out_of_library_scored/rows.jsonl]
      [--report-only]
 (docs/measured.md's rows: out/studies/out_of_library_scored, with the ramp's signature
@@ -56,15 +58,19 @@ import time
 from octoroach_model.diagnosis.discrepancies import HEADING_RATE_CHANGE
 
 REPO = Path(__file__).resolve().parents[1]
-EFFECTS = ('none', 'speed_wobble', 'yaw_ramp', 'leg_wear', 'right_leg_wear')
+EFFECTS = ('none', 'speed_wobble', 'yaw_ramp', 'leg_wear', 'right_leg_wear',
+           'right_front_leg_wear', 'front_leg_wear')
 RUNS = 500
 PURPOSE = 0x0DD          # the effect's own draws, apart from the study's robot and data streams
-SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1, 'leg_wear': 2, 'right_leg_wear': 3}
-WEARS = {'leg_wear': 2, 'right_leg_wear': 0}      # the touchdown angle each wear moves
+SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1, 'leg_wear': 2, 'right_leg_wear': 3,
+               'right_front_leg_wear': 4, 'front_leg_wear': 5}
+# the touchdown angle each wear moves (its column in phi1..phi4)
+WEARS = {'leg_wear': 2, 'right_leg_wear': 0, 'right_front_leg_wear': 1, 'front_leg_wear': 3}
 # effects a term of the library now describes: the term, its main parameter, the effect's
 # value that parameter estimates
 OWN_TERM = {'yaw_ramp': ('yaw_rate_ramp', 'final_yaw_rate_deg_s', 'final_yaw_rate_deg_s'),
-            'leg_wear': ('run_order_drift:touchdown_angle', 'change', 'drift_deg')}
+            **{wear: (f'run_order_drift:touchdown_angle_{angle + 1}', 'change', 'drift_deg')
+               for wear, angle in WEARS.items()}}
 
 
 def effect_values(effect: str, replicate: int, duration_s: float) -> dict[str, float]:
@@ -142,13 +148,13 @@ def drift_records(report) -> dict[str, dict]:
 
 
 def drift_lines(rows: list[dict]) -> list[str]:
-    """Per wear row: the drifts of phi3, the yaw rate and the sideways velocity, as weighed."""
+    """Per wear row: the four legs', the yaw rate's and the sideways velocity's drifts, weighed."""
     lines = []
     for row in sorted((row for row in rows if row['effect'] in WEARS and 'drifts' in row),
                       key=lambda row: (row['effect'], row['replicate'])):
         said = []
-        for term in ('run_order_drift:touchdown_angle', 'run_order_drift:yaw_rate',
-                     'run_order_drift:lateral_velocity'):
+        for term in (*(f'run_order_drift:touchdown_angle_{leg}' for leg in (1, 2, 3, 4)),
+                     'run_order_drift:yaw_rate', 'run_order_drift:lateral_velocity'):
             drift = row['drifts'].get(term)
             if drift and drift['estimate'] is not None:
                 limit = '' if drift['limit'] is None else f'limit {drift["limit"]:.3g}, '

@@ -199,7 +199,8 @@ def test_every_feature_a_term_is_sized_or_started_from_is_scored():
     at 6.0 for a floor of 0.28, went unnamed (features.py, note (5)).
     """
     read = sorted({(cause.name, statistic.feature) for cause in CANDIDATES
-                   for statistic in (cause.statistic, cause.signature) if statistic is not None})
+                   for statistic in (cause.statistic, cause.signature, *cause.also_reads)
+                   if statistic is not None})
     assert ('yaw_rate_ramp', 'heading_rate_change') in read
     unscored = [(name, feature) for name, feature in read if not OUTCOMES[INDEX[feature]]]
     assert not unscored, f'terms sized from features no held-out test reads: {unscored}'

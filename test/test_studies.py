@@ -662,8 +662,8 @@ def test_the_adapter_reads_extensions_and_the_confusion_table_counts_them():
                            'none': {'run_mixture': 1}}
     assert table.data_sets == {'change_point': 2, 'run_order_drift:yaw_rate': 1, 'none': 1}
     drifts = confusion([a_row(true_causes=['run_order_drift:yaw_rate'],
-                              named=['run_order_drift:touchdown_angle'])])
-    assert drifts.named == {'run_order_drift:yaw_rate': {'run_order_drift:touchdown_angle': 1}}
+                              named=['run_order_drift:touchdown_angle_3'])])
+    assert drifts.named == {'run_order_drift:yaw_rate': {'run_order_drift:touchdown_angle_3': 1}}
 
 
 def test_a_term_the_runs_cannot_tell_from_the_named_one_is_counted_apart():

@@ -21,9 +21,12 @@ Four kinds of estimate (docs/diagnosis.md):
   too, with two parameters free (its start comes from the runs' speed profile).
 - **trend** (run_order_drift): the least-squares slope of a feature against the run's place
   in the recording, T(c) = T(0) + kappa c, read off at the data's slope (linear in the size,
-  signed): a drift over the session is a trend in run order, not a spread. The touchdown
-  angle's drift is read off a curve (`secant_steps`): its forward distance's slope bends
-  where phi3 passes phi4 and the liftoff angle changes legs.
+  signed): a drift over the session is a trend in run order, not a spread. A touchdown
+  angle's drift (a leg that wears) is read off a curve (`secant_steps`), and off two
+  features at once (`also_reads`): the forward distance's and the heading rate's slopes bend
+  where the angle passes its pair partner's and the liftoff angle changes legs, and which of
+  the two shows the wear depends on the leg (on open_world's robots phi1 and phi2 move the
+  distance and hardly the turn, phi4 the turn, phi3 both).
 - **mixture** (run_mixture): the fraction and yaw rate of the turning runs by maximum
   likelihood on the runs' heading rates (two normals a yaw rate apart, the spread of each the
   model's), the geometry refit around them; its size is the spread it adds,
@@ -43,7 +46,7 @@ is sure the size exceeds it (decide.py), whatever the p-value:
 | run_order_drift, stride_frequency | 0.01 | the stride frequency 1 % lower at the last run |
 | run_order_drift, yaw_rate | 1 deg per run | the last run turns 1 deg more over its duration |
 | run_order_drift, lateral_velocity | 1 % of the forward speed | as lateral_slip |
-| run_order_drift, touchdown_angle | 1 deg | Table II's 5 s run turns 1.5 deg, goes 0.5 cm |
+| run_order_drift, touchdown_angle_k | 1 deg | Table II's 5 s run turns 1.5 deg, goes 0.5 cm |
 | heading_random_walk | 1 deg / sqrt(stances per run) | a wander of 1 deg over the run |
 | periodic_heading | 0.5 deg | below the orientation accuracy of a motion-capture body |
 | change_point | 0.01 | the speed 1 % different after the change |
@@ -64,7 +67,7 @@ from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.features import (
     INDEX, noise_variance_m2, POSITION_RESOLUTION_M)
 from octoroach_model.model import EFFECT_NAMES, EFFECT_PARAMETERS
-from octoroach_model.model.extensions import drift_term, TERM_BY_NAME, TERM_NAMES
+from octoroach_model.model.extensions import drift_term, TERM_BY_NAME, TERM_NAMES, WORN_ANGLES
 
 # the share of turning runs at which run_mixture's detection limit is stated (a yaw rate),
 # and which a study or a limit uses where none is given or fitted
@@ -203,9 +206,13 @@ class Cause:
     null: float = 0.0
     order_dependent: bool = False
     # a trend read off a curve, not a line: secant steps from the reference size towards
-    # the data's statistic (modelfit.fit_trend; run_order_drift:touchdown_angle, whose
+    # the data's statistic (modelfit.fit_trend; run_order_drift:touchdown_angle_3, whose
     # forward distance grows 0.54 cm a degree below phi4 and 0.22 above on Table II's robot)
     secant_steps: int = 0
+    # more trends the size is read off with `statistic`, each weighed by its local slope
+    # over its error on the data (modelfit._joint_secant; a worn leg shows in the distance,
+    # the turn or both, depending on the leg and the robot)
+    also_reads: tuple[FeatureStatistic, ...] = ()
     geometry_mimics: bool = False
     limit_stated: str = ''
     screen_simulated: bool = False
@@ -310,10 +317,12 @@ FAMILIES: tuple[Cause, ...] = (
     Cause(drift_term('lateral_velocity'), 'cm/s', EstimateKind.TREND,
           'heading to travel angle against run order', _trend_of('slip_angle'), 2.0,
           _slip_floor, signed=True, family='run_order_drift', order_dependent=True),
-    Cause(drift_term('touchdown_angle'), 'deg', EstimateKind.TREND,
-          'forward distance against run order', _trend_of('end_progress'), 3.0,
-          lambda scale: 1.0, signed=True, bounds=(-25.0, 25.0), family='run_order_drift',
-          order_dependent=True, secant_steps=3),
+    *(Cause(drift_term(parameter), 'deg', EstimateKind.TREND,
+            'forward distance and heading rate against run order', _trend_of('end_progress'),
+            3.0, lambda scale: 1.0, signed=True, bounds=(-40.0, 40.0),
+            family='run_order_drift', order_dependent=True, secant_steps=3,
+            also_reads=(_trend_of('heading_rate'),))
+      for parameter in WORN_ANGLES),
     Cause('heading_random_walk', 'deg', EstimateKind.MOMENTS,
           'per-cycle heading change variance beside the stride length variance',
           _mean_of('increment_var'), 1.0, lambda scale: 1.0 / np.sqrt(max(scale.stances, 1.0)),

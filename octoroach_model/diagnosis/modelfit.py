@@ -29,7 +29,7 @@ from scipy import stats
 
 from octoroach_model.arrays import FloatArray, IntArray
 from octoroach_model.diagnosis.causes import (
-    BY_NAME, Cause, change_point_limit_s, EstimateKind, MIXTURE_FRACTION)
+    BY_NAME, Cause, change_point_limit_s, EstimateKind, FeatureStatistic, MIXTURE_FRACTION)
 from octoroach_model.diagnosis.features import INDEX, run_features
 from octoroach_model.diagnosis.scoring import (
     feature_scales, PairedGain, position_points_cm, score_model, Scores)
@@ -1321,7 +1321,9 @@ def fit_trend(simulator: Simulator, model: FittedModel, cause: Cause,
     then the intercept is taken as 0, not simulated (a simulated slope of 300 runs is off by
     0.4 deg/s per session for a yaw rate, noise the estimate need not carry). A curved trend
     (`Cause.secant_steps`) takes secant steps towards the data's value from the line's two
-    points and reads the size off the last two (`_secant`).
+    points and reads the size off the last two (`_secant`), its size kept within the cause's
+    bounds; one that also reads other trends (`Cause.also_reads`) steps on all of them and is
+    read off their weighted sum (`_joint_secant`).
     """
     line = _LineStart.of(simulator, model, cause, settings, 29, n_boot)
     statistic, data, rng = line.statistic, simulator.data, line.rng
@@ -1335,8 +1337,16 @@ def fit_trend(simulator: Simulator, model: FittedModel, cause: Cause,
     upper = TrendPoint(cause.reference, statistic(reference), reference)
     slope = (upper.value - statistic(zero)) / cause.reference
     if cause.secant_steps and abs(slope) > 0:
-        lower, upper = _secant(simulator, model, cause, statistic, settings, without,
-                               data_value, [lower, upper])
+        if cause.also_reads:
+            statistic, lower, upper = _joint_secant(simulator, model, cause, settings, without,
+                                                    exchangeable, [lower, upper], rng, n_boot)
+            data_value = statistic(data.features)
+            data_se = bootstrap_se(statistic, data.features, rng, n_boot)
+            intercept = 0.0 if exchangeable else statistic(zero)
+            intercept_se = 0.0 if exchangeable else bootstrap_se(statistic, zero, rng, n_boot)
+        else:
+            lower, upper = _secant(simulator, model, cause, statistic, settings, without,
+                                   data_value, [lower, upper])
         slope = lower.slope_to(upper)
         if lower.size != 0.0:    # a simulated point's own noise, as an intercept's
             intercept_se = bootstrap_se(statistic, lower.runs, rng, n_boot)
@@ -1350,6 +1360,8 @@ def fit_trend(simulator: Simulator, model: FittedModel, cause: Cause,
     step = upper.value - statistic(lower.runs)
     slope_relative_se = float(np.std(changes, ddof=1)) / max(abs(step), 1e-300)
     size = lower.size + (data_value - lower.value) / slope
+    if cause.secant_steps:    # far beyond the curve's points: no size the term could take
+        size = float(np.clip(size, *cause.bounds))
     se = math.hypot(data_se / abs(slope), intercept_se / abs(slope),
                     slope_relative_se * (size - lower.size))
     return SizeEstimate(cause.name, float(size), float(se), intercept=intercept, slope=slope,
@@ -1396,6 +1408,83 @@ def _secant(simulator: Simulator, model: FittedModel, cause: Cause,
         points.append(TrendPoint(size, statistic(runs), runs))
     lower, upper = sorted(points[-2:], key=lambda point: point.size)
     return lower, upper
+
+
+@dataclass(frozen=True)
+class WeightedSum:
+    """
+    Trend statistics summed with weights: what a term read off several trends is sized from.
+
+    `_joint_secant` weighs each trend by its slope over its variance on the data (the weights
+    of the least-squares size from all of them) and scales the weights so that the sum grows
+    by one per unit of the term's size: its value on the data reads as a size.
+    """
+
+    parts: tuple[FeatureStatistic, ...]
+    weights: tuple[float, ...]
+
+    def __call__(self, features: FloatArray) -> float:
+        return float(sum(weight * part(features)
+                         for part, weight in zip(self.parts, self.weights)))
+
+
+def _joint_secant(simulator: Simulator, model: FittedModel, cause: Cause,
+                  settings: FitSettings, without: Mapping[str, Mapping[str, float]],
+                  exchangeable: bool, points: list[TrendPoint], rng: np.random.Generator,
+                  n_boot: int) -> tuple[WeightedSum, TrendPoint, TrendPoint]:
+    """
+    Return the statistic a curved trend read off several features is sized from, and its points.
+
+    Gauss-Newton steps on the trends of `cause.statistic` and `cause.also_reads`, each
+    divided by its bootstrap error on the data, their slopes the secants between the last two
+    sizes (common random numbers; each size within the cause's bounds), from the two `points`
+    of the line. Which trend shows the size depends on the leg and on the robot (a worn
+    front leg of the left pair turns the runs and hardly moves their distance): reading one
+    alone missed what the other showed. The statistic weighs each trend by its last slope
+    over its variance on the data (`WeightedSum`); the two points returned, lower size
+    first, carry its values. Where no trend changes with the size it is the cause's own.
+    """
+    assert cause.statistic is not None, f'{cause.name} has no statistic to read a trend from'
+    parts = (cause.statistic, *cause.also_reads)
+    features = simulator.data.features
+    target = np.array([part(features) for part in parts])
+    errors = np.array([max(bootstrap_se(part, features, rng, n_boot), 1e-300)
+                       for part in parts])
+
+    def values(point: TrendPoint) -> FloatArray:
+        if point.size == 0.0 and exchangeable:     # a model alike for every run: no trend
+            return np.zeros(len(parts))
+        return np.array([part(point.runs) for part in parts])
+
+    def slopes(before: TrendPoint, after: TrendPoint) -> FloatArray:
+        change: FloatArray = (values(after) - values(before)) / (after.size - before.size)
+        return change
+
+    low, high = cause.bounds
+    for _ in range(cause.secant_steps):
+        before, last = points[-2], points[-1]
+        scaled = slopes(before, last) / errors
+        curvature = float(scaled @ scaled)
+        if not curvature > 0:
+            break
+        step = float(scaled @ ((target - values(last)) / errors)) / curvature
+        size = float(np.clip(last.size + step, low, high))
+        if abs(size - last.size) < 1e-3 * max(abs(last.size), 1.0):
+            break
+        runs = simulator.features(model, settings.moment_runs, MOMENTS, {
+            **without, cause.name: at_size(cause, size, None, simulator.data)})
+        points.append(TrendPoint(size, math.nan, runs))
+    lower, upper = sorted(points[-2:], key=lambda point: point.size)
+    slope = slopes(lower, upper)
+    weights = slope / errors ** 2
+    norm = float(weights @ slope)
+    statistic = WeightedSum(parts, tuple(float(w) for w in weights / norm)
+                            if norm > 0 else (1.0,) + (0.0,) * len(cause.also_reads))
+
+    def revalued(point: TrendPoint) -> TrendPoint:
+        value = 0.0 if point.size == 0.0 and exchangeable else statistic(point.runs)
+        return TrendPoint(point.size, value, point.runs)
+    return statistic, revalued(lower), revalued(upper)
 
 
 MIXTURE_STARTS = (0.1, 0.3, 0.5)

@@ -23,7 +23,7 @@ import numpy as np
 from octoroach_model.arrays import FloatArray
 from octoroach_model.errors import ParameterError
 from octoroach_model.model.extensions import (
-    NormalSource, positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext, WORN_ANGLE)
+    NormalSource, positions_in_order, TERM_BY_NAME, TERM_NAMES, TermContext)
 from octoroach_model.model.trig import cos_sin
 from octoroach_model.settings import number, shown, unknown_name
 
@@ -187,7 +187,7 @@ def worn_angles(nominal_angles: FloatArray, effects: Effects, t: FloatArray,
     if not offsets:
         return nominal_angles
     touchdown = np.broadcast_to(nominal_angles[:4], (len(positions), 4)).copy()
-    touchdown[:, WORN_ANGLE] += np.sum(offsets, axis=0)
+    touchdown += np.sum(offsets, axis=0)
     liftoff = nominal_angles[4:] + np.minimum(nominal_angles[0:4:2], nominal_angles[1:4:2]) \
         - np.minimum(touchdown[:, 0::2], touchdown[:, 1::2])
     return np.concatenate([touchdown, liftoff], axis=1)[:, None, :]

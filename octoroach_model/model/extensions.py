@@ -10,9 +10,10 @@ p'(t) = p(0) + integral_0^t R(a(s)) p_dot(s) ds.
 - run_order_drift (parameter, change): a parameter moves linearly with the run's place:
   stride_frequency (relative): run i is p((1 + change q_i) t); yaw_rate (deg/s):
   a(t) = change q_i t; lateral_velocity (cm/s): as lateral_slip at change q_i;
-  touchdown_angle (deg, a leg that wears): run i strides with phi3 + change (q_i - 1/2),
-  its pair's liftoff angle following by eqs. (7)-(8) (centred, so that the geometry fitted to
-  the mean path is the session's middle run's).
+  touchdown_angle_k, k = 1..4 (deg, a leg that wears): run i strides with phi_k + change
+  (q_i - 1/2), its pair's liftoff angle following by eqs. (7)-(8) (centred, so that the
+  geometry fitted to the mean path is the session's middle run's). phi1, phi2 are the right
+  pair's rear and front legs, phi3, phi4 the left pair's (Table II's order).
 - heading_random_walk (step_std_deg): at each stance after the first the heading takes an
   independent N(0, s^2) step that stays.
 - periodic_heading (amplitude_deg, frequency_hz): a(t) = A (sin(2 pi f t + phi) - sin(phi)),
@@ -51,11 +52,14 @@ from octoroach_model.errors import ParameterError
 from octoroach_model.settings import number, unknown_name
 
 DRIFT = 'run_order_drift'
-DRIFTED = ('stride_frequency', 'yaw_rate', 'lateral_velocity', 'touchdown_angle')
+# the touchdown angle each wear moves, as its column in (phi1, phi2, phi3, phi4)
+WORN_ANGLES = {f'touchdown_angle_{leg}': leg - 1 for leg in (1, 2, 3, 4)}
+# each leg in words, by its column
+LEG_NAMES = ("the right pair's rear leg", "the right pair's front leg",
+             "the left pair's rear leg", "the left pair's front leg")
+DRIFTED = ('stride_frequency', 'yaw_rate', 'lateral_velocity', *WORN_ANGLES)
 DRIFT_UNITS = {'stride_frequency': '', 'yaw_rate': 'deg/s', 'lateral_velocity': 'cm/s',
-               'touchdown_angle': 'deg'}
-# the touchdown angle a drift of `touchdown_angle` moves: phi3, the left pair's rear leg
-WORN_ANGLE = 2
+               **dict.fromkeys(WORN_ANGLES, 'deg')}
 
 
 def drift_term(parameter: str) -> str:
@@ -95,8 +99,8 @@ class ExtensionTerm:
 
     `stage`: 'clock' returns the shared gait clock (T,) changed from `context.clock_of` (the
     clock of the terms before it, a function of time); 'stretch' multiplies each run's gait
-    clock by a factor (n,); 'angles' returns each run's change of the touchdown angle
-    WORN_ANGLE [rad] (n,); 'heading' returns a heading perturbation a(t) (n, T); 'drift'
+    clock by a factor (n,); 'angles' returns each run's change of the four touchdown angles
+    [rad] (n, 4); 'heading' returns a heading perturbation a(t) (n, T); 'drift'
     returns each run's sideways velocity [m/s] (n,).
     """
 
@@ -147,10 +151,14 @@ def _drift_slip(values: Mapping[str, float], context: TermContext) -> FloatArray
     return velocity
 
 
-def _drift_touchdown(values: Mapping[str, float], context: TermContext) -> FloatArray:
-    # centred on the session's middle run, whose geometry a fit of the mean path finds
-    offset: FloatArray = math.radians(values['change']) * (context.positions - 0.5)
-    return offset
+def _drift_touchdown(column: int) -> Callable[[Mapping[str, float], TermContext], FloatArray]:
+    """Return the drift of the touchdown angle in `column`: (n, 4), zero in the others."""
+    def offsets(values: Mapping[str, float], context: TermContext) -> FloatArray:
+        # centred on the session's middle run, whose geometry a fit of the mean path finds
+        moved = np.zeros((len(context.positions), 4))
+        moved[:, column] = math.radians(values['change']) * (context.positions - 0.5)
+        return moved
+    return offsets
 
 
 def _random_walk(values: Mapping[str, float], context: TermContext) -> FloatArray:
@@ -224,9 +232,10 @@ TERMS: tuple[ExtensionTerm, ...] = (
                   ((0.0, 1.0), (-90.0, 90.0)), 'heading', _mixture),
     ExtensionTerm('yaw_rate_ramp', 'yaw_rate_ramp', ('final_yaw_rate_deg_s',), ('deg/s',),
                   ((-90.0, 90.0),), 'heading', _ramp),
-    # last, so that the streams of the terms before keep their places (it draws nothing)
-    ExtensionTerm(drift_term('touchdown_angle'), DRIFT, ('change',), ('deg',),
-                  ((-60.0, 60.0),), 'angles', _drift_touchdown),
+    # last, so that the streams of the terms before keep their places (they draw nothing)
+    *(ExtensionTerm(drift_term(parameter), DRIFT, ('change',), ('deg',), ((-60.0, 60.0),),
+                    'angles', _drift_touchdown(column))
+      for parameter, column in WORN_ANGLES.items()),
 )
 TERM_BY_NAME = {term.name: term for term in TERMS}
 TERM_NAMES = tuple(TERM_BY_NAME)
@@ -255,6 +264,9 @@ def family_terms(extensions: Extensions | None) -> dict[str, dict[str, float]]:
         values = dict(given)
         if family == DRIFT:
             drifted = values.pop('parameter', None)
+            if drifted == 'touchdown_angle':
+                raise ParameterError(f'{DRIFT}: touchdown_angle is touchdown_angle_3 (phi3) '
+                                     'since each leg has its own, touchdown_angle_1 .. _4')
             if drifted not in DRIFTED:
                 raise ParameterError(f'{DRIFT} needs parameter = one of {", ".join(DRIFTED)}, '
                                      f'got {unknown_name(drifted, DRIFTED)}')

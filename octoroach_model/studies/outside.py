@@ -8,9 +8,9 @@ it; made here, by turning the runs after they are simulated, it checks the famil
 family's own code did not make. Both are the same in every run, for the suite's tests
 (test_extensions.py) and for benchmarks/bench_out_of_library.py, which measures what the
 reports say over robots. A leg that wears over the session is not: it changes the stride's
-shape from run to run, which the family run_order_drift:touchdown_angle now describes for
-phi3; made here run by run, it checks that family as the ramp checks its own, and a wear of
-another leg (phi1) checks what the diagnosis says of a wear the family does not move.
+shape from run to run, which the family run_order_drift describes for each of the four legs
+(touchdown_angle_1 .. _4); made here run by run, it checks that family as the ramp checks
+its own.
 """
 from __future__ import annotations
 
@@ -56,8 +56,8 @@ def leg_wear(n_runs: int, drift_deg: float, *, parameters: ModelParameters, seed
     angle phi_k + drift q_i (k = `angle`, 0-based; WORN_ANGLE, phi3, by default; the liftoff
     angles follow by the paper's eqs. 7-8), on a stream of its own (`SeedSequence([seed,
     i])`): the gait's shape moves from run to run. Made run by run with the model's own runs
-    of each geometry, not by the family run_order_drift:touchdown_angle's code (which moves
-    phi3 about the session's middle run and draws all runs at once).
+    of each geometry, not by the family run_order_drift:touchdown_angle_k's code (which moves
+    phi_k about the session's middle run and draws all runs at once).
     """
     runs = []
     for place, run in zip(positions_in_order(n_runs), range(n_runs)):

@@ -52,7 +52,7 @@ def term_of(item: Mapping[str, Any], where: str) -> str:
     Return the term a spec entry names: `cause: NAME`, or `extension: FAMILY`.
 
     run_order_drift also takes `parameter:` (stride_frequency, yaw_rate, lateral_velocity or
-    touchdown_angle).
+    touchdown_angle_1 .. touchdown_angle_4).
     """
     if 'extension' in item:
         family = item['extension']

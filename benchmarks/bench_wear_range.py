@@ -1,0 +1,96 @@
+"""
+How far a leg may wear before its touchdown angle's drift stops reading it: one robot, one leg.
+
+A leg that wears is read off the forward distance's and the heading rate's slopes against run
+order (docs/extensions.md). Both bend where the worn angle passes its pair partner's and the
+liftoff angle changes legs (the paper's eqs. 7-8); past that the turn may stop growing with
+the angle. Here the wear of one leg, made run by run outside the term's code
+(`studies/outside.leg_wear`), is diagnosed at each drift given, on Table II's robot: printed
+per drift the terms named, the leg's estimate with its 95 % interval and whether the
+extended model is adequate. A benchmark, not a test: it never fails on a number.
+
+With `--turns` it diagnoses nothing and prints instead, per offset of the leg's angle, the
+runs' mean heading rate over the run and their mean forward distance (what the term reads;
+200 runs each, a second or so): where the turn stops growing with the angle.
+
+Run: .venv/bin/python benchmarks/bench_wear_range.py [--leg 4] [--drifts -22 -18 15 18 22]
+     [--runs 300] [--seed 53] [--turns]
+(five drifts of 300 runs, 5-10 minutes on one core; e.g. --turns --drifts -20 -10 0 10 20 30)
+"""
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+import time
+
+DRIFTS_DEG = (-22.0, -18.0, 15.0, 18.0, 22.0)
+
+
+def diagnose_wear(leg: int, drift_deg: float, runs: int, seed: int) -> str:
+    """Diagnose Table II's robot with leg `leg` (1-4) drifting by `drift_deg`; one line."""
+    import octoroach_model as om
+    from octoroach_model.diagnosis import diagnose, DiagnosisSettings
+    from octoroach_model.studies.outside import leg_wear
+
+    measured = leg_wear(runs, drift_deg, parameters=om.ModelParameters.nominal(), seed=seed,
+                        angle=leg - 1)
+    report = diagnose(measured, DiagnosisSettings(seed=seed, detection_limits=False, workers=1))
+    term = f'run_order_drift:touchdown_angle_{leg}'
+    worn = [e for e in report.extensions if e.term == term]
+    if worn:
+        low, high = worn[0].interval['change']
+        held = 'holds' if low <= drift_deg <= high else 'misses'
+        reading = (f'read {worn[0].parameters["change"]:+.1f} deg ({low:+.1f} to {high:+.1f}, '
+                   f'{held} the truth)')
+    else:
+        reading = 'its term not named'
+    named = ', '.join(report.named_terms) or 'nothing'
+    return (f'phi{leg} {drift_deg:+.1f} deg: {reading}; named {named}; '
+            f'{"adequate" if report.adequate else "not adequate"}')
+
+
+def turn_and_distance(leg: int, offset_deg: float, runs: int, seed: int) -> str:
+    """Return the mean heading rate (deg/s) and forward distance (cm), phi_leg offset; a line."""
+    import math
+
+    import numpy as np
+
+    import octoroach_model as om
+
+    nominal = om.ModelParameters.nominal()
+    angles = list(nominal.touchdown_angles)
+    angles[leg - 1] += math.radians(offset_deg)
+    worn = replace(nominal, touchdown_angles=(angles[0], angles[1], angles[2], angles[3]))
+    paths = om.simulate(runs, seed=seed, parameters=worn.with_paper_liftoff())
+    duration_s = float(paths.t[-1] - paths.t[0])
+    turn = np.degrees(paths.poses[:, -1, 2] - paths.poses[:, 0, 2]) / duration_s
+    heading = paths.poses[:, 0, 2]
+    step = paths.poses[:, -1, :2] - paths.poses[:, 0, :2]
+    forward_cm = 100.0 * (step[:, 0] * np.cos(heading) + step[:, 1] * np.sin(heading))
+    return (f'phi{leg} {offset_deg:+.1f} deg: heading rate {turn.mean():+.2f} deg/s, forward '
+            f'distance {forward_cm.mean():.1f} cm (means of {runs} runs)')
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
+    parser.add_argument('--leg', type=int, choices=(1, 2, 3, 4), default=4)
+    parser.add_argument('--drifts', type=float, nargs='+', default=list(DRIFTS_DEG),
+                        help='deg, from the first run to the last')
+    parser.add_argument('--runs', type=int, default=300)
+    parser.add_argument('--seed', type=int, default=53)
+    parser.add_argument('--turns', action='store_true',
+                        help='print the mean turn and distance per offset, diagnose nothing')
+    args = parser.parse_args()
+    if not 2 <= args.runs <= 5000 or any(abs(d) > 60 for d in args.drifts):
+        parser.error('runs must be 2-5000 and every drift within +-60 deg')
+    started = time.perf_counter()
+    for number, drift in enumerate(args.drifts, 1):
+        line = (turn_and_distance(args.leg, drift, 200, args.seed) if args.turns
+                else diagnose_wear(args.leg, drift, args.runs, args.seed))
+        print(f'[{number}/{len(args.drifts)} {time.perf_counter() - started:5.0f} s] {line}',
+              flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
