@@ -56,6 +56,7 @@ import sys
 import time
 
 from octoroach_model.diagnosis.discrepancies import HEADING_RATE_CHANGE
+from octoroach_model.model.extensions import WORN_TERMS
 
 REPO = Path(__file__).resolve().parents[1]
 EFFECTS = ('none', 'speed_wobble', 'yaw_ramp', 'leg_wear', 'right_leg_wear',
@@ -66,11 +67,12 @@ SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1, 'leg_wear': 2, 'right_leg_wear'
                'right_front_leg_wear': 4, 'front_leg_wear': 5}
 # the touchdown angle each wear moves (its column in phi1..phi4)
 WEARS = {'leg_wear': 2, 'right_leg_wear': 0, 'right_front_leg_wear': 1, 'front_leg_wear': 3}
+WORN_BY_COLUMN = {column: term for term, column in WORN_TERMS.items()}
 # effects a term of the library now describes: the term, its main parameter, the effect's
 # value that parameter estimates
 OWN_TERM = {'yaw_ramp': ('yaw_rate_ramp', 'final_yaw_rate_deg_s', 'final_yaw_rate_deg_s'),
-            **{wear: (f'run_order_drift:touchdown_angle_{angle + 1}', 'change', 'drift_deg')
-               for wear, angle in WEARS.items()}}
+            **{wear: (WORN_BY_COLUMN[column], 'change', 'drift_deg')
+               for wear, column in WEARS.items()}}
 
 
 def effect_values(effect: str, replicate: int, duration_s: float) -> dict[str, float]:
@@ -153,8 +155,8 @@ def drift_lines(rows: list[dict]) -> list[str]:
     for row in sorted((row for row in rows if row['effect'] in WEARS and 'drifts' in row),
                       key=lambda row: (row['effect'], row['replicate'])):
         said = []
-        for term in (*(f'run_order_drift:touchdown_angle_{leg}' for leg in (1, 2, 3, 4)),
-                     'run_order_drift:yaw_rate', 'run_order_drift:lateral_velocity'):
+        for term in (*WORN_TERMS, 'run_order_drift:yaw_rate',
+                     'run_order_drift:lateral_velocity'):
             drift = row['drifts'].get(term)
             if drift and drift['estimate'] is not None:
                 limit = '' if drift['limit'] is None else f'limit {drift["limit"]:.3g}, '

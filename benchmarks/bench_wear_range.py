@@ -10,8 +10,9 @@ per drift the terms named, the leg's estimate with its 95 % interval and whether
 extended model is adequate. A benchmark, not a test: it never fails on a number.
 
 With `--turns` it diagnoses nothing and prints instead, per offset of the leg's angle, the
-runs' mean heading rate over the run and their mean forward distance (what the term reads;
-200 runs each, a second or so): where the turn stops growing with the angle.
+runs' mean heading rate and forward distance, as the diagnosis's features read them
+(`features.run_features`: what the term reads; 200 runs each, a second or so): where the
+turn stops growing with the angle.
 
 Run: .venv/bin/python benchmarks/bench_wear_range.py [--leg 4] [--drifts -22 -18 15 18 22]
      [--runs 300] [--seed 53] [--turns]
@@ -31,11 +32,12 @@ def diagnose_wear(leg: int, drift_deg: float, runs: int, seed: int) -> str:
     import octoroach_model as om
     from octoroach_model.diagnosis import diagnose, DiagnosisSettings
     from octoroach_model.studies.outside import leg_wear
+    from octoroach_model.model.extensions import drift_term
 
     measured = leg_wear(runs, drift_deg, parameters=om.ModelParameters.nominal(), seed=seed,
                         angle=leg - 1)
     report = diagnose(measured, DiagnosisSettings(seed=seed, detection_limits=False, workers=1))
-    term = f'run_order_drift:touchdown_angle_{leg}'
+    term = drift_term(f'touchdown_angle_{leg}')
     worn = [e for e in report.extensions if e.term == term]
     if worn:
         low, high = worn[0].interval['change']
@@ -56,19 +58,20 @@ def turn_and_distance(leg: int, offset_deg: float, runs: int, seed: int) -> str:
     import numpy as np
 
     import octoroach_model as om
+    from octoroach_model.diagnosis.features import INDEX, run_features
 
     nominal = om.ModelParameters.nominal()
     angles = list(nominal.touchdown_angles)
     angles[leg - 1] += math.radians(offset_deg)
     worn = replace(nominal, touchdown_angles=(angles[0], angles[1], angles[2], angles[3]))
     paths = om.simulate(runs, seed=seed, parameters=worn.with_paper_liftoff())
-    duration_s = float(paths.t[-1] - paths.t[0])
-    turn = np.degrees(paths.poses[:, -1, 2] - paths.poses[:, 0, 2]) / duration_s
-    heading = paths.poses[:, 0, 2]
-    step = paths.poses[:, -1, :2] - paths.poses[:, 0, :2]
-    forward_cm = 100.0 * (step[:, 0] * np.cos(heading) + step[:, 1] * np.sin(heading))
-    return (f'phi{leg} {offset_deg:+.1f} deg: heading rate {turn.mean():+.2f} deg/s, forward '
-            f'distance {forward_cm.mean():.1f} cm (means of {runs} runs)')
+    # the features the term reads, the distance along the runs' mean start heading
+    features = run_features(paths, worn.stride_frequency,
+                            reference_heading=float(np.mean(paths.poses[:, 0, 2])))
+    turn = np.degrees(features[:, INDEX['heading_rate']].mean())
+    forward_cm = 100.0 * features[:, INDEX['end_progress']].mean()
+    return (f'phi{leg} {offset_deg:+.1f} deg: heading rate {turn:+.2f} deg/s, forward '
+            f'distance {forward_cm:.1f} cm (means of {runs} runs)')
 
 
 def main() -> int:

@@ -10,10 +10,7 @@ from collections.abc import Mapping, Sequence
 import math
 
 from octoroach_model.diagnosis.modelfit import RunData, SizeEstimate
-from octoroach_model.model.extensions import drift_term, LEG_NAMES, WORN_ANGLES
-
-# each worn leg's term -> its column in (phi1, phi2, phi3, phi4)
-WORN_TERMS = {drift_term(parameter): leg for parameter, leg in WORN_ANGLES.items()}
+from octoroach_model.model.extensions import LEG_NAMES, WORN_TERMS
 
 MAX_LISTED_RUNS = 12
 
@@ -68,8 +65,8 @@ def describe(term: str, values: Mapping[str, float], interval: Mapping[str, Sequ
                 'changes over the session')
     if term in WORN_TERMS:
         way = 'wider' if change > 0 else 'narrower'
-        leg = WORN_TERMS[term]
-        return (f'a leg that wears: the touchdown angle of {LEG_NAMES[leg]} (phi{leg + 1}) '
+        column = WORN_TERMS[term]
+        return (f'a leg that wears: the touchdown angle of {LEG_NAMES[column]} (phi{column + 1}) '
                 f'moved by {number(change)} deg ({_range(interval["change"])}) from the first '
                 f'run to the last, in recording order, its stance {way}, the liftoff angle '
                 "following by the paper's eqs. (7)-(8): look at the legs' wear, or a foot "

@@ -29,7 +29,7 @@ from octoroach_model.diagnosis.features import (  # noqa: E402
     heading_amplitudes, INDEX, run_features)
 from octoroach_model.diagnosis.summary import MISFIT_PLOT  # noqa: E402
 from octoroach_model.model.effects import shared_clock  # noqa: E402
-from octoroach_model.model.extensions import drift_term, WORN_ANGLES  # noqa: E402
+from octoroach_model.model.extensions import WORN_TERMS  # noqa: E402
 from octoroach_model.paths import Paths  # noqa: E402
 from octoroach_model.validation.region import t_multiplier  # noqa: E402
 
@@ -237,10 +237,9 @@ DRIFT_AXES = {
                                          'direction of travel - heading [deg]'),
     # a worn leg where it shows most on open_world's robots: phi4 in the turn, the others in
     # the distance (its size is read off both, modelfit._joint_secant)
-    **{drift_term(parameter): ('heading_rate', DEG, 'heading rate over the run [deg/s]')
-       if parameter == 'touchdown_angle_4' else
+    **{term: ('heading_rate', DEG, 'heading rate over the run [deg/s]') if column == 3 else
        ('end_progress', 100.0, "progress along the start heading at the run's end [cm]")
-       for parameter in WORN_ANGLES},
+       for term, column in WORN_TERMS.items()},
 }
 # places along the recording a curved drift's model mean is drawn at (means of runs about each)
 CURVE_BINS = 10

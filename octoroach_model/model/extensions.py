@@ -67,6 +67,10 @@ def drift_term(parameter: str) -> str:
     return f'{DRIFT}:{parameter}'
 
 
+# each worn leg's term (run_order_drift:touchdown_angle_k) -> its column in (phi1 .. phi4)
+WORN_TERMS = {drift_term(parameter): column for parameter, column in WORN_ANGLES.items()}
+
+
 class NormalSource(Protocol):
     """Where an effect draws its normals: a numpy Generator, or one giving antithetic pairs."""
 
