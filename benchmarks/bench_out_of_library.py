@@ -65,14 +65,14 @@ RUNS = 500
 PURPOSE = 0x0DD          # the effect's own draws, apart from the study's robot and data streams
 SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1, 'leg_wear': 2, 'right_leg_wear': 3,
                'right_front_leg_wear': 4, 'front_leg_wear': 5}
-# the touchdown angle each wear moves (its column in phi1..phi4)
-WEARS = {'leg_wear': 2, 'right_leg_wear': 0, 'right_front_leg_wear': 1, 'front_leg_wear': 3}
-WORN_BY_COLUMN = {column: term for term, column in WORN_TERMS.items()}
+# the leg each wear moves (1-4: phi1..phi4)
+WEARS = {'leg_wear': 3, 'right_leg_wear': 1, 'right_front_leg_wear': 2, 'front_leg_wear': 4}
+WORN_BY_LEG = {column + 1: term for term, column in WORN_TERMS.items()}
 # effects a term of the library now describes: the term, its main parameter, the effect's
 # value that parameter estimates
 OWN_TERM = {'yaw_ramp': ('yaw_rate_ramp', 'final_yaw_rate_deg_s', 'final_yaw_rate_deg_s'),
-            **{wear: (WORN_BY_COLUMN[column], 'change', 'drift_deg')
-               for wear, column in WEARS.items()}}
+            **{wear: (WORN_BY_LEG[leg], 'change', 'drift_deg')
+               for wear, leg in WEARS.items()}}
 
 
 def effect_values(effect: str, replicate: int, duration_s: float) -> dict[str, float]:
@@ -109,7 +109,7 @@ def data_set(effect: str, replicate: int):
     elif effect == 'yaw_ramp':
         paths = yaw_ramp(paths, values['final_yaw_rate_deg_s'])
     elif effect in WEARS:
-        paths = leg_wear(RUNS, values['drift_deg'], cycles=draw.cycles, angle=WEARS[effect],
+        paths = leg_wear(RUNS, values['drift_deg'], cycles=draw.cycles, leg=WEARS[effect],
                          **common)
     return draw, values, paths
 

@@ -6,8 +6,11 @@ order (docs/extensions.md). Both bend where the worn angle passes its pair partn
 liftoff angle changes legs (the paper's eqs. 7-8); past that the turn may stop growing with
 the angle. Here the wear of one leg, made run by run outside the term's code
 (`studies/outside.leg_wear`), is diagnosed at each drift given, on Table II's robot: printed
-per drift the terms named, the leg's estimate with its 95 % interval and whether the
-extended model is adequate. A benchmark, not a test: it never fails on a number.
+per drift the terms named, the leg's estimate with its 95 % interval (or, where its term was
+not named, its last estimate and why) and whether the extended model is adequate. A
+benchmark, not a test: it never fails on a number. With `--settings fast` it diagnoses with
+the suite's reduced settings (test/hidden_effects.FAST: fewer simulated runs for scores and
+moments), as the leg-wear tests do.
 
 With `--turns` it diagnoses nothing and prints instead, per offset of the leg's angle, the
 runs' mean heading rate and forward distance, as the diagnosis's features read them
@@ -15,19 +18,22 @@ runs' mean heading rate and forward distance, as the diagnosis's features read t
 turn stops growing with the angle.
 
 Run: .venv/bin/python benchmarks/bench_wear_range.py [--leg 4] [--drifts -22 -18 15 18 22]
-     [--runs 300] [--seed 53] [--turns]
+     [--runs 300] [--seed 53] [--settings default|fast] [--turns]
 (five drifts of 300 runs, 5-10 minutes on one core; e.g. --turns --drifts -20 -10 0 10 20 30)
 """
 from __future__ import annotations
 
 import argparse
 from dataclasses import replace
+from pathlib import Path
+import sys
 import time
 
 DRIFTS_DEG = (-22.0, -18.0, 15.0, 18.0, 22.0)
+REPO = Path(__file__).resolve().parents[1]
 
 
-def diagnose_wear(leg: int, drift_deg: float, runs: int, seed: int) -> str:
+def diagnose_wear(leg: int, drift_deg: float, runs: int, seed: int, fast: bool = False) -> str:
     """Diagnose Table II's robot with leg `leg` (1-4) drifting by `drift_deg`; one line."""
     import octoroach_model as om
     from octoroach_model.diagnosis import diagnose, DiagnosisSettings
@@ -35,8 +41,13 @@ def diagnose_wear(leg: int, drift_deg: float, runs: int, seed: int) -> str:
     from octoroach_model.model.extensions import drift_term
 
     measured = leg_wear(runs, drift_deg, parameters=om.ModelParameters.nominal(), seed=seed,
-                        angle=leg - 1)
-    report = diagnose(measured, DiagnosisSettings(seed=seed, detection_limits=False, workers=1))
+                        leg=leg)
+    settings = DiagnosisSettings(seed=seed, detection_limits=False, workers=1)
+    if fast:                                    # the suite's settings, as its tests use them
+        sys.path.insert(0, str(REPO / 'test'))
+        from hidden_effects import FAST
+        settings = replace(FAST, seed=seed)
+    report = diagnose(measured, settings)
     term = drift_term(f'touchdown_angle_{leg}')
     worn = [e for e in report.extensions if e.term == term]
     if worn:
@@ -45,7 +56,13 @@ def diagnose_wear(leg: int, drift_deg: float, runs: int, seed: int) -> str:
         reading = (f'read {worn[0].parameters["change"]:+.1f} deg ({low:+.1f} to {high:+.1f}, '
                    f'{held} the truth)')
     else:
-        reading = 'its term not named'
+        tried = [c for c in report.extension_candidates if c.cause == term]
+        t = 'not scored' if not tried or tried[-1].held_out_t is None \
+            else f'held-out t {tried[-1].held_out_t:.2f}'
+        why = ('' if not tried else f'its size bound short of the floor, {t}'
+               if not tried[-1].clears_floor else f'its held-out test failed, {t}')
+        reading = ('its term not named' if not tried else
+                   f'its term not named (read {tried[-1].parameters["change"]:+.1f} deg, {why})')
     named = ', '.join(report.named_terms) or 'nothing'
     return (f'phi{leg} {drift_deg:+.1f} deg: {reading}; named {named}; '
             f'{"adequate" if report.adequate else "not adequate"}')
@@ -81,6 +98,8 @@ def main() -> int:
                         help='deg, from the first run to the last')
     parser.add_argument('--runs', type=int, default=300)
     parser.add_argument('--seed', type=int, default=53)
+    parser.add_argument('--settings', choices=('default', 'fast'), default='default',
+                        help="fast: the suite's reduced settings (test/hidden_effects.FAST)")
     parser.add_argument('--turns', action='store_true',
                         help='print the mean turn and distance per offset, diagnose nothing')
     args = parser.parse_args()
@@ -89,7 +108,8 @@ def main() -> int:
     started = time.perf_counter()
     for number, drift in enumerate(args.drifts, 1):
         line = (turn_and_distance(args.leg, drift, 200, args.seed) if args.turns
-                else diagnose_wear(args.leg, drift, args.runs, args.seed))
+                else diagnose_wear(args.leg, drift, args.runs, args.seed,
+                                   args.settings == 'fast'))
         print(f'[{number}/{len(args.drifts)} {time.perf_counter() - started:5.0f} s] {line}',
               flush=True)
     return 0

@@ -33,7 +33,7 @@ from octoroach_model.diagnosis.causes import BY_NAME, CANDIDATES, FeatureStatist
 from octoroach_model.diagnosis.diagnose import screened_first
 from octoroach_model.diagnosis.features import FEATURES, INDEX, OUTCOMES
 from octoroach_model.diagnosis.stages import STAGES
-from octoroach_model.model.extensions import FAMILY_NAMES
+from octoroach_model.model.extensions import drift_term, FAMILY_NAMES
 from octoroach_model.validation import ValidationSettings
 
 REPO = Path(__file__).resolve().parents[1]
@@ -384,7 +384,9 @@ def test_a_statistic_still_off_names_the_term_that_reads_it_and_why_it_was_not_n
 
     An estimate past its limit beside a failed held-out test is a term that describes the runs
     only in part (a leg that wears, docs/measured.md); one within its limit is one the runs
-    show too little of; a named term, or a statistic no term reads, gets no line.
+    show too little of; a named term, or a statistic no term reads, gets no line. Where
+    several terms read it (the four worn legs read the distance's trend as their own, and
+    the heading rate's beside the yaw rate's drift), only those past their limit get one.
     """
     from types import SimpleNamespace
 
@@ -393,15 +395,19 @@ def test_a_statistic_still_off_names_the_term_that_reads_it_and_why_it_was_not_n
 
     readers = {statistic.name: [cause.name for cause in statistic.read_by()]
                for statistic in STATISTICS if statistic.read_by()}
+    legs = [drift_term(f'touchdown_angle_{leg}') for leg in range(1, 5)]
     assert readers['heading rate change from the first run to the last'] == [
-        'run_order_drift:yaw_rate']
-    for statistic in STATISTICS:                  # one term each, which reads that feature
-        for cause in statistic.read_by():
-            assert any(read is not None and read.feature == statistic.feature
-                       for read in (cause.statistic, cause.signature)), statistic.name
+        'run_order_drift:yaw_rate', *legs]      # the worn legs read it beside the distance
+    assert readers['forward distance change from the first run to the last'] == legs
+    for statistic in STATISTICS:        # those that read it as their own, then those beside
+        own = [statistic.reads(cause.statistic, cause.signature)
+               for cause in statistic.read_by()]
+        assert own == sorted(own, reverse=True), statistic.name
+        for cause, first in zip(statistic.read_by(), own):
+            assert first or statistic.reads(*cause.also_reads), statistic.name
     trend = [statistic.name for statistic in STATISTICS if statistic.read_by()
              and statistic.read_by()[0].order_dependent]
-    assert len(trend) == 3                          # every run-order drift has its statistic
+    assert len(trend) == 4      # every run-order drift has its statistic; the legs, the distance
     # a statistic's declared reading is the one its function makes: on any features its
     # value, or its square (a spread, an rms), is a fixed multiple of the term's reading
     from octoroach_model.diagnosis.causes import FeatureStatistic
@@ -439,6 +445,23 @@ def test_a_statistic_still_off_names_the_term_that_reads_it_and_why_it_was_not_n
     assert 'did not clear the floor' in lines(drift(0.1, None))[0]
     assert lines(drift(4.41, 2.56), named=('run_order_drift:yaw_rate',)) == []
     assert lines(drift(4.41, 2.56), statistic='progress spread at the end') == []
+    # a worn leg reads the heading rate's trend beside the distance's: a line past its limit
+    leg = drift_term('touchdown_angle_4')
+    worn = lines(SimpleNamespace(**{**vars(drift(0.0, 1.0)), 'cause': leg,
+                                    'parameters': {'parameter': 'touchdown_angle_4',
+                                                   'change': -11.0},
+                                    'detectable': {'change': 6.0}}))
+    assert len(worn) == 1 and '(touchdown angle 4) reads' in worn[0], worn
+    assert 'past the 6 deg' in worn[0], worn
+    within_leg = SimpleNamespace(**{**vars(drift(0.0, 1.0)), 'cause': leg,
+                                    'parameters': {'parameter': 'touchdown_angle_4',
+                                                   'change': -3.0},
+                                    'detectable': {'change': 6.0}})
+    assert lines(within_leg) == []
+    distance = 'forward distance change from the first run to the last'  # the four legs' own
+    assert lines(within_leg, statistic=distance) == []
+    assert len(lines(SimpleNamespace(**{**vars(within_leg), 'parameters': {
+        'parameter': 'touchdown_angle_4', 'change': -11.0}}), statistic=distance)) == 1
 
 
 def test_a_declared_limit_caveat_reaches_the_candidate_and_its_line_in_the_summary(monkeypatch):

@@ -31,7 +31,7 @@ from octoroach_model.diagnosis.modelfit import FittedModel
 from octoroach_model.diagnosis.plots import _mean_turn, _turn_spread, stride_windows
 from octoroach_model.diagnosis.summary import summary_text
 from octoroach_model.model.extensions import drift_term, WORN_ANGLES
-from octoroach_model.studies.outside import leg_wear, speed_wobble, WORN_ANGLE, yaw_ramp
+from octoroach_model.studies.outside import leg_wear, speed_wobble, WORN_LEG, yaw_ramp
 
 N = 400
 DETERMINISTIC = {'sigma1': 0.0, 'sigma2': 0.0}
@@ -493,8 +493,9 @@ def test_misfit_png_s_turn_is_the_heading_over_a_whole_stride_without_its_sway(
     assert np.allclose(_turn_spread(paths, starts, ends), spread, atol=0.02)
 
 
-@pytest.mark.parametrize('angle', [WORN_ANGLE, 3])
-def test_a_worn_leg_strides_run_by_run_with_its_touchdown_angle_moved_by_the_run_s_place(angle):
+@pytest.mark.parametrize('leg, chosen', [(WORN_LEG, {}), (4, {'leg': 4})])
+def test_a_worn_leg_strides_run_by_run_with_its_touchdown_angle_moved_by_the_run_s_place(
+        leg, chosen):
     """
     studies/outside.leg_wear: run i at place q_i is the robot with phi_k + drift q_i.
 
@@ -504,10 +505,10 @@ def test_a_worn_leg_strides_run_by_run_with_its_touchdown_angle_moved_by_the_run
     robot = om.ModelParameters.nominal()
     drift = 7.5
     worn = leg_wear(9, drift, parameters=robot, seed=SEED, cycles=3, sigma1=0.1, sigma2=0.1,
-                    **({} if angle == WORN_ANGLE else {'angle': angle}))
+                    **chosen)
     for run, place in ((0, 0.0), (4, 0.5), (8, 1.0)):
         angles = list(robot.touchdown_angles)
-        angles[angle] += math.radians(drift) * place
+        angles[leg - 1] += math.radians(drift) * place
         stream = int(np.random.SeedSequence([SEED, run]).generate_state(1)[0])
         alone = om.simulate(1, seed=stream, cycles=3, sigma1=0.1, sigma2=0.1, parameters=replace(
             robot, touchdown_angles=tuple(angles)).with_paper_liftoff())
@@ -612,7 +613,7 @@ def test_a_leg_that_wears_over_the_session_is_named_as_its_drifting_touchdown_an
     if leg == 4:        # past phi3 the left pair stops turning the robot: the next test
         drift = abs(drift)
     measured = leg_wear(300, drift, parameters=om.ModelParameters.nominal(), seed=SEED + 53,
-                        angle=leg - 1)
+                        leg=leg)
     report = diagnose(measured, replace(FAST, seed=SEED + 53))
     left = [(row.statistic, round(row.z, 1)) for row in report.unexplained]
     message = replay(f'phi{leg} drifting by {drift:.1f} deg: named {list(report.named_terms)}, '
@@ -634,7 +635,7 @@ def test_a_front_left_leg_worn_past_its_partner_is_never_missed_in_silence():
     """
     drift = -random.Random(SEED * 10 + 59).uniform(*WEAR_DEG[4])
     measured = leg_wear(300, drift, parameters=om.ModelParameters.nominal(), seed=SEED + 59,
-                        angle=3)
+                        leg=4)
     report = diagnose(measured, replace(FAST, seed=SEED + 59))
     left = [(row.statistic, round(row.z, 1)) for row in report.unexplained]
     message = replay(f'phi4 drifting by {drift:.1f} deg: named {list(report.named_terms)}, '

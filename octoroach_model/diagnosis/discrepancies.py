@@ -28,7 +28,7 @@ from scipy import stats
 
 from octoroach_model.arrays import FloatArray
 from octoroach_model.diagnosis.causes import (
-    CANDIDATES, Cause, Reading, STRIDE_FREQUENCY_FLOOR)
+    CANDIDATES, Cause, FeatureStatistic, Reading, STRIDE_FREQUENCY_FLOOR)
 from octoroach_model.diagnosis.features import INDEX, noise_variance_m2
 
 DEG = 180.0 / math.pi
@@ -69,13 +69,24 @@ class Statistic:
     reading: Reading | None = None     # how it reads `feature`, where a term reads it alike
 
     def read_by(self) -> tuple[Cause, ...]:
-        """Return the candidates sized or started from this statistic's feature, read alike."""
+        """
+        Return the candidates sized or started from this statistic's feature, read alike.
+
+        Those that read it first (their statistic or signature), then those that read it
+        beside another (`Cause.also_reads`: a worn leg's terms read the heading rate's trend
+        beside the forward distance's).
+        """
         if self.reading is None:
             return ()
-        return tuple(cause for cause in CANDIDATES
-                     if any(read is not None and read.feature == self.feature
-                            and read.reading == self.reading
-                            for read in (cause.statistic, cause.signature)))
+        first = tuple(cause for cause in CANDIDATES
+                      if self.reads(cause.statistic, cause.signature))
+        return first + tuple(cause for cause in CANDIDATES
+                             if cause not in first and self.reads(*cause.also_reads))
+
+    def reads(self, *reads: FeatureStatistic | None) -> bool:
+        """Return whether any of `reads` reads this statistic's feature as it does."""
+        return any(read is not None and read.feature == self.feature
+                   and read.reading == self.reading for read in reads)
 
 
 def _std(column: str, scale: float = 1.0) -> Callable[[FloatArray], float]:
@@ -188,6 +199,10 @@ STATISTICS: tuple[Statistic, ...] = (
               reading=Reading.TREND),
     Statistic('heading to travel angle change from the first run to the last', 'deg',
               _trend('slip_angle', DEG), 0.01, MEAN, feature='slip_angle',
+              reading=Reading.TREND),
+    # a worn leg's: phi1 and phi2 move the distance, hardly the turn (docs/extensions.md)
+    Statistic('forward distance change from the first run to the last', 'cm',
+              _trend('end_progress', 100), 0.01, MEAN, feature='end_progress',
               reading=Reading.TREND),
     Statistic('log speed ratio, 2nd quarter / 1st quarter', '', _mean('progress_early'), 1e-4,
               MEAN, feature='progress_early'),

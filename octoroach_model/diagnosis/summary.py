@@ -353,18 +353,36 @@ def _reader_lines(report: DiagnosisReport) -> list[str]:
     heading rate against run order is run_order_drift's, yaw rate). Its estimate beside what
     the runs can show, and its held-out test, tell a term the runs show too little from one
     they show but that describes them only in part: on a leg that wears over the session the
-    drifts' estimates passed their limits and their tests failed (docs/measured.md).
+    drifts' estimates passed their limits and their tests failed (docs/measured.md). The
+    term that alone reads the statistic as its own always gets a line; where others read it
+    too (the four worn legs read the heading rate's trend beside the distance's), they get
+    one only past their limit: four legs within theirs say nothing new.
     """
     last = {candidate.cause: candidate
             for candidate in report.candidates + report.extension_candidates}
     lines = []
     for row in report.unexplained:
         statistic = STATISTIC_BY_NAME.get(row.statistic)
-        for cause in statistic.read_by() if statistic is not None else ():
+        if statistic is None:
+            continue
+        readers = statistic.read_by()
+        own = [cause for cause in readers if statistic.reads(cause.statistic, cause.signature)]
+        for cause in readers:
             candidate = last.get(cause.name)
-            if candidate is not None and cause.name not in report.named_terms:
+            if candidate is None or cause.name in report.named_terms:
+                continue
+            if own == [cause] or _past_limit(cause, candidate):
                 lines.append(_reader_line(row.statistic, cause, candidate, report))
     return lines
+
+
+def _past_limit(cause: Cause, candidate: CandidateResult) -> bool:
+    """Return whether a candidate's estimate is past what would go unseen in runs like these."""
+    estimate = candidate.parameters.get(cause.parameter)
+    limit = candidate.detectable.get(cause.parameter)
+    return (isinstance(estimate, (int, float)) and math.isfinite(estimate)
+            and limit is not None and math.isfinite(limit)
+            and abs(estimate - cause.null) >= limit)
 
 
 def _reader_line(statistic: str, cause: Cause, candidate: CandidateResult,
@@ -373,11 +391,10 @@ def _reader_line(statistic: str, cause: Cause, candidate: CandidateResult,
     estimate = candidate.parameters.get(cause.parameter)
     limit = candidate.detectable.get(cause.parameter)
     size = ''
-    past = False
+    past = _past_limit(cause, candidate)
     if isinstance(estimate, (int, float)) and math.isfinite(estimate):
         size = f'its estimate here is {_number(estimate)}{_unit(cause.unit)}'
         if limit is not None and math.isfinite(limit):
-            past = abs(estimate - cause.null) >= limit
             size += (f', {"past" if past else "within"} the {_number(limit)}{_unit(cause.unit)}'
                      f'{" from 1" if cause.null != 0 else ""} that would go unseen in runs like '
                      'these (80 % power); ')

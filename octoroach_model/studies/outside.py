@@ -42,27 +42,30 @@ def speed_wobble(t: FloatArray, n_runs: int, amplitude: float, period_s: float,
     return Paths(t, simulate(n_runs, t=tau, **simulate_args).poses)
 
 
-# the touchdown angle a worn leg moves by default (phi3): on Table II's robot 6 deg more
-# turns a 5 s run by 10 deg less, where phi1 and phi2 move it by about 1 deg
-WORN_ANGLE = 2
+# the leg that wears by default, counted 1-4 as the terms count them (phi3, the left pair's
+# rear leg): on Table II's robot 6 deg more turns a 5 s run by 10 deg less, where phi1 and
+# phi2 move it by about 1 deg
+WORN_LEG = 3
 
 
 def leg_wear(n_runs: int, drift_deg: float, *, parameters: ModelParameters, seed: int,
-             angle: int = WORN_ANGLE, **simulate_args: Any) -> Paths:
+             leg: int = WORN_LEG, **simulate_args: Any) -> Paths:
     """
     Return runs of a robot with a leg that wears over the session: a touchdown angle drifts.
 
     Run i of n, at its place q_i = i / (n - 1) in the session, strides with the touchdown
-    angle phi_k + drift q_i (k = `angle`, 0-based; WORN_ANGLE, phi3, by default; the liftoff
+    angle phi_k + drift q_i (k = `leg`, 1-4; WORN_LEG, phi3, by default; the liftoff
     angles follow by the paper's eqs. 7-8), on a stream of its own (`SeedSequence([seed,
     i])`): the gait's shape moves from run to run. Made run by run with the model's own runs
     of each geometry, not by the family run_order_drift:touchdown_angle_k's code (which moves
     phi_k about the session's middle run and draws all runs at once).
     """
+    if leg not in (1, 2, 3, 4):
+        raise ValueError(f'leg must be 1, 2, 3 or 4 (phi1-phi4), not {leg!r}')
     runs = []
     for place, run in zip(positions_in_order(n_runs), range(n_runs)):
         phi = list(parameters.touchdown_angles)
-        phi[angle] += math.radians(drift_deg) * place
+        phi[leg - 1] += math.radians(drift_deg) * place
         worn = replace(parameters, touchdown_angles=(phi[0], phi[1], phi[2], phi[3]))
         stream = int(np.random.SeedSequence([seed, run]).generate_state(1)[0])
         runs.append(simulate(1, seed=stream, parameters=worn.with_paper_liftoff(),
