@@ -57,12 +57,13 @@ def diagnose_wear(leg: int, drift_deg: float, runs: int, seed: int, fast: bool =
                    f'{held} the truth)')
     else:
         tried = [c for c in report.extension_candidates if c.cause == term]
-        t = 'not scored' if not tried or tried[-1].held_out_t is None \
-            else f'held-out t {tried[-1].held_out_t:.2f}'
-        why = ('' if not tried else f'its size bound short of the floor, {t}'
-               if not tried[-1].clears_floor else f'its held-out test failed, {t}')
-        reading = ('its term not named' if not tried else
-                   f'its term not named (read {tried[-1].parameters["change"]:+.1f} deg, {why})')
+        reading = 'its term not named'
+        if tried:                                  # the race's last word on it
+            last = tried[-1]
+            why = ('its held-out test failed' if last.clears_floor
+                   else 'its size bound short of the floor')
+            t = 'not scored' if last.held_out_t is None else f'held-out t {last.held_out_t:.2f}'
+            reading += f' (read {last.parameters["change"]:+.1f} deg, {why}, {t})'
     named = ', '.join(report.named_terms) or 'nothing'
     return (f'phi{leg} {drift_deg:+.1f} deg: {reading}; named {named}; '
             f'{"adequate" if report.adequate else "not adequate"}')

@@ -355,8 +355,9 @@ def _reader_lines(report: DiagnosisReport) -> list[str]:
     they show but that describes them only in part: on a leg that wears over the session the
     drifts' estimates passed their limits and their tests failed (docs/measured.md). The
     term that alone reads the statistic as its own always gets a line; where others read it
-    too (the four worn legs read the heading rate's trend beside the distance's), they get
-    one only past their limit: four legs within theirs say nothing new.
+    too (the four worn legs read the distance's trend as their own, and the heading rate's
+    beside the yaw rate's drift), they get one only past their limit: four legs within
+    theirs say nothing new.
     """
     last = {candidate.cause: candidate
             for candidate in report.candidates + report.extension_candidates}
