@@ -513,6 +513,8 @@ def test_a_worn_leg_strides_run_by_run_with_its_touchdown_angle_moved_by_the_run
         alone = om.simulate(1, seed=stream, cycles=3, sigma1=0.1, sigma2=0.1, parameters=replace(
             robot, touchdown_angles=tuple(angles)).with_paper_liftoff())
         assert np.array_equal(worn.poses[run], alone.poses[0]), (run, replay('leg wear'))
+    with pytest.raises(ValueError, match='leg must be 1, 2, 3 or 4'):    # counted as terms are
+        leg_wear(9, drift, parameters=robot, seed=SEED, leg=0)      # phi1's old 0-based index
 
 
 def test_where_to_look_points_at_the_mean_that_every_run_moves_alike():

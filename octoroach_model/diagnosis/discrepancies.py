@@ -83,10 +83,10 @@ class Statistic:
         return first + tuple(cause for cause in CANDIDATES
                              if cause not in first and self.reads(*cause.also_reads))
 
-    def reads(self, *reads: FeatureStatistic | None) -> bool:
-        """Return whether any of `reads` reads this statistic's feature as it does."""
+    def reads(self, *statistics: FeatureStatistic | None) -> bool:
+        """Return whether any of a term's `statistics` reads this one's feature as it does."""
         return any(read is not None and read.feature == self.feature
-                   and read.reading == self.reading for read in reads)
+                   and read.reading == self.reading for read in statistics)
 
 
 def _std(column: str, scale: float = 1.0) -> Callable[[FloatArray], float]:
