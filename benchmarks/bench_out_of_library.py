@@ -23,11 +23,13 @@ The yaw ramp has since joined the library as the family yaw_rate_ramp, and each 
 as run_order_drift:touchdown_angle_1 .. _4 (their data are still made here, outside the
 model: studies/outside.py): naming that term on its data is the right answer (`OWN_TERM`),
 and the table says how often, and how close its size came.
-Every other term named in such a data set stands in for an effect it is not. Printed per effect:
-data sets reported not adequate (what the report should say), those named nothing, those with
-a stand-in named (and which terms), those whose named terms left the positions further off
-than the baseline (held-out energy score, cm per run), and the median share of the log score's
-gap the extended model closed. The same robots' null data sets (effect `none`) are diagnosed
+Every other term named in such a data set stands in for an effect it is not. Printed per
+effect: data sets reported not adequate (what the report should say), those named nothing,
+those missed in silence (named nothing and called adequate: the report says nothing of the
+effect; on the nulls that is the right answer, and the cell is '-'), those with a stand-in
+named (and which terms), those whose named terms left the positions further off than the
+baseline (held-out energy score, cm per run), and the median share of the log score's gap the
+extended model closed. The same robots' null data sets (effect `none`) are diagnosed
 beside them: there "not adequate" is a false alarm and a named term a false positive, and the
 z of the statistic added for the yaw ramp (the heading rate's change from a run's first half
 to its second) is printed over them. For each wear's data set, the drifts of the four legs,
@@ -56,7 +58,7 @@ import sys
 import time
 
 from octoroach_model.diagnosis.discrepancies import HEADING_RATE_CHANGE
-from octoroach_model.model.extensions import WORN_TERMS
+from octoroach_model.model.extensions import drift_term, WORN_TERMS
 
 REPO = Path(__file__).resolve().parents[1]
 EFFECTS = ('none', 'speed_wobble', 'yaw_ramp', 'leg_wear', 'right_leg_wear',
@@ -67,11 +69,10 @@ SIZE_STREAM = {'speed_wobble': 0, 'yaw_ramp': 1, 'leg_wear': 2, 'right_leg_wear'
                'right_front_leg_wear': 4, 'front_leg_wear': 5}
 # the leg each wear moves (1-4: phi1..phi4)
 WEARS = {'leg_wear': 3, 'right_leg_wear': 1, 'right_front_leg_wear': 2, 'front_leg_wear': 4}
-WORN_BY_LEG = {column + 1: term for term, column in WORN_TERMS.items()}
 # effects a term of the library now describes: the term, its main parameter, the effect's
 # value that parameter estimates
 OWN_TERM = {'yaw_ramp': ('yaw_rate_ramp', 'final_yaw_rate_deg_s', 'final_yaw_rate_deg_s'),
-            **{wear: (WORN_BY_LEG[leg], 'change', 'drift_deg')
+            **{wear: (drift_term(f'touchdown_angle_{leg}'), 'change', 'drift_deg')
                for wear, leg in WEARS.items()}}
 
 
@@ -185,10 +186,10 @@ def table(rows: list[dict]) -> str:
     """Return the table of docs/measured.md: per effect, what the reports said."""
     from octoroach_model.studies.summary import wilson
 
-    lines = ['| effect | data sets | reported not adequate | nothing named | its own family '
-             'named (median size error) | a stand-in named (terms, data sets) | positions '
-             'further off | median gap closed |',
-             '| --- | --- | --- | --- | --- | --- | --- | --- |']
+    lines = ['| effect | data sets | reported not adequate | nothing named | missed in silence '
+             '| its own family named (median size error) | a stand-in named (terms, data sets) '
+             '| positions further off | median gap closed |',
+             '| --- | --- | --- | --- | --- | --- | --- | --- | --- |']
     for effect in EFFECTS:
         mine = [row for row in rows if row['effect'] == effect]
         if not mine:
@@ -210,9 +211,12 @@ def table(rows: list[dict]) -> str:
                   for row in found]
         size_error = f' ({statistics.median(errors):+.0%})' if errors else ''
         own_cell = share(len(found)) + size_error if own else '-'
+        # adequate with nothing named: an effect the report says nothing of (a null's answer)
+        silent = share(sum(row['adequate'] and not row['named'] for row in mine))
         lines.append(
             f'| {effect} | {n} | {share(sum(not row["adequate"] for row in mine))} | '
-            f'{share(sum(not row["named"] for row in mine))} | {own_cell} | '
+            f'{share(sum(not row["named"] for row in mine))} | '
+            f'{silent if effect != "none" else "-"} | {own_cell} | '
             f'{share(sum(bool(terms) for terms in stand_ins))}: {terms} | '
             f'{worse} of {sum(bool(row["named"]) for row in mine)} | '
             f'{round(statistics.median(row["gap_closed"] for row in mine), 2) + 0.0:.0%} |')

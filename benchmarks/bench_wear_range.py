@@ -10,7 +10,8 @@ per drift the terms named, the leg's estimate with its 95 % interval (or, where 
 not named, its last estimate and why) and whether the extended model is adequate. A
 benchmark, not a test: it never fails on a number. With `--settings fast` it diagnoses with
 the suite's reduced settings (test/hidden_effects.FAST: fewer simulated runs for scores and
-moments), as the leg-wear tests do.
+moments), with `--settings wear` with those and the library's moment runs, as the leg-wear
+tests do (hidden_effects.WEAR_SETTINGS).
 
 With `--turns` it diagnoses nothing and prints instead, per offset of the leg's angle, the
 runs' mean heading rate and forward distance, as the diagnosis's features read them
@@ -18,7 +19,7 @@ runs' mean heading rate and forward distance, as the diagnosis's features read t
 turn stops growing with the angle.
 
 Run: .venv/bin/python benchmarks/bench_wear_range.py [--leg 4] [--drifts -22 -18 15 18 22]
-     [--runs 300] [--seed 53] [--settings default|fast] [--turns]
+     [--runs 300] [--seed 53] [--settings default|fast|wear] [--turns]
 (five drifts of 300 runs, 5-10 minutes on one core; e.g. --turns --drifts -20 -10 0 10 20 30)
 """
 from __future__ import annotations
@@ -33,7 +34,8 @@ DRIFTS_DEG = (-22.0, -18.0, 15.0, 18.0, 22.0)
 REPO = Path(__file__).resolve().parents[1]
 
 
-def diagnose_wear(leg: int, drift_deg: float, runs: int, seed: int, fast: bool = False) -> str:
+def diagnose_wear(leg: int, drift_deg: float, runs: int, seed: int,
+                  settings_name: str = 'default') -> str:
     """Diagnose Table II's robot with leg `leg` (1-4) drifting by `drift_deg`; one line."""
     import octoroach_model as om
     from octoroach_model.diagnosis import diagnose, DiagnosisSettings
@@ -43,10 +45,11 @@ def diagnose_wear(leg: int, drift_deg: float, runs: int, seed: int, fast: bool =
     measured = leg_wear(runs, drift_deg, parameters=om.ModelParameters.nominal(), seed=seed,
                         leg=leg)
     settings = DiagnosisSettings(seed=seed, detection_limits=False, workers=1)
-    if fast:                                    # the suite's settings, as its tests use them
+    if settings_name != 'default':              # the suite's settings, as its tests use them
         sys.path.insert(0, str(REPO / 'test'))
-        from hidden_effects import FAST
-        settings = replace(FAST, seed=seed)
+        import hidden_effects
+        suite = {'fast': hidden_effects.FAST, 'wear': hidden_effects.WEAR_SETTINGS}
+        settings = replace(suite[settings_name], seed=seed)
     report = diagnose(measured, settings)
     term = drift_term(f'touchdown_angle_{leg}')
     worn = [e for e in report.extensions if e.term == term]
@@ -99,8 +102,10 @@ def main() -> int:
                         help='deg, from the first run to the last')
     parser.add_argument('--runs', type=int, default=300)
     parser.add_argument('--seed', type=int, default=53)
-    parser.add_argument('--settings', choices=('default', 'fast'), default='default',
-                        help="fast: the suite's reduced settings (test/hidden_effects.FAST)")
+    parser.add_argument('--settings', choices=('default', 'fast', 'wear'), default='default',
+                        help="fast: the suite's reduced settings (test/hidden_effects.FAST); "
+                        "wear: those with the library's moment runs, as the leg-wear tests "
+                        'diagnose (hidden_effects.WEAR_SETTINGS)')
     parser.add_argument('--turns', action='store_true',
                         help='print the mean turn and distance per offset, diagnose nothing')
     args = parser.parse_args()
@@ -109,8 +114,7 @@ def main() -> int:
     started = time.perf_counter()
     for number, drift in enumerate(args.drifts, 1):
         line = (turn_and_distance(args.leg, drift, 200, args.seed) if args.turns
-                else diagnose_wear(args.leg, drift, args.runs, args.seed,
-                                   args.settings == 'fast'))
+                else diagnose_wear(args.leg, drift, args.runs, args.seed, args.settings))
         print(f'[{number}/{len(args.drifts)} {time.perf_counter() - started:5.0f} s] {line}',
               flush=True)
     return 0

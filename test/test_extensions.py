@@ -17,7 +17,7 @@ import random
 import subprocess
 import sys
 
-from hidden_effects import FAST, SEED
+from hidden_effects import FAST, SEED, WEAR_SETTINGS
 from hypothesis import given, seed, settings, strategies as st
 import numpy as np
 import pytest
@@ -587,7 +587,8 @@ def test_a_turn_that_grows_within_each_run_is_named_or_reported_by_the_statistic
 # 10.6-11.2 deg on the null data sets of seeds 5 and 6): a leg that shows in the distance
 # alone (phi1, phi2) or in the turn alone (phi4) needs more wear to show than phi3, which
 # moves both. phi4 no further: 47 deg on Table II, it turns the runs less past about 67, and
-# backward past phi3 (39.9) hardly at all (bench_wear_range.py --turns)
+# backward past phi3 (39.9) hardly at all (bench_wear_range.py --turns). The limits were the
+# reports' at the library's moment_runs, which the tests keep (hidden_effects.WEAR_SETTINGS)
 WEAR_DEG = {1: (16.0, 20.0), 2: (16.0, 20.0), 3: (10.0, 14.0), 4: (15.0, 18.0)}
 
 
@@ -616,7 +617,7 @@ def test_a_leg_that_wears_over_the_session_is_named_as_its_drifting_touchdown_an
         drift = abs(drift)
     measured = leg_wear(300, drift, parameters=om.ModelParameters.nominal(), seed=SEED + 53,
                         leg=leg)
-    report = diagnose(measured, replace(FAST, seed=SEED + 53))
+    report = diagnose(measured, replace(WEAR_SETTINGS, seed=SEED + 53))
     left = [(row.statistic, round(row.z, 1)) for row in report.unexplained]
     message = replay(f'phi{leg} drifting by {drift:.1f} deg: named {list(report.named_terms)}, '
                      f'unexplained {left}; {evidence(report, "run_order_drift")}')
@@ -631,14 +632,15 @@ def test_a_front_left_leg_worn_past_its_partner_is_never_missed_in_silence():
 
     There the left pair's liftoff changes legs and the pair hardly turns the robot any more
     (bench_wear_range.py --turns): the wear shows in the forward distance alone and its
-    reading is short, by a seed's luck (suite seed 143911, -15.8 deg: read -8.2 with these
-    settings and not named, -11.2 with the defaults, the truth outside its interval). What
-    must hold: no other term named, and phi4's drift named or the model reported not adequate.
+    reading is short, by a seed's luck (suite seed 143911, -15.8 deg: read -11.2 with these
+    settings as with the defaults, the truth outside its interval; -8.2 and not named with
+    FAST's fewer moment runs). What must hold: no other term named, and phi4's drift named or
+    the model reported not adequate.
     """
     drift = -random.Random(SEED * 10 + 59).uniform(*WEAR_DEG[4])
     measured = leg_wear(300, drift, parameters=om.ModelParameters.nominal(), seed=SEED + 59,
                         leg=4)
-    report = diagnose(measured, replace(FAST, seed=SEED + 59))
+    report = diagnose(measured, replace(WEAR_SETTINGS, seed=SEED + 59))
     left = [(row.statistic, round(row.z, 1)) for row in report.unexplained]
     message = replay(f'phi4 drifting by {drift:.1f} deg: named {list(report.named_terms)}, '
                      f'unexplained {left}; {evidence(report, "run_order_drift")}')
@@ -657,7 +659,7 @@ def test_a_touchdown_angle_drift_hidden_in_data_from_a_random_robot_is_named_and
     sigma1, sigma2 = om.model.nominal_sigmas()
     measured = om.simulate(300, seed=SEED + 71, cycles=cycles, parameters=robot,
                            sigma1=sigma1 * scale, sigma2=sigma2 * scale, extensions=extensions)
-    report = diagnose(measured, replace(FAST, seed=SEED + 71))
+    report = diagnose(measured, replace(WEAR_SETTINGS, seed=SEED + 71))
     case = f'{extensions}, robot {robot.table()}, {cycles} cycles, spread x{scale:.2f}'
     message = (f'{replay(case)}: named {list(report.named_terms)}; '
                f'{evidence(report, "run_order_drift")}')
