@@ -14,10 +14,10 @@ report test, and the others need not pay them.
 
 `WEAR_SETTINGS` is FAST with the library's moment_runs (400, not 300), for the leg-wear tests:
 the sizes they hide are 1.3-2.6 times the limits the reports gave at the library's settings,
-and a simulated trend point's own noise is about a third of a leg term's error (suite seed
-168603: phi1 worn +19.4 deg read +11.9, error 3.95 deg, 1.9-2.3 of it the simulated point's
-at 300 runs; its size bound 0.91 for a floor of 1, nothing named; at 400 named at +14.5,
-+8.1 to +20.9, as with all the defaults).
+and a simulated trend point's own noise is about a third of a leg term's variance. At suite
+seed 168603, phi1 worn +19.4 deg was read +11.9 with an error of 3.95 deg, 1.9-2.3 of it the
+simulated point's at 300 runs; its size bound was 0.91 for a floor of 1 and nothing was
+named. At 400 it is named at +14.5 (+8.1 to +20.9), as with all the defaults.
 """
 from __future__ import annotations
 
