@@ -211,12 +211,13 @@ def table(rows: list[dict]) -> str:
                   for row in found]
         size_error = f' ({statistics.median(errors):+.0%})' if errors else ''
         own_cell = share(len(found)) + size_error if own else '-'
-        # adequate with nothing named: an effect the report says nothing of (a null's answer)
-        silent = share(sum(row['adequate'] and not row['named'] for row in mine))
+        # adequate with nothing named: the report says nothing of the effect (a null's answer)
+        silent = ('-' if effect == 'none' else
+                  share(sum(row['adequate'] and not row['named'] for row in mine)))
         lines.append(
             f'| {effect} | {n} | {share(sum(not row["adequate"] for row in mine))} | '
             f'{share(sum(not row["named"] for row in mine))} | '
-            f'{silent if effect != "none" else "-"} | {own_cell} | '
+            f'{silent} | {own_cell} | '
             f'{share(sum(bool(terms) for terms in stand_ins))}: {terms} | '
             f'{worse} of {sum(bool(row["named"]) for row in mine)} | '
             f'{round(statistics.median(row["gap_closed"] for row in mine), 2) + 0.0:.0%} |')
