@@ -41,7 +41,8 @@ CALIBRATION_SIZES = {
     'run_order_drift:stride_frequency': 0.012, 'run_order_drift:yaw_rate': 4.0,
     'run_order_drift:lateral_velocity': 0.6, 'heading_random_walk': 1.5,
     'periodic_heading': 1.5, 'change_point': 0.05, 'run_mixture': 8.0, 'yaw_rate_ramp': 5.0,
-    'run_order_drift:touchdown_angle_3': 9.0}
+    'run_order_drift:touchdown_angle_1': 12.0, 'run_order_drift:touchdown_angle_2': 11.0,
+    'run_order_drift:touchdown_angle_3': 9.0, 'run_order_drift:touchdown_angle_4': 14.0}
 
 
 def package_fingerprint() -> str:

@@ -82,8 +82,9 @@ MOST_RUNS = 1_000_000                         # runs_for gives up beyond this
 # where the runs needed are many. Measured with the diagnosis of commit 3d875ec; per group
 # they were within two data sets of those measured at 7ccf16b-d03aab6 ('causes' 83/96,
 # 'run_order_drift' 34/48, periodic_heading 14/16, the others the same); the touchdown
-# angle's drift with its own commit's (2026-12-01, `--calibrate --terms
-# run_order_drift:touchdown_angle_3`: 137 runs predicted for 9 deg)
+# angles' drifts, a term per leg, with the diagnosis of commit 2825888 (2026-12-02,
+# `--calibrate --terms run_order_drift:touchdown_angle_1 ... _4`: 177, 217, 141 and 203 runs
+# predicted for 12, 11, 9 and 14 deg; phi3 had 14/16 at 137 runs on 2026-12-01 too)
 CALIBRATION_COUNTS: dict[str, tuple[int, int]] = {
     'initial_pose_error': (16, 16),
     'measurement_noise': (16, 16),
@@ -94,7 +95,10 @@ CALIBRATION_COUNTS: dict[str, tuple[int, int]] = {
     'run_order_drift:stride_frequency': (12, 16),
     'run_order_drift:yaw_rate': (10, 16),
     'run_order_drift:lateral_velocity': (10, 16),
+    'run_order_drift:touchdown_angle_1': (9, 16),
+    'run_order_drift:touchdown_angle_2': (13, 16),
     'run_order_drift:touchdown_angle_3': (14, 16),
+    'run_order_drift:touchdown_angle_4': (11, 16),
     'heading_random_walk': (15, 16),
     'periodic_heading': (13, 16),
     'change_point': (16, 16),
