@@ -22,11 +22,13 @@ from scipy import special, stats
 
 import octoroach_model as om
 from octoroach_model.diagnosis import DiagnosisSettings
+from octoroach_model.diagnosis.causes import CANDIDATES
 from octoroach_model.diagnosis.live import (
     calibration_mask, Levels, LiveDecision, Question)
 from octoroach_model.diagnosis.modelfit import SizeEstimate
 from octoroach_model.diagnosis.power import (
-    Calibration, fixed, LOG_SLOPE_STEPS, PowerModel, question_sd, SHIFTS, SLOPE_SD)
+    Calibration, CALIBRATION_COUNTS, fixed, LOG_SLOPE_STEPS, PowerModel, question_sd, SHIFTS,
+    SLOPE_SD)
 from octoroach_model.diagnosis.records import NamedCause
 from octoroach_model.diagnosis.sequential import Boundary, mixture_precision, two_sided_z
 from octoroach_model.errors import ParameterError
@@ -133,6 +135,14 @@ def test_the_power_model_scales_the_data_s_errors_and_keeps_the_simulation_s(kin
     # and 4000 draws the difference had sd 0.026 over 300 seeds, and seed 291129 put it at
     # 0.088; with 200000 and 20000, sd 0.016 over 300 seeds (largest 0.050): 0.07 is 4.4 sd
     assert model.test_power(2 * held_out, 3.17) == pytest.approx(direct, abs=0.07), SEED
+
+
+def test_every_term_in_the_race_has_its_own_calibration_count():
+    # a term without one would take its group's shift unmeasured (a leg's drift took phi3's
+    # until each leg was measured; phi1's 9 of 16 lay furthest below its prediction):
+    # `benchmarks/bench_plan.py --calibrate --terms TERM` measures a new term's
+    assert set(CALIBRATION_COUNTS) == {candidate.name for candidate in CANDIDATES}
+    assert all(0 <= named <= total for named, total in CALIBRATION_COUNTS.values())
 
 
 def test_the_calibration_moves_with_the_studies_and_with_checks():
