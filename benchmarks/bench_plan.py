@@ -192,7 +192,7 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
     from octoroach_model.workers import executor_for
     from octoroach_model.diagnosis.live import Question
     from octoroach_model.diagnosis.power import calibration_group
-    from octoroach_model.studies.plan import _base_spec
+    from octoroach_model.studies.plan import default_spec
     from octoroach_model.studies.plan_model import PredictedCurve, check_task, pilot_task, PILOTS
     from octoroach_model.studies.summary import wilson
     from scipy import stats
@@ -211,7 +211,7 @@ def calibrate(workers: int, checks: int, terms: list[str]) -> None:
             kept = folder / f'{term.replace(":", ".")}={size:g}.json'
             entry = kept_answer(kept, checks=checks)
             if entry is None:
-                spec = _base_spec(term, size, None, None, 6, 0, None, 40, 2000, 0.8)
+                spec = default_spec(term, size)
                 question = Question(term, size)
                 pilots = [future.result()[0] for future in [
                     pool.submit(pilot_task, spec, question, replicate, 500)

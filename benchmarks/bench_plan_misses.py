@@ -54,11 +54,11 @@ def check(term: str, size: float, runs: int, replicate: int) -> CheckResult:
     from octoroach_model.diagnosis.causes import CANDIDATES
     from octoroach_model.diagnosis.live import decide, fit_held, Levels, Question
     from octoroach_model.studies.design import build_tasks, draw_robot
-    from octoroach_model.studies.plan import _base_spec
+    from octoroach_model.studies.plan import default_spec
     from octoroach_model.studies.plan_model import robot_model
     from octoroach_model.studies.replicate import simulate_data, task_effects
 
-    spec = _base_spec(term, size, None, None, 6, 0, None, 40, 2000, 0.8)
+    spec = default_spec(term, size)
     question = Question(term, size)
     draw = draw_robot(spec, replicate)
     task = replace(build_tasks(spec)[0], runs_cell=runs, replicate=replicate)
@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     from octoroach_model.diagnosis.causes import CANDIDATES
     from octoroach_model.diagnosis.decide import decision_z
     from octoroach_model.diagnosis.live import Question
-    from octoroach_model.studies.plan import _base_spec
+    from octoroach_model.studies.plan import default_spec
     from octoroach_model.studies.plan_model import PILOTS, pilot_task, PredictedCurve
     from octoroach_model.studies.summary import wilson
     from octoroach_model.workers import executor_for
@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     everyone = len(CANDIDATES)
     z_bound, z_test = decision_z(0.05, everyone), float(stats.norm.isf(0.01 / everyone))
-    spec = _base_spec(term, size, None, None, 6, 0, None, 40, 2000, 0.8)
+    spec = default_spec(term, size)
     with executor_for(None, args.workers) as pool:
         pilots = [future.result()[0] for future in [
             pool.submit(pilot_task, spec, Question(term, size), replicate, 500)

@@ -86,7 +86,7 @@ def main() -> int:
     arguments = parser.parse_args()
     import octoroach_model as om
     from octoroach_model.diagnosis.live import Question
-    from octoroach_model.studies.plan import _base_spec
+    from octoroach_model.studies.plan import default_spec
     from octoroach_model.studies.plan_model import check_task
     from octoroach_model.studies.summary import wilson
     from octoroach_model.workers import executor_for
@@ -105,7 +105,7 @@ def main() -> int:
             continue
         else:
             counts = sorted({max(40, round(low)), int(result.runs_needed), round(high)})
-        spec = _base_spec(term, size, None, None, 6, 0, None, 40, 2000, 0.8)
+        spec = default_spec(term, size)
         asked = Question(term, size)
         assert isinstance(result.fit, CalibratedFit)
         points = result.fit.curve

@@ -392,6 +392,12 @@ def _base_spec(cause: str, size: float, robot: RobotSpec | Mapping[str, Any] | N
                      diagnosis=spec.diagnosis)
 
 
+def default_spec(cause: str, size: float) -> StudySpec:
+    """Return the study a plan of `cause` at `size` builds at its defaults (Table II's robot)."""
+    return _base_spec(cause, size, None, None, PLAN.replicates, PLAN.seed, None, MIN_RUNS,
+                      PLAN.max_runs, PLAN.power)
+
+
 def _with_runs(base: StudySpec, counts: Sequence[int]) -> StudySpec:
     return StudySpec(base.name, base.seed, base.replicates, tuple(counts), base.robot,
                      base.arms, diagnosis=base.diagnosis)
