@@ -13,6 +13,8 @@ term at the true size, where the test scores them at the size fitted on the othe
 Run: .venv/bin/python benchmarks/bench_plan_misses.py TERM=SIZE [--runs N] [--checks 32]
      [--workers 2]
 (--runs: the run count of the checks; default the pilots' 80 % point, as --calibrate takes.)
+It also prints the pilots' test power by its expected t (normal approximation) at the true
+size and averaged over the error of the size fitted (`averaged_test`).
 The figures in docs/measured.md ("How many runs") for the legs' drifts, at the run counts
 --calibrate predicted: run_order_drift:touchdown_angle_1=12 --runs 177,
 run_order_drift:touchdown_angle_3=9 --runs 141, run_order_drift:touchdown_angle_4=14 --runs
@@ -30,6 +32,7 @@ import time
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 FIRST_CHECK = 1000          # the check replicates --calibrate takes (plan's checks: 1000 on)
+PILOT_RUNS = 500            # the runs of a pilot data set, as --calibrate takes them
 
 
 @dataclass(frozen=True)
@@ -72,6 +75,47 @@ def check(term: str, size: float, runs: int, replicate: int) -> CheckResult:
                        look.clears_floor, look.test_z, look.test_critical_z, look.named_here)
 
 
+def averaged_test(term: str, size: float, runs: int, replicate: int, size_se: float,
+                  z_test: float) -> tuple[float, float]:
+    """
+    Return pilot `replicate`'s test power at the true size and averaged over the size's error.
+
+    Both from the expected t of the held-out gains (normal approximation), at
+    `runs - runs // 2` held-out runs; the average is `limits.size_averaged_t`'s (three-point
+    Gauss-Hermite over `size_se`), which the detection limits take for a path family.
+    """
+    import numpy as np
+    from scipy import stats
+
+    from octoroach_model.diagnosis.causes import BY_NAME
+    from octoroach_model.diagnosis.limits import expected_t, limit_base
+    from octoroach_model.diagnosis.live import fit_held, live_halves, Question
+    from octoroach_model.diagnosis.modelfit import Simulator
+    from octoroach_model.studies.design import draw_robot
+    from octoroach_model.studies.plan import default_spec
+    from octoroach_model.studies.plan_model import robot_model
+    from octoroach_model.studies.replicate import simulate_data
+
+    spec = default_spec(term, size)
+    draw = draw_robot(spec, replicate)
+    measured = simulate_data(spec, draw, PILOT_RUNS, {}).paths
+    settings = spec.diagnosis_settings(draw.data_seed)
+    held = fit_held(measured, Question(term, size), settings, robot_model(draw),
+                    with_power=False, fitted=False)
+    halves = live_halves(measured, held, settings.seed)
+    # the simulator of power.gain_sample's first repeat
+    simulator = Simulator(halves.test, int(np.random.SeedSequence([settings.seed, 53, 0])
+                                           .generate_state(1)[0]))
+    base = limit_base(simulator, held.model, halves.scales, settings.score_runs)
+    held_out = runs - runs // 2
+    at_truth = expected_t(simulator, held.model, base, BY_NAME[term], size, halves.scales,
+                          held_out, settings.score_runs)
+    averaged = expected_t(simulator, held.model, base, BY_NAME[term], size, halves.scales,
+                          held_out, settings.score_runs, z_test=z_test, size_se=size_se)
+    return (float(stats.norm.cdf(at_truth.t - z_test)),
+            float(stats.norm.cdf(averaged.t - z_test)))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('question', metavar='TERM=SIZE')
@@ -98,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     spec = default_spec(term, size)
     with executor_for(None, args.workers) as pool:
         pilots = [future.result()[0] for future in [
-            pool.submit(pilot_task, spec, Question(term, size), replicate, 500)
+            pool.submit(pilot_task, spec, Question(term, size), replicate, PILOT_RUNS)
             for replicate in range(PILOTS)]]
         runs = args.runs or int(PredictedCurve(pilots, z_bound, z_test).runs_for(
             0.8, 0.0, 40, 2000))
@@ -107,6 +151,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f'{term} at {size:g}, {runs} runs: the pilots predict the size bound clears its '
               f'floor with {bound:.2f}, the held-out test passes with {test:.2f}, named '
               f'{bound * test:.2f}')
+        powers = [future.result() for future in [
+            pool.submit(averaged_test, term, size, runs, replicate,
+                        model.estimate_at(runs // 2).se, z_test)
+            for replicate, model in enumerate(pilots)]]
+        print('the held-out test by the expected t (normal approximation): '
+              f'{sum(p for p, _ in powers) / len(powers):.2f} at the true size, '
+              f'{sum(p for _, p in powers) / len(powers):.2f} averaged over the error of the '
+              f"size fitted (the pilots' standard errors at {runs // 2} runs: "
+              + ', '.join(f'{model.estimate_at(runs // 2).se:.2f}' for model in pilots) + ')')
         print('| check | size fitted (se) | bound clears | test z (critical) | named |')
         print('| --- | --- | --- | --- | --- |')
         results = []
