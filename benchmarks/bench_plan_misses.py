@@ -23,6 +23,7 @@ run_order_drift:touchdown_angle_3=9 --runs 141, run_order_drift:touchdown_angle_
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 import math
 from pathlib import Path
@@ -49,6 +50,7 @@ class CheckResult:
 
     @property
     def test_passed(self) -> bool:
+        """Whether the held-out test's z passed its critical value."""
         return self.test_z > self.test_critical_z
 
 
@@ -116,15 +118,37 @@ def averaged_test(term: str, size: float, runs: int, replicate: int, size_se: fl
             float(stats.norm.cdf(averaged.t - z_test)))
 
 
+def whole_number(option: str, least: int, most: int) -> Callable[[str], int]:
+    """Return the parser of a whole-number option within [least, most], refusing in one line."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'{option} takes a whole number') from None
+        if not least <= value <= most:
+            raise argparse.ArgumentTypeError(f'{option} lies within {least}-{most}')
+        return value
+    return parse
+
+
+def asked(text: str) -> tuple[str, float]:
+    """Return (term, size) of a TERM=SIZE argument, or refuse it in one line (no counts)."""
+    from bench_plan_questions import question
+
+    term, size, counts = question(text)
+    if counts is not None:
+        raise argparse.ArgumentTypeError("give the checks' run count with --runs, not @N")
+    return term, size
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
-    parser.add_argument('question', metavar='TERM=SIZE')
-    parser.add_argument('--runs', type=int, default=None)
-    parser.add_argument('--checks', type=int, default=32)
+    parser.add_argument('question', metavar='TERM=SIZE', type=asked)
+    parser.add_argument('--runs', type=whole_number('--runs', 40, 100_000), default=None)
+    parser.add_argument('--checks', type=whole_number('--checks', 1, 1000), default=32)
     parser.add_argument('--workers', type=int, default=2)
     args = parser.parse_args(argv)
-    term, _, size_text = args.question.partition('=')
-    size = float(size_text)
+    term, size = args.question
 
     from scipy import stats
 
