@@ -24,6 +24,7 @@ CASE is TERM=SIZE, e.g. persistent_turning=3.
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 import json
 import math
 from pathlib import Path
@@ -158,14 +159,13 @@ def evidence(case: str, counts: list[int], replicates: int, workers: int) -> Non
     """Diagnose `replicates` new data sets at each count in full; print the named shares."""
     from octoroach_model.workers import executor_for
     from octoroach_model.studies.design import build_tasks
-    from octoroach_model.studies.plan import _base_spec, _with_runs
+    from octoroach_model.studies.plan import _with_runs, default_spec
     from octoroach_model.studies.replicate import run_task
     from octoroach_model.studies.summary import wilson
 
     term, size = case_of(case)
     first = 100                    # plans use replicates 0-5 (simulate) and 0-30 (model)
-    spec = _with_runs(_base_spec(term, size, None, None, first + replicates, 0, None, 40,
-                                 2000, 0.8), counts)
+    spec = _with_runs(replace(default_spec(term, size), replicates=first + replicates), counts)
     tasks = [task for task in build_tasks(spec) if task.replicate >= first]
     with executor_for(None, workers) as pool:
         rows = [future.result() for future in [pool.submit(run_task, task, spec)

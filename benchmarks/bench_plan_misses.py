@@ -4,7 +4,7 @@ Where plan's prediction of a term's power falls short: the size bound or the hel
 `bench_plan.py --calibrate` counts how often a term's first step names it where the pilots
 predict 80 % (power.CALIBRATION_COUNTS). The pilots' power is P1 x P2 (diagnosis/power.py):
 the size bound clears the floor, the held-out test passes. This takes the same pilots and
-the same kind of checks (plan_model.check_task's: the term at the size, the diagnosis's
+plan's own checks (plan_model.check_task: the term at the size, the diagnosis's
 levels) and prints for each check which of the two failed, then each criterion's share with
 its Wilson interval beside the pilots' P1 and P2, and the test's share split by whether the
 fitted size fell above or below the truth: the power model scores the held-out runs with the
@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-from dataclasses import dataclass, replace
 import math
 from pathlib import Path
 import sys
@@ -34,47 +33,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 FIRST_CHECK = 1000          # the check replicates --calibrate takes (plan's checks: 1000 on)
 PILOT_RUNS = 500            # the runs of a pilot data set, as --calibrate takes them
-
-
-@dataclass(frozen=True)
-class CheckResult:
-    """One check's first step: the size fitted and which criterion held."""
-
-    replicate: int
-    estimate: float
-    se: float
-    clears_floor: bool
-    test_z: float
-    test_critical_z: float
-    named: bool
-
-    @property
-    def test_passed(self) -> bool:
-        """Whether the held-out test's z passed its critical value."""
-        return self.test_z > self.test_critical_z
-
-
-def check(term: str, size: float, runs: int, replicate: int) -> CheckResult:
-    """Take the term's first step on data with it at `size`, as plan_model.check_task does."""
-    from octoroach_model.diagnosis.causes import CANDIDATES
-    from octoroach_model.diagnosis.live import decide, fit_held, Levels, Question
-    from octoroach_model.studies.design import build_tasks, draw_robot
-    from octoroach_model.studies.plan import default_spec
-    from octoroach_model.studies.plan_model import robot_model
-    from octoroach_model.studies.replicate import simulate_data, task_effects
-
-    spec = default_spec(term, size)
-    question = Question(term, size)
-    draw = draw_robot(spec, replicate)
-    task = replace(build_tasks(spec)[0], runs_cell=runs, replicate=replicate)
-    measured = simulate_data(spec, draw, runs, task_effects(task, spec, None,
-                                                            draw.duration_s)).paths
-    settings = spec.diagnosis_settings(draw.data_seed)
-    held = fit_held(measured, question, settings, robot_model(draw), with_power=False)
-    look = decide(measured, held, question, settings, Levels.fixed(settings, len(CANDIDATES)))
-    assert look.model is not None
-    return CheckResult(replicate, look.model.estimate.size, look.model.estimate.se,
-                       look.clears_floor, look.test_z, look.test_critical_z, look.named_here)
 
 
 def averaged_test(term: str, size: float, runs: int, replicate: int, size_se: float,
@@ -156,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
     from octoroach_model.diagnosis.decide import decision_z
     from octoroach_model.diagnosis.live import Question
     from octoroach_model.studies.plan import default_spec
-    from octoroach_model.studies.plan_model import PILOTS, pilot_task, PredictedCurve
+    from octoroach_model.studies.plan_model import (
+        check_task, PILOTS, pilot_task, PredictedCurve, Status)
     from octoroach_model.studies.summary import wilson
     from octoroach_model.workers import executor_for
 
@@ -187,9 +146,13 @@ def main(argv: list[str] | None = None) -> int:
         print('| check | size fitted (se) | bound clears | test z (critical) | named |')
         print('| --- | --- | --- | --- | --- |')
         results = []
-        for future in [pool.submit(check, term, size, runs, FIRST_CHECK + index)
+        for future in [pool.submit(check_task, spec, Question(term, size), runs,
+                                   FIRST_CHECK + index)
                        for index in range(args.checks)]:
             result = future.result()
+            if result.status != Status.OK:
+                print(f'| {result.replicate} | failed: {result.note} | | | |', flush=True)
+                continue
             results.append(result)
             print(f'| {result.replicate} | {result.estimate:+.2f} ({result.se:.2f}) | '
                   f'{"yes" if result.clears_floor else "no"} | {result.test_z:.2f} '

@@ -317,7 +317,8 @@ def test_plan_answers_with_a_power_curve_a_plot_and_json(tmp_path):
     assert model.method == 'model' and any('pilots done' in step for step in steps)
     written = json.loads((tmp_path / 'model' / 'plan.json').read_text())
     assert written['method'] == 'model' and written['fit']['curve']
-    assert (tmp_path / 'model' / 'checks.csv').read_text().startswith('runs,replicate,')
+    header = (tmp_path / 'model' / 'checks.csv').read_text().splitlines()[0].split(',')
+    assert header[:2] == ['runs', 'replicate'] and {'se', 'clears_floor', 'test_z'} <= set(header)
     assert (tmp_path / 'model' / 'power_curve.png').stat().st_size > 10_000
     with pytest.raises(ParameterError, match='--method simulate'):
         om.plan_runs('persistent_turning', 1.0, run_counts=[40, 80], workers=0)
@@ -330,6 +331,10 @@ def test_plan_answers_with_a_power_curve_a_plot_and_json(tmp_path):
         again[0].runs_needed_interval_95 == again[1].runs_needed_interval_95
     assert [(c.runs, c.named, c.estimate) for c in again[0].checks] == \
         [(c.runs, c.named, c.estimate) for c in again[1].checks]
+    # each check says why it was named or not: the size bound and the held-out test
+    for check in again[0].checks:
+        assert check.se > 0 and math.isfinite(check.test_z), check
+        assert not check.named or (check.clears_floor and check.test_passed), check
     with pytest.raises(ParameterError, match='goes with --method model'):
         om.plan_runs('persistent_turning', 1.0, run_counts=[40, 80], workers=0, checks=3,
                      method='simulate')

@@ -329,9 +329,9 @@ def decide(measured: Paths, held: Held, question: Question, settings: DiagnosisS
         needed = [model.runs_for(question.power, levels.bound.z, levels.test.z, value)
                   for value in (shift, high_shift, low_shift)]
     return Look(
-        n, n_cal, n_test, cause.name, cause.parameter, _stated(cause.name, estimate.size),
+        n, n_cal, n_test, cause.name, cause.parameter, stated_size(cause.name, estimate.size),
         confidence_sequence(estimate, n_cal, levels.bound.planned),
-        _stated(cause.name, floor), _bound_z(estimate, floor), z_bound,
+        stated_size(cause.name, floor), _bound_z(estimate, floor), z_bound,
         verdict.clears_floor, gain.mean, test_z, z_test, gain.p_value, significant,
         bool(verdict.clears_floor and significant), evaluation.screened, power_now,
         _finite(needed[0]), (_finite(needed[1]), _finite(needed[2])),
@@ -421,7 +421,7 @@ def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def _stated(term: str, size: float) -> float:
+def stated_size(term: str, size: float) -> float:
     """Return a size as the question states it (run_mixture: the yaw rate of its share)."""
     if BY_NAME[term].kind == EstimateKind.MIXTURE:
         return size / math.sqrt(MIXTURE_FRACTION * (1 - MIXTURE_FRACTION))
@@ -456,7 +456,7 @@ def confidence_sequence(estimate: SizeEstimate, calibration_runs: int,
             return math.sqrt(value) if value > 0 else 0.0
         return root(u - z * se_u), root(u + z * se_u)
     low, high = estimate.size - z * estimate.se, estimate.size + z * estimate.se
-    return _stated(cause.name, low), _stated(cause.name, high)
+    return stated_size(cause.name, low), stated_size(cause.name, high)
 
 
 class LiveDecision:

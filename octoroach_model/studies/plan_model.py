@@ -46,7 +46,7 @@ from scipy import stats
 from octoroach_model.diagnosis.causes import CANDIDATES
 from octoroach_model.diagnosis.decide import decision_z
 from octoroach_model.diagnosis.live import (
-    decide, fit_held, Levels, pilot_model, Question)
+    decide, fit_held, Levels, pilot_model, Question, stated_size)
 from octoroach_model.diagnosis.modelfit import FittedModel
 from octoroach_model.diagnosis.power import Calibration, fixed, PowerModel, shifted
 from octoroach_model.settings import Progress
@@ -72,10 +72,19 @@ class CheckOutcome:
     named: bool
     predicted: float             # the pilots' (uncalibrated) power at these runs
     estimate: float
+    se: float                    # the estimate's standard error, in its units
+    clears_floor: bool           # the size bound cleared the floor (P1 of diagnosis/power.py)
+    test_z: float                # the held-out gain in standard errors (P2's test) ...
+    test_critical_z: float       # ... and the value it had to pass
     gain: float
     p_value: float
     elapsed_s: float
     note: str = ''
+
+    @property
+    def test_passed(self) -> bool:
+        """Whether the held-out test's z passed its critical value (named needs both)."""
+        return self.test_z > self.test_critical_z
 
 
 @dataclass(frozen=True)
@@ -144,11 +153,14 @@ def check_task(spec: StudySpec, question: Question, runs: int, replicate: int
                       Levels.fixed(settings, len(CANDIDATES)))
     except Exception as error:  # noqa: BLE001 - a check that fails is a result, not a crash
         return CheckOutcome(runs, replicate, draw.data_seed, Status.ERROR, False, math.nan,
-                            math.nan, math.nan, math.nan,
+                            math.nan, math.nan, False, math.nan, math.nan, math.nan, math.nan,
                             round(time.perf_counter() - started, 3),
                             f'{type(error).__name__}: {error}')
+    se = (stated_size(look.term, look.model.estimate.se) if look.model is not None
+          else math.nan)
     return CheckOutcome(runs, replicate, draw.data_seed, Status.OK, look.named_here, math.nan,
-                        look.estimate, look.gain, look.p_value,
+                        look.estimate, se, look.clears_floor, look.test_z,
+                        look.test_critical_z, look.gain, look.p_value,
                         round(time.perf_counter() - started, 3))
 
 
